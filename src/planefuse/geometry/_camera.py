@@ -1,0 +1,258 @@
+"""Pinhole camera with OpenCV lens distortion (k1, k2, p1, p2, k3).
+
+Frames: the camera frame {C} has x right, y down, z forward (optical axis),
+metres; pixels have u right, v down, with the centre of the top-left pixel at
+(0, 0). ``T_world_cam`` maps camera coordinates into the world {W}.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ._checks import check_finite, check_intrinsics_matrix, check_points, check_transform
+from ._transforms import invert_transform
+
+__all__ = ["CameraIntrinsics", "PinholeCamera", "distort_normalized"]
+
+
+def distort_normalized(xy, dist) -> np.ndarray:
+    """Apply the OpenCV radial-tangential model to normalised coordinates.
+
+    Parameters
+    ----------
+    xy : ndarray, shape (..., N, 2)
+        Undistorted normalised image coordinates (x/z, y/z), unitless.
+    dist : ndarray, shape (5,)
+        ``(k1, k2, p1, p2, k3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., N, 2)
+        Distorted normalised coordinates.
+    """
+    k1, k2, p1, p2, k3 = dist
+    x = xy[..., 0]
+    y = xy[..., 1]
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    yd = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    return np.stack([xd, yd], axis=-1)
+
+
+def _fold_radius(dist: np.ndarray) -> float:
+    """Smallest normalised radius r > 0 where d/dr [r (1 + k1 r^2 + k2 r^4 + k3 r^6)] <= 0, or inf."""
+    k1, k2, _, _, k3 = dist
+    r = np.linspace(0.0, 10.0, 20001)
+    r2 = r * r
+    slope = 1.0 + 3.0 * k1 * r2 + 5.0 * k2 * r2 * r2 + 7.0 * k3 * r2 * r2 * r2
+    bad = np.nonzero(slope <= 0)[0]
+    return float(r[bad[0]]) if bad.size else float(np.inf)
+
+
+@dataclass(frozen=True)
+class CameraIntrinsics:
+    """Intrinsic parameters of a pinhole camera.
+
+    Attributes
+    ----------
+    K : ndarray, shape (3, 3)
+        Camera matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]] in pixels.
+    dist : ndarray, shape (5,)
+        OpenCV distortion ``(k1, k2, p1, p2, k3)``; zeros for an ideal pinhole.
+    width_px, height_px : int
+        Image size in pixels.
+    """
+
+    K: np.ndarray
+    width_px: int
+    height_px: int
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
+
+    def __post_init__(self) -> None:
+        K = check_intrinsics_matrix(self.K, "K")
+        d = np.asarray(self.dist, dtype=float).ravel()
+        if d.size not in (4, 5):
+            raise ValueError(f"dist must have 4 or 5 coefficients (k1 k2 p1 p2 [k3]), got {d.size}")
+        if d.size == 4:
+            d = np.append(d, 0.0)
+        check_finite(d, "dist")
+        if int(self.width_px) <= 0 or int(self.height_px) <= 0:
+            raise ValueError(f"image size must be positive, got {self.width_px}x{self.height_px}")
+        K.setflags(write=False)
+        d.setflags(write=False)
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "dist", d)
+        object.__setattr__(self, "width_px", int(self.width_px))
+        object.__setattr__(self, "height_px", int(self.height_px))
+        object.__setattr__(self, "max_radius", _fold_radius(d))
+
+    #: Largest undistorted normalised radius where the radial distortion is still
+    #: monotonic (set in ``__post_init__``); points beyond it fold back into the
+    #: image and are reported as NaN by :meth:`pixels_from_normalized`.
+    max_radius: float = field(init=False, default=np.inf)
+
+    @property
+    def has_distortion(self) -> bool:
+        """True if any distortion coefficient is non-zero."""
+        return bool(np.any(self.dist != 0))
+
+    def pixels_from_normalized(self, xy) -> np.ndarray:
+        """Distort normalised coordinates (..., N, 2) and map them to pixels (..., N, 2)."""
+        xy = np.asarray(xy, dtype=float)
+        fold = None
+        if self.has_distortion:
+            if np.isfinite(self.max_radius):
+                with np.errstate(invalid="ignore"):
+                    fold = np.hypot(xy[..., 0], xy[..., 1]) > self.max_radius
+            xy = distort_normalized(xy, self.dist)
+        K = self.K
+        u = K[0, 0] * xy[..., 0] + K[0, 1] * xy[..., 1] + K[0, 2]
+        v = K[1, 1] * xy[..., 1] + K[1, 2]
+        uv = np.stack([u, v], axis=-1)
+        if fold is not None:
+            uv[fold] = np.nan
+        return uv
+
+    def normalized_from_pixels(self, uv) -> np.ndarray:
+        """Undistorted normalised coordinates (..., N, 2) of pixels (..., N, 2).
+
+        Uses OpenCV's ``undistortPoints`` with termination criteria (iterative inversion of the distortion model,
+        to 1e-12 or 100 iterations).
+        """
+        uv = check_points(uv, 2, "uv")
+        flat = uv.reshape(-1, 1, 2)
+        if flat.shape[0] == 0:
+            return uv.copy()
+        if self.has_distortion:
+            crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+            if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
+                xy = cv2.undistortPointsIter(flat, self.K, self.dist, None, None, crit)
+            else:  # OpenCV 5 folded the criteria into undistortPoints
+                xy = cv2.undistortPoints(flat, self.K, self.dist, R=None, P=None, criteria=crit)
+        else:
+            xy = cv2.undistortPoints(flat, self.K, None)
+        return xy.reshape(uv.shape)
+
+    def undistort_pixels(self, uv) -> np.ndarray:
+        """Pixels (..., N, 2) of the distorted image -> pixels of the ideal pinhole image with the same K."""
+        xy = self.normalized_from_pixels(uv)
+        h = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
+        out = h @ self.K.T
+        return out[..., :2]
+
+    def contains(self, uv) -> np.ndarray:
+        """Boolean mask (..., N): pixel inside [-0.5, W-0.5) x [-0.5, H-0.5) (NaN -> False)."""
+        uv = np.asarray(uv, dtype=float)
+        with np.errstate(invalid="ignore"):
+            return (
+                (uv[..., 0] >= -0.5)
+                & (uv[..., 0] < self.width_px - 0.5)
+                & (uv[..., 1] >= -0.5)
+                & (uv[..., 1] < self.height_px - 0.5)
+            )
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """A calibrated camera placed in the world.
+
+    Attributes
+    ----------
+    intrinsics : CameraIntrinsics
+    T_world_cam : ndarray, shape (4, 4)
+        Maps camera-frame coordinates [m] into the world frame {W}.
+    name : str
+        Identifier used in logs and errors.
+    """
+
+    intrinsics: CameraIntrinsics
+    T_world_cam: np.ndarray
+    name: str = "camera"
+
+    def __post_init__(self) -> None:
+        T = check_transform(self.T_world_cam, f"{self.name}.T_world_cam").copy()
+        T.setflags(write=False)
+        object.__setattr__(self, "T_world_cam", T)
+
+    # -- derived quantities -------------------------------------------------
+    @property
+    def K(self) -> np.ndarray:
+        """Camera matrix (3, 3) in pixels."""
+        return self.intrinsics.K
+
+    @property
+    def T_cam_world(self) -> np.ndarray:
+        """Maps world coordinates into the camera frame (4, 4)."""
+        return invert_transform(self.T_world_cam)
+
+    @property
+    def R_world_cam(self) -> np.ndarray:
+        """Rotation (3, 3) of the camera axes expressed in the world."""
+        return self.T_world_cam[:3, :3].copy()
+
+    @property
+    def center_world(self) -> np.ndarray:
+        """Optical centre in the world frame (3,) [m]."""
+        return self.T_world_cam[:3, 3].copy()
+
+    @property
+    def P_image_world(self) -> np.ndarray:
+        """Projection matrix (3, 4) ``K [R_cam_world | t_cam_world]`` for *undistorted* pixels."""
+        return self.K @ self.T_cam_world[:3, :]
+
+    # -- projection -----------------------------------------------------------
+    def project(self, p_world) -> np.ndarray:
+        """Project world points to (distorted) pixels.
+
+        Parameters
+        ----------
+        p_world : array_like, shape (..., N, 3)
+            Points in {W} [m].
+
+        Returns
+        -------
+        ndarray, shape (..., N, 2)
+            Pixel coordinates (u, v). Points at or behind the camera's principal
+            plane (z_cam <= 0) are NaN: they have no image. So are points beyond
+            the radius where the lens distortion model folds back
+            (:attr:`CameraIntrinsics.max_radius`).
+        """
+        p = check_points(p_world, 3, "p_world")
+        T = self.T_cam_world
+        pc = p @ T[:3, :3].T + T[:3, 3]
+        z = pc[..., 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xy = pc[..., :2] / z[..., None]
+        uv = self.intrinsics.pixels_from_normalized(xy)
+        uv[z <= 0] = np.nan
+        return uv
+
+    def rays(self, uv) -> np.ndarray:
+        """Unit viewing directions in the world (..., N, 3) for pixels (..., N, 2).
+
+        The rays start at :attr:`center_world`; lens distortion is removed first.
+        """
+        xy = self.intrinsics.normalized_from_pixels(uv)
+        d_cam = np.concatenate([xy, np.ones(xy.shape[:-1] + (1,))], axis=-1)
+        d_cam /= np.linalg.norm(d_cam, axis=-1, keepdims=True)
+        return d_cam @ self.R_world_cam.T
+
+    def backproject_to_height(self, uv, height_m: float) -> np.ndarray:
+        """Intersect pixel rays with the horizontal plane z = ``height_m``.
+
+        Returns
+        -------
+        ndarray, shape (..., N, 3)
+            World points [m]. Rays that do not reach the plane in front of the
+            camera (parallel, or pointing away from it) are NaN.
+        """
+        d = self.rays(uv)
+        c = self.center_world
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (height_m - c[2]) / d[..., 2]
+        s = np.where(np.isfinite(s) & (s > 0), s, np.nan)
+        return c + s[..., None] * d

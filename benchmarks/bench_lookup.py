@@ -8,7 +8,8 @@ Per frame, every camera's foreground image (float32) is registered on every plan
   and plane, nearest-neighbour (same sampling as the lookup) and bilinear, with the plane -> image
   homographies precomputed too. (It ignores lens distortion, which the lookup includes for free.)
 * ``remap``: ``cv2.remap`` per camera and plane with precomputed float32 maps of the distorted projections of
-  the cell centres (OpenCV's own precomputed-lookup equivalent, distortion included), nearest-neighbour.
+  the cell centres (OpenCV's own precomputed-lookup equivalent, distortion included), nearest-neighbour;
+* ``np.take`` on the same lookup (how ``gather`` worked before its numba kernel).
 
 Run: ``PYTHONPATH=src python benchmarks/bench_lookup.py``
 """
@@ -71,6 +72,11 @@ def main() -> None:
                 cv2.remap(img, mx, my, cv2.INTER_NEAREST, dst=warp_out[l], borderMode=cv2.BORDER_CONSTANT,
                           borderValue=float("nan"))
 
+    def take() -> None:  # the gather before the numba kernel: np.take on the image padded with the fill value
+        for lut, img, out in zip(luts, images, outs):
+            padded = np.append(img.ravel(), np.float32(np.nan))
+            np.take(padded, lut.pixel_index, out=out)
+
     def lookup() -> None:
         for lut, img, out in zip(luts, images, outs):
             lut.gather(img, out=out)
@@ -87,6 +93,7 @@ def main() -> None:
         "cv2.warpPerspective nearest": lambda: warp(cv2.INTER_NEAREST),
         "cv2.warpPerspective bilinear": lambda: warp(cv2.INTER_LINEAR),
         "cv2.remap nearest (precomputed)": remap,
+        "np.take on the same lookup": take,
     })
     t_lookup = t["lookup (ImagePlaneLookup.gather)"]
     print(f"4 cameras {cams[0].intrinsics.width_px}x{cams[0].intrinsics.height_px}, {stack.n_planes} planes of "

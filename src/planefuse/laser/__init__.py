@@ -1,5 +1,6 @@
 """Laser range finders: scanner models, simulation, registration onto the plane stack, readers."""
 
+from ._mapping import LaserMap, map_entropy_bits, map_from_carmen_log, map_from_scans, wall_spread_m
 from ._occupancy import (
     CELL_FREE,
     CELL_OCCUPIED,
@@ -13,6 +14,18 @@ from ._occupancy import (
     xy_ref_from_points_laser,
 )
 from ._raycast import HIT_CYLINDER, HIT_FLOOR, HIT_NONE, HIT_SPHERE, HIT_WALL, raycast
+from ._readers import (
+    SUPPORTED_TYPES,
+    CarmenLog,
+    NonMonotonicTimeWarning,
+    PointCloudFrame,
+    T_world_laser_from_pose_2d,
+    points_from_pointcloud2,
+    read_carmen_log,
+    read_rosbag,
+    read_rosbag_topics,
+    read_xyz,
+)
 from ._scanner import (
     LaserScan,
     LaserScannerSpec,
@@ -25,6 +38,21 @@ from ._scanner import (
 from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 
 __all__ = [
+    "LaserMap",
+    "map_entropy_bits",
+    "map_from_carmen_log",
+    "map_from_scans",
+    "wall_spread_m",
+    "SUPPORTED_TYPES",
+    "CarmenLog",
+    "NonMonotonicTimeWarning",
+    "PointCloudFrame",
+    "T_world_laser_from_pose_2d",
+    "points_from_pointcloud2",
+    "read_carmen_log",
+    "read_rosbag",
+    "read_rosbag_topics",
+    "read_xyz",
     "CELL_FREE",
     "CELL_OCCUPIED",
     "CELL_UNKNOWN",

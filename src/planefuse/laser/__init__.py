@@ -1,5 +1,14 @@
 """Laser range finders: scanner models, simulation, registration onto the plane stack, readers."""
 
+from ._legs import (
+    LegClusters,
+    LegDetectorParams,
+    detect_legs,
+    detect_people,
+    match_detections,
+    people_from_legs,
+    segment_scan,
+)
 from ._mapping import LaserMap, map_entropy_bits, map_from_carmen_log, map_from_scans, wall_spread_m
 from ._occupancy import (
     CELL_FREE,
@@ -24,6 +33,7 @@ from ._readers import (
     read_carmen_log,
     read_rosbag,
     read_rosbag_topics,
+    read_transform_yaml,
     read_xyz,
 )
 from ._scanner import (
@@ -38,6 +48,13 @@ from ._scanner import (
 from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 
 __all__ = [
+    "LegClusters",
+    "LegDetectorParams",
+    "detect_legs",
+    "detect_people",
+    "match_detections",
+    "people_from_legs",
+    "segment_scan",
     "LaserMap",
     "map_entropy_bits",
     "map_from_carmen_log",
@@ -53,6 +70,7 @@ __all__ = [
     "read_rosbag",
     "read_rosbag_topics",
     "read_xyz",
+    "read_transform_yaml",
     "CELL_FREE",
     "CELL_OCCUPIED",
     "CELL_UNKNOWN",

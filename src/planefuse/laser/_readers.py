@@ -21,6 +21,7 @@ __all__ = [
     "read_rosbag_topics",
     "points_from_pointcloud2",
     "read_xyz",
+    "read_transform_yaml",
     "NonMonotonicTimeWarning",
     "SUPPORTED_TYPES",
 ]
@@ -347,3 +348,26 @@ def read_xyz(path) -> np.ndarray:
     if p.shape[0] == 0 or p.shape[1] != 3:
         raise ValueError(f"XYZ cloud {path} must have 3 columns and >= 1 row, got shape {p.shape}")
     return p
+
+
+def read_transform_yaml(path) -> np.ndarray:
+    """``T_a_b`` (4, 4) from a YAML file with ``R`` (3x3 rows) and ``t`` (3,) [m]: ``p_a = R p_b + t``.
+
+    (The layout of ``T_camera_laser_stage*.yaml`` of ``lrf3d_camera_lcct``.)
+
+    Raises
+    ------
+    ValueError
+        Missing keys, wrong shapes, or ``R`` not a rotation.
+    """
+    import yaml
+
+    try:
+        with open(path) as f:
+            d = yaml.safe_load(f)
+        R, t = np.asarray(d["R"], dtype=float), np.asarray(d["t"], dtype=float)
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
+        raise ValueError(f"cannot read R and t from {path}: {type(err).__name__}: {err}") from err
+    if R.shape != (3, 3) or t.shape != (3,):
+        raise ValueError(f"{path}: R must be 3x3 and t 3 numbers, got {R.shape} and {t.shape}")
+    return transform_from_rotation_translation(R, t)

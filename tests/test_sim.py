@@ -96,9 +96,14 @@ def _points_inside_volumes(cyl, sph, n, rng):
     return np.concatenate(pts), np.concatenate(ids)
 
 
+@pytest.fixture(scope="module")
+def rec8():
+    return simulate(default_scene_config(duration_s=8.0, seed=1))
+
+
 @pytest.mark.parametrize("time_s", [1.0, 7.32])
-def test_masks_agree_with_projected_volumes(time_s, rng):
-    rec = simulate(default_scene_config(duration_s=8.0, seed=1))
+def test_masks_agree_with_projected_volumes(time_s, rng, rec8):
+    rec = rec8
     scene = rec.scene
     cyl, _, sph, _ = scene.bodies_at(time_s)
     pts, ids = _points_inside_volumes(cyl, sph, 20000, rng)

@@ -217,7 +217,7 @@ class CameraRenderer:
         self.spec = render
         self.seed = seed
         self.camera_index = camera_index
-        self.background = render_background(camera, scene.room_xy_m, scene.wall_height_m, seed + 101 * camera_index)
+        self._background: np.ndarray | None = None
         W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
         if noise_bank is None:
             noise_bank = make_noise_bank(W, H, render.pixel_noise_std, seed)
@@ -226,6 +226,15 @@ class CameraRenderer:
         self.noise_bank = noise_bank
         self._shades = [self._shade_table(b) for b in scene.bodies]
         self._phase = np.random.default_rng([seed, 3, camera_index]).uniform(0, 2 * np.pi)
+
+    @property
+    def background(self) -> np.ndarray:
+        """The empty room (H, W, 3) uint8 BGR, ray cast on first use."""
+        if self._background is None:
+            sc = self.scene
+            self._background = render_background(self.camera, sc.room_xy_m, sc.wall_height_m,
+                                                 self.seed + 101 * self.camera_index)
+        return self._background
 
     def gain(self, time_s: float, rng: np.random.Generator) -> float:
         """Global illumination gain at ``time_s``: slow drift plus per-frame flicker."""

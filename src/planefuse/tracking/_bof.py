@@ -166,16 +166,20 @@ class BOFState:
 
     @property
     def occupancy(self) -> np.ndarray:
-        """``P(O = occ)`` per cell, shape (L, ny, nx), float32."""
-        return self.occ_v.sum(axis=1)
+        """``P(O = occ) = sum_k P(occ, v_k)`` per cell, shape (L, ny, nx), float32."""
+        return self.moments()[0]
 
     @property
     def velocity_mps(self) -> np.ndarray:
-        """Posterior mean velocity of the occupied mass ``E[V | occ]`` [m/s], shape (L, ny, nx, 2)."""
-        occ = self.occupancy
-        w = np.where(occ > 0, 1.0 / np.maximum(occ, 1e-30), 0.0)
-        v = np.einsum("lkyx,kd->lyxd", self.occ_v, self.velocities_mps.astype(np.float32))
-        return v * w[..., None]
+        """Posterior mean velocity of the occupied mass ``E[V | occ]`` [m/s], shape (L, ny, nx, 2), float32."""
+        return self.moments()[1]
+
+    def moments(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(P(occ), E[V | occ])``: shapes (L, ny, nx) and (L, ny, nx, 2) [m/s], float32, in one pass."""
+        occ = np.empty(self.free.shape, np.float32)
+        vel = np.empty(self.free.shape + (2,), np.float32)
+        _moments_kernel(self.occ_v, self.velocities_mps.astype(np.float32), occ, vel)
+        return occ, vel
 
     def copy(self) -> "BOFState":
         return BOFState(self.occ_v.copy(), self.free.copy(), self.velocities_mps.copy(), self.cell_size_m,
@@ -295,6 +299,28 @@ def _update_kernel(occ_v, free, log_odds):  # pragma: no cover - numba
             for iy in range(ny):
                 for ix in range(nx):
                     occ_v[l, k, iy, ix] *= s_occ[iy, ix]
+
+
+@numba.njit(cache=True, parallel=True, fastmath=True)
+def _moments_kernel(occ_v, velocities, occ, vel):  # pragma: no cover - numba
+    L, K, ny, nx = occ_v.shape
+    for l in numba.prange(L):
+        occ[l] = 0.0
+        vel[l] = 0.0
+        for k in range(K):
+            vx = velocities[k, 0]
+            vy = velocities[k, 1]
+            for iy in range(ny):
+                for ix in range(nx):
+                    m = occ_v[l, k, iy, ix]
+                    occ[l, iy, ix] += m
+                    vel[l, iy, ix, 0] += m * vx
+                    vel[l, iy, ix, 1] += m * vy
+        for iy in range(ny):
+            for ix in range(nx):
+                if occ[l, iy, ix] > 0:
+                    vel[l, iy, ix, 0] /= occ[l, iy, ix]
+                    vel[l, iy, ix, 1] /= occ[l, iy, ix]
 
 
 # --------------------------------------------------------------------------------------------------------------

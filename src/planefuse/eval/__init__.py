@@ -1,0 +1,5 @@
+"""Evaluation against ground truth."""
+
+from ._tracking import tracking_metrics
+
+__all__ = ["tracking_metrics"]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._bof import BOFParams, BOFState, _motion_offsets, _velocity_mixing, transition_probabilities
+from ._bof import MAX_UPDATE_LOG_ODDS, BOFParams, BOFState, _motion_offsets, _velocity_mixing, transition_probabilities
 
 __all__ = ["bof_predict_numpy", "bof_update_numpy"]
 
@@ -53,7 +53,7 @@ def bof_predict_numpy(state: BOFState, dt_s: float, params: BOFParams) -> BOFSta
 
 def bof_update_numpy(state: BOFState, evidence_log_odds) -> BOFState:
     """Numpy twin of :func:`~planefuse.tracking.bof_update` (in place)."""
-    lo = np.asarray(evidence_log_odds, dtype=np.float64)
+    lo = np.clip(np.asarray(evidence_log_odds, dtype=np.float64), -MAX_UPDATE_LOG_ODDS, MAX_UPDATE_LOG_ODDS)
     so = state.occ_v.sum(axis=1, dtype=np.float64)
     f = state.free.astype(np.float64)
     # divide numerator and denominator by max(1, e^lam) to avoid overflow

@@ -21,6 +21,14 @@ import numpy as np
 __all__ = ["atomic_open", "atomic_write_bytes", "atomic_write_text", "atomic_write_json", "TMP_MARK",
            "remove_stale_temporaries"]
 
+def _file_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+_FILE_MODE = _file_mode()  # mkstemp creates 0600 files; give the final file the usual permissions
+
 #: Temporary files carry this in their name; :func:`remove_stale_temporaries` deletes leftovers of killed runs.
 TMP_MARK = ".pf-tmp-"
 
@@ -38,6 +46,7 @@ def atomic_open(path: Path | str, mode: str = "w", encoding: str | None = "utf-8
         raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TMP_MARK}", dir=path.parent)
     try:
+        os.fchmod(fd, _FILE_MODE)
         with os.fdopen(fd, mode, encoding=None if "b" in mode else encoding,
                        newline=None if "b" in mode else "") as f:
             yield f

@@ -48,4 +48,4 @@ def config_show(path: Path = typer.Argument(..., help="Configuration file.")) ->
         cfg = load_config(path)
     except ConfigError as err:
         exit_on_config_error(err)
-    console.print(yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False), highlight=False, markup=False)
+    typer.echo(yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False), nl=False)

@@ -94,20 +94,19 @@ def _expected(info: FieldInfo | None) -> str:
 
 
 def _line_of(root: yaml.Node | None, loc: tuple) -> int | None:
-    """1-based line of the YAML node at ``loc`` (or of its deepest existing parent)."""
+    """1-based line of the YAML key (or list item) at ``loc``, or of its deepest existing parent."""
     node, line = root, (root.start_mark.line + 1 if root is not None else None)
     for part in loc:
-        nxt = None
         if isinstance(node, yaml.MappingNode) and isinstance(part, str):
-            nxt = next((v for k, v in node.value if getattr(k, "value", None) == part), None)
-            if nxt is None:  # point at the key itself for unknown-field errors
-                key = next((k for k, _ in node.value if getattr(k, "value", None) == part), None)
-                return key.start_mark.line + 1 if key is not None else line
+            pair = next(((k, v) for k, v in node.value if getattr(k, "value", None) == part), None)
+            if pair is None:
+                return line
+            node, line = pair[1], pair[0].start_mark.line + 1
         elif isinstance(node, yaml.SequenceNode) and isinstance(part, int) and part < len(node.value):
-            nxt = node.value[part]
-        if nxt is None:
+            node = node.value[part]
+            line = node.start_mark.line + 1
+        else:
             return line
-        node, line = nxt, nxt.start_mark.line + 1
     return line
 
 

@@ -144,6 +144,11 @@ class OutputWriter:
         write_zarr: bool = True,
         config_text: str = "",
         person_radius_m: float = 0.3,
+        figures: bool = True,
+        animation: str = "gif",
+        report: bool = True,
+        figure_dpi: int = 100,
+        rerun: bool = False,
     ):
         if int(chunk_steps) < 1:
             raise ValueError(f"chunk_steps must be >= 1, got {chunk_steps}")
@@ -154,6 +159,10 @@ class OutputWriter:
         self.write_zarr = bool(write_zarr)
         self.config_text = config_text
         self.person_radius_m = float(person_radius_m)
+        if animation not in ("gif", "mp4", "none"):
+            raise ValueError(f"animation must be 'gif', 'mp4' or 'none', got {animation!r}")
+        self.figures, self.animation, self.report, self.figure_dpi = bool(figures), animation, bool(report), \
+            int(figure_dpi)
         self.metrics: dict[str, Any] = {}
         self.out_dir.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(self.out_dir)
@@ -183,6 +192,11 @@ class OutputWriter:
         self._buffer: dict[int, tuple[float, np.ndarray]] = {}
         self._steps_written = self.resume_step
         self._write_state("running")
+        self.rerun = None
+        if rerun:
+            from ..viz import RerunLogger
+
+            self.rerun = RerunLogger(self.out_dir / "planefuse.rrd", stack)
 
     # -- construction from a configuration -------------------------------------------------------------------------
     @classmethod
@@ -194,7 +208,9 @@ class OutputWriter:
         return cls(
             cfg.outputs.out_dir, cfg.planes.to_stack(), config_hash=config_hash(cfg),
             chunk_steps=cfg.outputs.chunk_steps, write_zarr=cfg.outputs.zarr, config_text=text,
-            person_radius_m=cfg.models.detection.person_radius_m,
+            person_radius_m=cfg.models.detection.person_radius_m, figures=cfg.outputs.figures,
+            animation=cfg.outputs.animation, report=cfg.outputs.report, figure_dpi=cfg.outputs.figure_dpi,
+            rerun=cfg.outputs.rerun,
         )
 
     # -- state ---------------------------------------------------------------------------------------------------
@@ -278,6 +294,9 @@ class OutputWriter:
         if not np.isfinite(time_s):
             raise ValueError(f"time_s must be finite, got {time_s}")
         self._buffer[int(step)] = (float(time_s), occ)
+        if self.rerun is not None:
+            self.rerun.set_time(step, time_s)
+            self.rerun.log_occupancy(occ)
         if len(self._buffer) == self.chunk_steps:
             self._flush_buffer()
             self._commit(checkpoint)
@@ -286,6 +305,9 @@ class OutputWriter:
 
     def write_detections(self, step: int, detections: GroundDetections) -> None:
         """Record the people detected at ``step`` (positions on the ground plane [m])."""
+        if self.rerun is not None:
+            self.rerun.set_time(step, detections.time_s)
+            self.rerun.log_detections(detections.xy_m)
         for (x, y), h, c in zip(detections.xy_m, detections.height_m, detections.confidence):
             self._dets.rows.append((int(step), float(detections.time_s), float(x), float(y), float(h), float(c),
                                     detections.source))
@@ -306,6 +328,9 @@ class OutputWriter:
         v = np.full_like(xy, np.nan) if velocity_m_s is None else np.asarray(velocity_m_s, float).reshape(-1, 2)
         if not (len(ids) == len(xy) == len(v)):
             raise ValueError(f"track_ids {ids.shape}, xy_m {xy.shape}, velocity_m_s {v.shape} disagree on N")
+        if self.rerun is not None:
+            self.rerun.set_time(step, time_s)
+            self.rerun.log_tracks(ids, xy)
         for i, p, vv in zip(ids, xy, v):
             self._tracks.rows.append((int(step), float(time_s), int(i), *map(float, p), *map(float, vv)))
 
@@ -387,24 +412,22 @@ class OutputWriter:
         return _columns(self._tracks.columns, self._tracks.rows)
 
     # -- ending ----------------------------------------------------------------------------------------------------
-    def finish(self, figure_inputs=None, *, figures: bool = True, animation: str = "gif", report: bool = True,
-               dpi: int = 100, progress=None) -> dict[str, Path]:
-        """Flush the last chunk, then build figures, animation and ``report.html``.
+    def finish(self, figure_inputs=None, *, progress=None) -> dict[str, Path]:
+        """Flush the last steps, close the rerun recording, then build figures, animation and ``report.html``.
+
+        What is built follows the constructor's ``figures``, ``animation``, ``report`` and ``figure_dpi``.
 
         Parameters
         ----------
         figure_inputs : planefuse.viz.FigureInputs, optional
             Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
-        figures, report : bool
-        animation : {"gif", "mp4", "none"}
-        dpi : int
         progress : ProgressReporter, optional
             Reports the figure step.
 
         Returns
         -------
         dict of str -> Path
-            What was written (``"report"``, ``"animation"``, figure names).
+            What was written: ``"report"``, ``"animation"``, ``"rerun"`` and one entry per figure.
         """
         from ..report import write_report
         from ..viz import FigureInputs, animate_stack, run_figures
@@ -414,22 +437,25 @@ class OutputWriter:
         # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
         self.n_chunks_done = self._steps_written // self.chunk_steps
         self._write_state("finished")
-        inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         written: dict[str, Path] = {}
+        if self.rerun is not None:
+            written["rerun"] = self.rerun.close()
+            self.rerun = None
+        inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         figs: dict[str, bytes] = {}
-        if figures or report:
+        if self.figures or self.report:
             figs = run_figures(self.stack, self.occupancy(), self.times_s(), self.detections_table(),
-                               self.tracks_table(), self.metrics, inputs, dpi=dpi, progress=progress)
-        if figures:
+                               self.tracks_table(), self.metrics, inputs, dpi=self.figure_dpi, progress=progress)
+        if self.figures:
             for name, png in figs.items():
                 p = self.out_dir / "figures" / f"{name}.png"
                 atomic_write_bytes(p, png)
                 written[name] = p
-        if animation != "none" and self._steps_written:
-            p = self.out_dir / f"animation.{animation}"
-            animate_stack(p, self.stack, self.occupancy(), self.times_s(), self.tracks_table(), dpi=dpi)
+        if self.animation != "none" and self._steps_written:
+            p = self.out_dir / f"animation.{self.animation}"
+            animate_stack(p, self.stack, self.occupancy(), self.tracks_table())
             written["animation"] = p
-        if report:
+        if self.report:
             p = self.out_dir / "report.html"
             write_report(p, figs, self.metrics, self.config_text, run_summary=self.summary())
             written["report"] = p
@@ -456,6 +482,10 @@ class OutputWriter:
         if exc_type is not None:
             with contextlib.suppress(Exception):
                 self.flush("interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed")
+        if self.rerun is not None:
+            with contextlib.suppress(Exception):
+                self.rerun.close()
+            self.rerun = None
 
 
 def _columns(columns: tuple[str, ...], rows: list) -> dict[str, np.ndarray]:

@@ -84,30 +84,24 @@ def animate_stack(
     path: Path | str,
     stack: PlaneStack,
     occupancy,
-    times_s=None,
     tracks: Mapping[str, np.ndarray] | None = None,
     *,
     fps: float = 10.0,
     max_frames: int = 300,
     max_width_px: int = 1200,
-    dpi: int | None = None,
 ) -> Path:
     """Write an animation of the plane stack over time to ``path`` (``.gif`` or ``.mp4``).
 
     Parameters
     ----------
     occupancy : ndarray, shape (T, L, ny, nx)
-    times_s : ndarray, shape (T,), optional
-        Unused for timing (frames are evenly spaced at ``fps``); kept for callers passing it.
     tracks : dict of column arrays, optional
     fps : float
         Frames per second of the animation.
     max_frames : int
         Longer runs are subsampled evenly (the count dropped is warned about).
     max_width_px : int
-        Cells are drawn with as many pixels as fit this width (at least 1).
-    dpi : int, optional
-        Ignored (frames are rendered at the grid's resolution).
+        Cells are drawn with as many pixels as fit this width (at least 1, at most 8).
 
     Returns
     -------

@@ -429,9 +429,6 @@ class OutputWriter:
         dict of str -> Path
             What was written: ``"report"``, ``"animation"``, ``"rerun"`` and one entry per figure.
         """
-        from ..report import write_report
-        from ..viz import FigureInputs, animate_stack, run_figures
-
         self._flush_buffer()
         self._write_tables()
         # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
@@ -441,9 +438,11 @@ class OutputWriter:
         if self.rerun is not None:
             written["rerun"] = self.rerun.close()
             self.rerun = None
-        inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         figs: dict[str, bytes] = {}
         if self.figures or self.report:
+            from ..viz import FigureInputs, run_figures
+
+            inputs = figure_inputs if figure_inputs is not None else FigureInputs()
             figs = run_figures(self.stack, self.occupancy(), self.times_s(), self.detections_table(),
                                self.tracks_table(), self.metrics, inputs, dpi=self.figure_dpi, progress=progress)
         if self.figures:
@@ -452,10 +451,14 @@ class OutputWriter:
                 atomic_write_bytes(p, png)
                 written[name] = p
         if self.animation != "none" and self._steps_written:
+            from ..viz import animate_stack
+
             p = self.out_dir / f"animation.{self.animation}"
             animate_stack(p, self.stack, self.occupancy(), self.tracks_table())
             written["animation"] = p
         if self.report:
+            from ..report import write_report
+
             p = self.out_dir / "report.html"
             write_report(p, figs, self.metrics, self.config_text, run_summary=self.summary())
             written["report"] = p

@@ -24,7 +24,11 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
-import rerun as rr
+
+try:
+    import rerun as rr
+except ImportError:  # rerun-sdk is the optional "viz" extra
+    rr = None
 
 from ..geometry import PinholeCamera
 from ..grid import PlaneStack
@@ -55,6 +59,8 @@ class RerunLogger:
 
     def __init__(self, path: Path | str | None, stack: PlaneStack, *, spawn: bool = False,
                  occupied_threshold: float = 0.5, application_id: str = "planefuse"):
+        if rr is None:
+            raise ImportError("the rerun recording needs rerun-sdk: pip install 'planefuse[viz]'")
         self.stack = stack
         self.occupied_threshold = float(occupied_threshold)
         self.path = None if path is None else Path(path)

@@ -115,6 +115,13 @@ def test_unknown_field_is_reported_at_its_line(tmp_path):
     assert err.issues[0].line == next(k + 1 for k, l in enumerate(p.read_text().splitlines()) if "lasr:" in l)
 
 
+def test_section_of_wrong_type_lists_its_fields(tmp_path):
+    err = _error(_write(tmp_path, "recording: r\nplanes: 5\n"))
+    (it,) = err.issues
+    assert it.field_path == "planes" and it.line == 2
+    assert "heights_m" in it.expected and "cell_size_m" in it.expected
+
+
 def test_several_errors_are_all_reported(tmp_path):
     text = example_yaml().replace("cell_size_m: 0.05", "cell_size_m: -1").replace("p_appear: 0.01", "p_appear: 2")
     err = _error(_write(tmp_path, text))

@@ -238,10 +238,14 @@ def test_writer_input_errors_and_mot_layout(tmp_path):
     assert rows[1, 0] == 5
     w.write_detections(0, GroundDetections(0.0, [[1.0, 1.0]], [0.5], source="bof"))
     w.write_occupancy(0, 0.0, np.zeros(stack.shape))
+    for k in range(1, 4):
+        w.write_occupancy(k, 0.1 * k, np.zeros(stack.shape))  # step 3 commits the chunk 0..3
+    with pytest.raises(ValueError, match="before its occupancy"):
+        w.write_tracks(3, 0.3, [1], [[0.0, 0.0]])
     written = w.finish()
     assert written == {}
     assert read_table(tmp_path / "detections.csv")["source"].tolist() == ["bof"]
-    assert zarr.open_group(tmp_path / "occupancy.zarr", mode="r")["occupancy"].shape == (1,) + stack.shape
+    assert zarr.open_group(tmp_path / "occupancy.zarr", mode="r")["occupancy"].shape == (4,) + stack.shape
 
 
 def test_progress_modes():

@@ -88,8 +88,11 @@ def _expected(info: FieldInfo | None) -> str:
         return ""
     extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
     unit, exp = extra.get("unit", ""), extra.get("expected", "")
-    if get_origin(info.annotation) is None and info.annotation is bool:
+    ann = info.annotation
+    if get_origin(ann) is None and ann is bool:
         exp = exp or "true or false"
+    elif isinstance(ann, type) and issubclass(ann, BaseModel):
+        exp = exp or f"a mapping with fields {', '.join(ann.model_fields)}"
     return ", ".join(s for s in (f"[{unit}]" if unit else "", str(exp)) if s)
 
 

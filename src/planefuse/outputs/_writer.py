@@ -304,7 +304,11 @@ class OutputWriter:
         return False
 
     def write_detections(self, step: int, detections: GroundDetections) -> None:
-        """Record the people detected at ``step`` (positions on the ground plane [m])."""
+        """Record the people detected at ``step`` (positions on the ground plane [m]).
+
+        Call it before the ``write_occupancy`` of the same step: that call may commit the step's chunk.
+        """
+        self._check_open_step(step)
         if self.rerun is not None:
             self.rerun.set_time(step, detections.time_s)
             self.rerun.log_detections(detections.xy_m)
@@ -322,7 +326,10 @@ class OutputWriter:
             Positions on the ground plane [m].
         velocity_m_s : array-like, shape (N, 2), optional
             Velocities [m/s]; NaN when omitted.
+
+        Call it before the ``write_occupancy`` of the same step: that call may commit the step's chunk.
         """
+        self._check_open_step(step)
         ids = np.asarray(track_ids, dtype=np.int64).reshape(-1)
         xy = np.asarray(xy_m, dtype=float).reshape(-1, 2)
         v = np.full_like(xy, np.nan) if velocity_m_s is None else np.asarray(velocity_m_s, float).reshape(-1, 2)
@@ -333,6 +340,13 @@ class OutputWriter:
             self.rerun.log_tracks(ids, xy)
         for i, p, vv in zip(ids, xy, v):
             self._tracks.rows.append((int(step), float(time_s), int(i), *map(float, p), *map(float, vv)))
+
+    def _check_open_step(self, step: int) -> None:
+        if int(step) < self._steps_written:
+            raise ValueError(
+                f"step {step} is already written (its chunk was flushed or committed by write_occupancy); write "
+                "a step's detections and tracks before its occupancy"
+            )
 
     def write_metrics(self, metrics: Mapping[str, Any]) -> None:
         """Write ``metrics.json`` (scalars, and lists for per-step series); merges with earlier calls."""

@@ -47,9 +47,9 @@ def _fake_run(out_dir, stack, rng, n=12, **kw) -> OutputWriter:
     for k in range(n):
         occ = rng.random(stack.shape) * 0.3
         occ[:, 6, 4 + k // 3] = 0.95  # a person walking along +x
-        w.write_occupancy(k, 0.1 * k, occ)
         w.write_detections(k, GroundDetections(0.1 * k, [[2.25 + 0.5 * (k // 3), 3.25]], [0.9]))
         w.write_tracks(k, 0.1 * k, [1], [[2.25 + 0.5 * (k // 3), 3.25]], [[1.6, 0.0]])
+        w.write_occupancy(k, 0.1 * k, occ)
     w.write_metrics({"MOTA": 0.75, "MOTP_m": 0.12, "ospa_m": list(rng.random(n))})
     return w
 

@@ -179,3 +179,19 @@ def test_fixed_scanner_world_points_round_trip(rng):
     # beam straight ahead hits the cylinder at x = 7 - 0.3
     assert p[90, 0] == pytest.approx(6.7)
     np.testing.assert_allclose(apply_transform(T, np.zeros(3)), [5, 4, 0.4])
+
+
+def test_beam_origins_directions_fused_equals_per_beam_pose_and_points(rng):
+    from scipy.spatial.transform import Rotation
+
+    from planefuse.laser import origins_world_from_scan
+
+    unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(), (0.03, 0.01, 0.05), Rotation.random(random_state=2).as_matrix())
+    T = transform_from_rotation_translation(Rotation.random(random_state=3).as_matrix(), [1.0, 2.0, 3.0])
+    a, t = rng.uniform(-2, 2, 50), rng.uniform(-1, 1, 50)
+    o, d = origins_world_from_scan(a, t, T, unit)  # fused numba path
+    o2, d2 = origins_world_from_scan(a, t, np.broadcast_to(T, (50, 4, 4)), unit)  # per-beam numpy path
+    np.testing.assert_allclose(o, o2, atol=1e-12)
+    np.testing.assert_allclose(d, d2, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
+    np.testing.assert_allclose(o + 2.0 * d, points_world_from_scan(a, np.full(50, 2.0), t, T, unit), atol=1e-12)

@@ -29,7 +29,7 @@ from numba import njit
 
 from ..geometry._checks import check_points, check_transform
 from ..grid import Evidence, PlaneStack, log_odds_from_probability
-from ._scanner import LaserScan, TiltingUnit, points_laser_from_scan
+from ._scanner import LaserScan, TiltingUnit, origins_world_from_scan
 
 __all__ = [
     "P_REF_FROM_WORLD",
@@ -291,17 +291,6 @@ def traverse_beams(origins_world, ends_world, is_hit, stack: PlaneStack,
     return out
 
 
-def _world(T_world_laser, p_L: np.ndarray) -> np.ndarray:
-    T = check_transform(T_world_laser, "T_world_laser")
-    if T.ndim == 2:
-        return p_L @ T[:3, :3].T + T[:3, 3]
-    try:
-        np.broadcast_shapes(T.shape[:-2], p_L.shape[:-1])
-    except ValueError:
-        raise ValueError(f"T_world_laser batch {T.shape[:-2]} does not match the beams {p_L.shape[:-1]}") from None
-    return np.einsum("...ij,...j->...i", T[..., :3, :3], p_L) + T[..., :3, 3]
-
-
 def register_scan(
     scan: LaserScan,
     stack: PlaneStack,
@@ -340,12 +329,8 @@ def register_scan(
     free_m = scan.range_max_m if model.no_return_free_m is None else model.no_return_free_m
     r = np.where(valid, scan.ranges_m, free_m)
     frees = valid | no_ret | (invalid & model.invalid_frees)
-    # optical centres and end points together, one transform
-    p_L = points_laser_from_scan(np.stack([scan.angles_rad] * 2), np.stack([np.zeros_like(r), r]),
-                                 scan.tilt_rad, unit)
-    T = np.asarray(T_world_laser, dtype=float)
-    p_W = _world(T[None] if T.ndim == 3 else T, p_L)
-    o_W, e_W = p_W[0], p_W[1]
+    o_W, d_W = origins_world_from_scan(scan.angles_rad, scan.tilt_rad, T_world_laser, unit)
+    e_W = o_W + r[:, None] * d_W
     ground = valid & (e_W[..., 2] < model.ground_clearance_m)
     is_hit = valid & ~ground
     log_odds = traverse_beams(o_W[frees], e_W[frees], is_hit[frees], stack, model)

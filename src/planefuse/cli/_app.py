@@ -36,6 +36,7 @@ def _root(
 def _register() -> None:
     # Each module adds its commands to ``app`` on import.
     from . import _demo  # noqa: F401
+    from . import _audio  # noqa: F401
 
 
 _register()

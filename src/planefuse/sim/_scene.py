@@ -5,7 +5,7 @@ metres. A person is two legs and a torso (vertical cylinders) and a head (a sphe
 apart along the walking direction with a gait phase that advances with the distance walked, so
 planes at different heights cut different cross-sections. Trajectories come from a small social-force
 model: each person walks at their preferred speed towards a random goal, sometimes stops there,
-turns smoothly, keeps away from the walls and roughly avoids the others.
+turns smoothly, keeps away from the walls and roughly avoids the others; people stop to talk.
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ __all__ = ["Body", "Scene", "PeopleState"]
 DT_S = 0.02
 #: Horizontal distance walked per full gait cycle (two steps) [m].
 STRIDE_M = 1.3
+#: Speakers start stopping this long before they speak, so that they stand (nearly) still while talking [s].
+STOP_BEFORE_SPEAKING_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -127,13 +129,18 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
     hd = np.arctan2(goal[:, 1] - p[:, 1], goal[:, 0] - p[:, 0])
     ph = rng.uniform(0, 2 * np.pi, size=P)
     tau_s, max_turn_rad_s = 0.5, 2.5
+    # Speakers stop to talk: they slow down from STOP_BEFORE_SPEAKING_S before each interval.
+    talking = np.zeros((n, P), dtype=bool)
+    for spk in cfg.speakers:
+        for a, b in spk.intervals_s:
+            talking[:, spk.person_id] |= (t >= a - STOP_BEFORE_SPEAKING_S) & (t <= b)
     xy[0], heading[0], phase[0] = p, hd, ph
     for k in range(1, n):
         to_goal = goal - p
         dist = np.linalg.norm(to_goal, axis=1)
-        # Slow down when close to the goal, stand still while pausing.
+        # Slow down when close to the goal, stand still while pausing or talking.
         want = pref * np.clip(dist / 0.8, 0.0, 1.0)
-        want[pause > 0] = 0.0
+        want[(pause > 0) | talking[k]] = 0.0
         desired = to_goal / np.maximum(dist, 1e-9)[:, None] * want[:, None]
         # Social force between people (exponential repulsion) and from the walls.
         d = p[:, None, :] - p[None, :, :]
@@ -143,6 +150,7 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
         rep = np.einsum("ij,ijk->ik", np.where(r < 2.0, f, 0.0), d)
         rep[:, 0] += 1.0 * np.exp((lo_xy[0] - p[:, 0]) / 0.2) - 1.0 * np.exp((p[:, 0] - hi_xy[0]) / 0.2)
         rep[:, 1] += 1.0 * np.exp((lo_xy[1] - p[:, 1]) / 0.2) - 1.0 * np.exp((p[:, 1] - hi_xy[1]) / 0.2)
+        rep[talking[k]] *= 0.1  # a talker holds their ground; the others walk around them
         v = v + ((desired - v) / tau_s + rep) * DT_S
         sp = np.linalg.norm(v, axis=1)
         v *= (np.minimum(sp, 1.8) / np.maximum(sp, 1e-9))[:, None]

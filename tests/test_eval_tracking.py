@@ -33,7 +33,7 @@ def test_identity_swap_counts_switches_and_halves_idf1():
     hyp = [(t, [1, 2] if i < 10 else [2, 1], xy) for i, (t, _, xy) in enumerate(_gt())]
     m = tracking_metrics(_gt(), hyp)
     assert m["num_switches"] == 2
-    assert m["idf1"] == pytest.approx(0.4)
+    assert m["idf1"] == pytest.approx(0.5)
     assert m["mota"] == pytest.approx(1 - 2 / 40)
 
 

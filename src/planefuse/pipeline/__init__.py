@@ -1,5 +1,6 @@
 """The whole system: every modality registered on the planes, filtered, tracked and evaluated."""
 
+from ._config import system_params_from_config
 from ._outputs import run_to_folder
 from ._streams import ModalityReport, camera_evidence, laser_evidence, merged_evidence, sound_evidence
 from ._system import SystemParams, SystemResult, evaluate_system, run_system, stack_for_recording
@@ -16,4 +17,5 @@ __all__ = [
     "run_to_folder",
     "sound_evidence",
     "stack_for_recording",
+    "system_params_from_config",
 ]

@@ -67,6 +67,7 @@ def run_to_folder(
     rerun: bool = False,
     chunk_steps: int = 25,
     config_text: str | None = None,
+    stack=None,
 ) -> tuple[SystemResult, dict]:
     """Run :func:`run_system` on ``rec`` and write occupancy (zarr), detections, tracks (CSV + MOTChallenge),
     ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into ``out_dir``.
@@ -80,7 +81,7 @@ def run_to_folder(
     (SystemResult, dict)
         The result and the metrics (empty without ground truth).
     """
-    stack = stack_for_recording(rec, params)
+    stack = stack if stack is not None else stack_for_recording(rec, params)
     text = config_text if config_text is not None else _params_text(params)
     digest = hashlib.sha256((text + repr(rec.source) + repr(rec.duration_s)).encode()).hexdigest()[:16]
     n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1

@@ -38,6 +38,8 @@ class SystemParams:
     tracking : TrackingParams
     sound_block_s : float
         Length of the audio blocks localised one at a time [s].
+    sound_model_path : path, optional
+        Calibrated binaural sensor model (default: the spherical-head model).
     output_period_s : float
         Tracker output period [s].
     threshold_m : float
@@ -52,8 +54,9 @@ class SystemParams:
     use_filter: bool = True
     camera_params: object | None = None
     laser_model: object | None = None
-    tracking: TrackingParams = field(default_factory=TrackingParams)
+    tracking: TrackingParams = field(default_factory=lambda: TrackingParams(merge_tolerance_s=0.05))
     sound_block_s: float = 0.5
+    sound_model_path: object | None = None
     output_period_s: float = 0.2
     threshold_m: float = 0.5
 
@@ -70,7 +73,7 @@ class SystemResult:
 
 
 def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
-    """The plane stack covering the recording's monitored area."""
+    """The plane stack covering the recording's monitored area (``rec.room_xy_m``)."""
     if rec.room_xy_m is None:
         raise ValueError("recording has no room_xy_m: give the plane stack extent explicitly")
     x0, x1, y0, y1 = rec.room_xy_m
@@ -107,7 +110,12 @@ def run_system(
     if params.laser and rec.lasers:
         streams.append(laser_evidence(rec, stack, params.laser_model or LaserSensorModel(), report))
     if params.sound and rec.audio:
-        streams.append(sound_evidence(rec, stack, report, params.sound_block_s))
+        model = None
+        if params.sound_model_path is not None:
+            from ..audio import BinauralSensorModel
+
+            model = BinauralSensorModel.load(params.sound_model_path)
+        streams.append(sound_evidence(rec, stack, report, params.sound_block_s, model))
     if not streams:
         raise ValueError("no enabled modality has a stream in this recording")
     tp = replace(params.tracking, output_period_s=params.output_period_s)

@@ -98,7 +98,7 @@ def _points_inside_volumes(cyl, sph, n, rng):
 
 @pytest.fixture(scope="module")
 def rec8():
-    return simulate(default_scene_config(duration_s=8.0, seed=1))
+    return simulate(default_scene_config(duration_s=8.0, seed=1, laser=None, head=None))
 
 
 @pytest.mark.parametrize("time_s", [1.0, 7.32])
@@ -163,7 +163,7 @@ def test_rendering_is_reproducible_and_masks_are_the_drawn_pixels():
 
 
 def test_imu_gives_camera_attitude():
-    rec = simulate(default_scene_config(duration_s=3.0, seed=0))
+    rec = simulate(default_scene_config(duration_s=3.0, seed=0, laser=None, head=None))
     for cs in rec.camera_streams.values():
         imu = rec.imu_for(cs.name)
         d = imu.read()

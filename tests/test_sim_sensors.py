@@ -8,7 +8,7 @@ from scipy.signal import correlate
 
 from planefuse.laser import points_world_from_scan
 from planefuse.sim import SceneConfig, simulate
-from planefuse.sim._sensors import tilting_unit_from_model
+from planefuse.sim import tilting_unit_from_model
 
 
 @pytest.fixture(scope="module")

@@ -27,7 +27,8 @@ def _small_config(**kw) -> SceneConfig:
         "duration_s": 1.0,
         "n_people": 3,
         "seed": 5,
-        "laser": None,
+        "laser": {"resolution_deg": 2.0},
+        "head": {"rt60_s": 0.0},
         "cameras": [
             {"name": "a", "position_m": [0.3, 0.3, 3.0], "target_m": [5, 5, 0], "width_px": 160, "height_px": 120},
             {"name": "b", "position_m": [9.7, 9.7, 2.8], "target_m": [5, 5, 0], "width_px": 160, "height_px": 120,
@@ -45,22 +46,22 @@ def _synthetic_laser(rng, n_scans=90, n_beams=181) -> LaserStream:
     scans = LaserScans(times, np.linspace(-np.radians(135), np.radians(135), n_beams), ranges,
                        np.radians(10) * np.sin(2 * np.pi * times / 2.0),
                        {"T_world_scanner": np.tile(np.eye(4), (n_scans, 1, 1))})
-    return LaserStream("laser0", np.eye(4), 40.0, n_scans, {"fov_deg": 270.0, "resolution_deg": 1.5}, data=scans)
+    return LaserStream("syn_laser", np.eye(4), 40.0, n_scans, {"fov_deg": 270.0, "resolution_deg": 1.5}, data=scans)
 
 
 def _synthetic_audio(rng, n=16000 + 37) -> AudioStream:
     x = (0.1 * rng.normal(size=(n, 2))).astype(np.float32)
     T = np.eye(4)
     T[:3, 3] = [5.0, 0.3, 1.6]
-    return AudioStream("head", T, 16000, 0.0, n, data=x)
+    return AudioStream("syn_head", T, 16000, 0.0, n, data=x)
 
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory):
     rng = np.random.default_rng(11)
     rec = simulate(_small_config())
-    rec.lasers["laser0"] = _synthetic_laser(rng)
-    rec.audio["head"] = _synthetic_audio(rng)
+    rec.lasers["syn_laser"] = _synthetic_laser(rng)
+    rec.audio["syn_head"] = _synthetic_audio(rng)
     out = tmp_path_factory.mktemp("rec") / "r"
     rec.write(out)
     return rec, out
@@ -88,15 +89,21 @@ def test_round_trip_is_identical(written):
             np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
         np.testing.assert_array_equal(back.imu(name).T_cam_imu, s.T_cam_imu)
         assert back.imu(name).attached_to == s.attached_to
-    la, lb = rec.laser().read(), back.laser().read()
-    for f in ("times_s", "angles_rad", "ranges_m", "tilt_rad"):
-        np.testing.assert_array_equal(getattr(la, f), getattr(lb, f))
-    np.testing.assert_array_equal(la.extra["T_world_scanner"], lb.extra["T_world_scanner"])
-    assert back.laser().model == {"fov_deg": 270.0, "resolution_deg": 1.5}
-    assert len(back.laser().paths) == 1
-    np.testing.assert_array_equal(rec.binaural().read(), back.binaural().read())
-    np.testing.assert_array_equal(rec.binaural().T_world_head, back.binaural().T_world_head)
-    blocks = list(back.binaural().blocks(5000))
+    for name in ("laser0", "syn_laser"):
+        la, lb = rec.laser(name).read(), back.laser(name).read()
+        for f in ("times_s", "angles_rad", "ranges_m", "tilt_rad"):
+            np.testing.assert_array_equal(getattr(la, f), getattr(lb, f))
+        np.testing.assert_array_equal(back.laser(name).T_world_base, rec.laser(name).T_world_base)
+        assert back.laser(name).model == rec.laser(name).model
+    np.testing.assert_array_equal(rec.laser("syn_laser").read().extra["T_world_scanner"],
+                                  back.laser("syn_laser").read().extra["T_world_scanner"])
+    assert back.laser("syn_laser").model == {"fov_deg": 270.0, "resolution_deg": 1.5}
+    assert len(back.laser("syn_laser").paths) == 1 and len(back.laser("laser0").paths) == 1
+    assert np.isfinite(back.laser("laser0").read().ranges_m).all()  # a closed room: every beam returns
+    for name in ("head", "syn_head"):
+        np.testing.assert_array_equal(rec.binaural(name).read(), back.binaural(name).read())
+        np.testing.assert_array_equal(rec.binaural(name).T_world_head, back.binaural(name).T_world_head)
+    blocks = list(back.binaural("syn_head").blocks(5000))
     assert [t for t, _ in blocks] == [0.0, 5000 / 16000, 10000 / 16000, 15000 / 16000]
     ga, gb = rec.groundtruth, back.groundtruth
     for f in ("times_s", "person_ids", "xy_m", "heading_rad", "speed_m_s", "height_m"):
@@ -173,13 +180,13 @@ def test_truncated_png_names_file(written, tmp_path):
 
 def test_truncated_laser_npz_and_wav_name_file(written, tmp_path):
     d = _copy(written, tmp_path)
-    p = d / "laser/laser0/scans_000000.npz"
+    p = d / "laser/syn_laser/scans_000000.npz"
     p.write_bytes(p.read_bytes()[:1000])
     with pytest.raises(ValueError, match=r"scans_000000\.npz: cannot read NPZ"):
-        read_recording(d).laser().read()
-    w = d / "audio/head.wav"
+        read_recording(d).laser("syn_laser").read()
+    w = d / "audio/syn_head.wav"
     w.write_bytes(w.read_bytes()[:20000])
-    with pytest.raises(ValueError, match=r"head\.wav: .*(truncated|cannot read)"):
+    with pytest.raises(ValueError, match=r"syn_head\.wav: .*(truncated|cannot read)"):
         read_recording(d)
 
 
@@ -247,7 +254,7 @@ def test_laser_timestamps_backwards_name_field(tmp_path, rng):
     s.data.times_s[30] = s.data.times_s[10]
     from planefuse.io import Recording
 
-    Recording(duration_s=3.0, lasers={"laser0": s}).write(tmp_path / "l")
+    Recording(duration_s=3.0, lasers={"syn_laser": s}).write(tmp_path / "l")
     with pytest.raises(ValueError, match=r"scans_000000\.npz: time_s\[30\]: time_s .* goes backwards"):
         read_recording(tmp_path / "l").laser().read()
 
@@ -272,8 +279,8 @@ def test_gaps_are_reported(written, tmp_path):
 
 def test_wav_with_wrong_channels_is_rejected(written, tmp_path):
     d = _copy(written, tmp_path)
-    sf.write(d / "audio/head.wav", np.zeros((16037, 1), np.float32), 16000, subtype="FLOAT")
-    with pytest.raises(ValueError, match=r"head\.wav: expected 2 channels at fs_hz = 16000, got 1"):
+    sf.write(d / "audio/syn_head.wav", np.zeros((16037, 1), np.float32), 16000, subtype="FLOAT")
+    with pytest.raises(ValueError, match=r"syn_head\.wav: expected 2 channels at fs_hz = 16000, got 1"):
         read_recording(d)
 
 

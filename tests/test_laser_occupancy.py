@@ -138,7 +138,7 @@ def test_simulated_per_plane_occupancy_marks_true_cross_sections(rng):
                 d = np.minimum(d, np.maximum(rho - r, 0.0) if cap_in_band else np.abs(rho - r))
                 if not cap_in_band:
                     inside |= rho < r - stack.cell_size_m
-                if min(zt, edges[l + 1]) - edges[l] > 0.2:
+                if min(zt, edges[l + 1]) - edges[l] >= 0.15:
                     # the cross-section is seen: occupied cells within one cell of its rim
                     near = occ & (np.abs(rho - r) < 1.5 * stack.cell_size_m)
                     assert near.sum() >= 3, (l, cx, cy)

@@ -328,6 +328,27 @@ def _beams_world_kernel(angles, tilt, R_ts, off, T, o_out, d_out):
             o_out[i, k] = T[k, 0] * ox + T[k, 1] * oy + T[k, 2] * oz + T[k, 3]
 
 
+def _beams_world(angles_rad, tilt_rad, T: np.ndarray, unit: TiltingUnit | None):
+    """:func:`origins_world_from_scan` for a ``T`` that :func:`check_transform` has already accepted."""
+    a, _, t = _as_beams(angles_rad, np.zeros_like(np.asarray(angles_rad, dtype=float)), tilt_rad)
+    R_ts = np.eye(3) if unit is None else unit.R_tilt_scanner
+    off = np.zeros(3) if unit is None else np.asarray(unit.offset_tilt_scanner_m)
+    if T.ndim == 2 and a.ndim == 1:  # the common case, one fused loop
+        o_W = np.empty((a.size, 3))
+        d_W = np.empty((a.size, 3))
+        _beams_world_kernel(a, np.ascontiguousarray(t), np.ascontiguousarray(R_ts), off,
+                            np.ascontiguousarray(T), o_W, d_W)
+        return o_W, d_W
+    # per-beam poses (moving platform): vectorised numpy
+    d_T = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=-1) @ R_ts.T
+    od = np.stack(np.broadcast_arrays(off, d_T))  # Ry(tilt) applied to origins and directions together
+    c, s = np.cos(t), np.sin(t)
+    od_L = np.stack([c * od[..., 0] + s * od[..., 2], od[..., 1], -s * od[..., 0] + c * od[..., 2]], axis=-1)
+    o_W = _apply_pose(T, od_L[0])
+    d_W = np.einsum("...ij,...j->...i", T[..., :3, :3], od_L[1])
+    return o_W, d_W
+
+
 def origins_world_from_scan(angles_rad, tilt_rad, T_world_laser, unit: TiltingUnit | None = None):
     """Beam origins and unit directions in {W} for every beam.
 
@@ -349,27 +370,7 @@ def origins_world_from_scan(angles_rad, tilt_rad, T_world_laser, unit: TiltingUn
     directions_W : ndarray (N, 3)
         Unit beam directions in {W}; the beam's point at range r is ``origins_W + r directions_W``.
     """
-    a, _, t = _as_beams(angles_rad, np.zeros_like(np.asarray(angles_rad, dtype=float)), tilt_rad)
-    T = check_transform(T_world_laser, "T_world_laser")
-    R_ts = np.eye(3) if unit is None else unit.R_tilt_scanner
-    off = np.zeros(3) if unit is None else np.asarray(unit.offset_tilt_scanner_m)
-    if T.ndim == 2 and a.ndim == 1:  # the common case, one fused loop
-        o_W = np.empty((a.size, 3))
-        d_W = np.empty((a.size, 3))
-        _beams_world_kernel(a, np.ascontiguousarray(t), np.ascontiguousarray(R_ts), off,
-                            np.ascontiguousarray(T), o_W, d_W)
-        return o_W, d_W
-    d_T = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=-1)
-    o_T = np.zeros_like(d_T)
-    d_T = d_T @ R_ts.T
-    o_T = o_T + off
-    od = np.stack([o_T, d_T])  # Ry(tilt) applied to origins and directions together
-    c, s = np.cos(t), np.sin(t)
-    od_L = np.stack([c * od[..., 0] + s * od[..., 2], od[..., 1], -s * od[..., 0] + c * od[..., 2]], axis=-1)
-    o_W = _apply_pose(T, od_L[0])
-    R = T[..., :3, :3]
-    d_W = od_L[1] @ R.T if T.ndim == 2 else np.einsum("...ij,...j->...i", R, od_L[1])
-    return o_W, d_W
+    return _beams_world(angles_rad, tilt_rad, check_transform(T_world_laser, "T_world_laser"), unit)
 
 
 def points_world_from_scan(angles_rad, ranges_m, tilt_rad, T_world_laser, unit: TiltingUnit | None = None) -> np.ndarray:

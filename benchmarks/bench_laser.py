@@ -21,13 +21,13 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from planefuse.geometry import transform_from_rotation_translation  # noqa: E402
 from planefuse.grid import PlaneStack  # noqa: E402
 from planefuse.laser import (  # noqa: E402
     CELL_FREE,
     CELL_OCCUPIED,
     LaserSensorModel,
     LaserScannerSpec,
+    T_world_laser_from_pose_2d,
     TiltingUnit,
     origins_world_from_scan,
     points_laser_from_scan,
@@ -70,9 +70,7 @@ def main(n_scans: int = 40, repeats: int = 5) -> None:
     rng = np.random.default_rng(0)
     unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
                        tilt_min_rad=-0.2, tilt_max_rad=0.6)
-    T = transform_from_rotation_translation(np.eye(3), [1.0, 1.0, 1.3])
-    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
-    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T = T_world_laser_from_pose_2d(1.0, 1.0, np.pi / 4, z_m=1.3)  # looking diagonally into the room
     people = rng.uniform(2.5, 9.0, (6, 2))
     cylinders = np.column_stack([people, np.full(6, 0.22), np.zeros(6), rng.uniform(1.5, 1.9, 6)])
     stack = PlaneStack.from_extent(np.linspace(0.1, 1.9, 10), (0, 10), (0, 10), 0.05)

@@ -12,19 +12,18 @@ import cv2
 import numpy as np
 import scipy.io
 
-from planefuse.geometry import apply_transform, transform_from_rotation_translation
+from planefuse.geometry import apply_transform
 from planefuse.grid import PlaneStack
 from planefuse.laser import (
     HIT_CYLINDER,
     HIT_WALL,
     LaserScannerSpec,
+    T_world_laser_from_pose_2d,
     TiltingUnit,
-    detect_legs,
     detect_people,
+    evaluate_leg_detection,
     map_entropy_bits,
     map_from_carmen_log,
-    match_detections,
-    points_laser_from_scan,
     points_world_from_scan,
     read_carmen_log,
     read_rosbag,
@@ -42,9 +41,7 @@ def simulated_tilting_scanner() -> None:
     rng = np.random.default_rng(0)
     unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
                        tilt_min_rad=-0.15, tilt_max_rad=0.5)
-    T = transform_from_rotation_translation(np.eye(3), [0.5, 0.5, 1.3])
-    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
-    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T = T_world_laser_from_pose_2d(0.5, 0.5, np.pi / 4, z_m=1.3)  # looking diagonally into the room
     cyl = np.array([[3.0, 2.0, 0.25, 0.0, 1.75], [2.0, 4.0, 0.2, 0.0, 1.2], [5.0, 5.0, 0.3, 0.0, 1.6]])
     room, wall_h = (0.0, 7.0, 0.0, 7.0), 2.2
     stack = PlaneStack.from_extent([0.1, 0.5, 0.9, 1.4, 1.7, 2.0], (0, 7), (0, 7), 0.05)
@@ -102,12 +99,7 @@ def intel_map() -> None:
     m, pts = map_from_carmen_log(log)
     rng = np.random.default_rng(0)
     pose = log.pose_xy_theta + rng.normal(0, [0.05, 0.05, np.deg2rad(1.0)], log.pose_xy_theta.shape)
-    from planefuse.laser import T_world_laser_from_pose_2d
-
-    T = T_world_laser_from_pose_2d(pose[:, 0], pose[:, 1], pose[:, 2])
-    ok = (log.ranges_m > 0) & (log.ranges_m < log.range_max_m)
-    bad = np.concatenate([apply_transform(T[k], points_laser_from_scan(log.angles_rad[ok[k]], log.ranges_m[k, ok[k]]))
-                          for k in range(len(log))])[:, :2]
+    bad = log.returns_world_xy(pose)
     print("### Intel Research Lab map (910 scans, corrected poses, 5 cm cells)")
     print(f"- warnings: {[str(x.message)[:80] for x in w]}")
     print(f"- beams: {m.n_valid} real returns, {m.n_no_return} max-range, {m.n_invalid} invalid; "
@@ -122,13 +114,7 @@ def legs() -> None:
     bag = DATA / "lrf2d_people_leg_tracker" / "positive_1_extracted.bag"
     _, scans = read_rosbag(bag, "/training_scan")
     _, labels = read_rosbag(bag, "/leg_cluster_positions")
-    tp = fp = fn = 0
-    for scan, truth in zip(scans, labels):
-        ok = scan.valid
-        d = detect_legs(points_laser_from_scan(scan.angles_rad[ok], scan.ranges_m[ok])[:, :2]).xy_m
-        win = (np.abs(np.arctan2(d[:, 1], d[:, 0])) <= np.deg2rad(15)) & (np.hypot(d[:, 0], d[:, 1]) <= 5)
-        a, b, c = match_detections(d[win], truth[:, :2], 0.3)
-        tp, fp, fn = tp + a, fp + b, fn + c
+    tp, fp, fn = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
     p, r = tp / (tp + fp), tp / (tp + fn)
     print("### Leg detection, positive_1_extracted.bag (197 scans, labels = leg-cluster centroids, "
           "evaluated within +-15 deg and 5 m as labelled)")

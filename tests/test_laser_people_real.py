@@ -15,13 +15,12 @@ from planefuse.geometry import apply_transform, transform_from_rotation_translat
 from planefuse.grid import GroundDetections
 from planefuse.laser import (
     LaserScannerSpec,
-    T_world_laser_from_pose_2d,
-    detect_legs,
     detect_people,
+    evaluate_leg_detection,
     map_entropy_bits,
     map_from_carmen_log,
     match_detections,
-    points_laser_from_scan,
+    points_world_from_scan,
     read_carmen_log,
     read_rosbag,
     read_transform_yaml,
@@ -71,14 +70,7 @@ def test_leg_detection_on_labelled_real_scans_f1_at_0p3m():
     _, scans = read_rosbag(bag, "/training_scan")
     _, labels = read_rosbag(bag, "/leg_cluster_positions")
     assert len(scans) == len(labels) == 197  # paired by order: the PoseArrays have stamp 0
-    tp = fp = fn = 0
-    for scan, truth in zip(scans, labels):
-        ok = scan.valid
-        xy = points_laser_from_scan(scan.angles_rad[ok], scan.ranges_m[ok])[:, :2]
-        d = detect_legs(xy).xy_m
-        window = (np.abs(np.arctan2(d[:, 1], d[:, 0])) <= np.deg2rad(15)) & (np.hypot(d[:, 0], d[:, 1]) <= 5)
-        a, b, c = match_detections(d[window], truth[:, :2], 0.3)
-        tp, fp, fn = tp + a, fp + b, fn + c
+    tp, fp, fn = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
     precision, recall = tp / (tp + fp), tp / (tp + fn)
     f1 = 2 * precision * recall / (precision + recall)
     assert f1 >= 0.8, (precision, recall, f1)
@@ -97,11 +89,13 @@ def test_intel_map_walls_are_sharp_and_pose_errors_blur_them():
     # the same scans with poses off by 5 cm / 1 deg give visibly thicker walls
     rng = np.random.default_rng(0)
     pose = log.pose_xy_theta + rng.normal(0, [0.05, 0.05, np.deg2rad(1.0)], log.pose_xy_theta.shape)
-    T = T_world_laser_from_pose_2d(pose[:, 0], pose[:, 1], pose[:, 2])
-    ok = (log.ranges_m > 0) & (log.ranges_m < log.range_max_m)
-    bad = np.concatenate([apply_transform(T[k], points_laser_from_scan(log.angles_rad[ok[k]], log.ranges_m[k, ok[k]]))
-                          for k in range(len(log))])[:, :2]
-    assert np.median(wall_spread_m(bad)) > 1.5 * spread
+    assert np.median(wall_spread_m(log.returns_world_xy(pose))) > 1.5 * spread
+    # the closed form of returns_world_xy equals the general registration of the scans
+    scan = log.scans()[100]
+    np.testing.assert_allclose(
+        points_world_from_scan(scan.angles_rad[scan.valid], scan.ranges_m[scan.valid], 0.0, scan.T_world_laser)[:, :2],
+        log.returns_world_xy()[np.repeat(np.arange(len(log)), ((log.ranges_m > 0) & (log.ranges_m < 80)).sum(1)) == 100],
+        atol=1e-9)
 
 
 @pytest.mark.parametrize("i", [1, 2, 3, 4])

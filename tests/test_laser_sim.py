@@ -16,6 +16,7 @@ from planefuse.laser import (
     HIT_WALL,
     LaserScan,
     LaserScannerSpec,
+    T_world_laser_from_pose_2d,
     TiltingUnit,
     points_laser_from_scan,
     points_world_from_scan,
@@ -36,10 +37,7 @@ def _people_scene():
 def _unit_pose():
     unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
                        tilt_min_rad=-0.2, tilt_max_rad=0.6)
-    T_world_laser = transform_from_rotation_translation(np.eye(3), [1.0, 1.5, 1.2])
-    # looking along +x+y diagonally into the room
-    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
-    T_world_laser[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T_world_laser = T_world_laser_from_pose_2d(1.0, 1.5, np.pi / 4, z_m=1.2)  # looking diagonally into the room
     return unit, T_world_laser
 
 

@@ -23,7 +23,7 @@ from ..grid import GroundDetections
 from ._scanner import LaserScan, points_world_from_scan
 
 __all__ = ["LegDetectorParams", "LegClusters", "segment_scan", "detect_legs", "people_from_legs",
-           "detect_people", "match_detections"]
+           "detect_people", "match_detections", "evaluate_leg_detection"]
 
 
 @dataclass(frozen=True)
@@ -206,3 +206,35 @@ def match_detections(pred_xy, true_xy, max_distance_m: float = 0.3) -> tuple[int
     r, c = linear_sum_assignment(np.where(D <= max_distance_m, D, 1e6))
     tp = int(np.sum(D[r, c] <= max_distance_m))
     return tp, len(p) - tp, len(g) - tp
+
+
+def evaluate_leg_detection(scans, labels, *, max_distance_m: float = 0.3, window_deg: float = 15.0,
+                           max_range_m: float = 5.0, params: LegDetectorParams = LegDetectorParams()):
+    """Leg detection scored against labelled leg centroids in the laser frame (leg-tracker bags).
+
+    The labels of ``angusleigh/leg_tracker``'s extracted bags only cover legs within
+    ``+-window_deg`` of the scanner's axis and ``max_range_m``; detections are scored in the same
+    window.
+
+    Parameters
+    ----------
+    scans : sequence of LaserScan
+    labels : sequence of ndarray (P_i, 2 or 3)
+        Labelled leg centroids per scan, laser frame [m] (paired with ``scans`` by order).
+
+    Returns
+    -------
+    tp, fp, fn : int
+        Totals of :func:`match_detections` over the scans.
+    """
+    if len(scans) != len(labels):
+        raise ValueError(f"{len(scans)} scans but {len(labels)} label sets")
+    tp = fp = fn = 0
+    for scan, truth in zip(scans, labels):  # one detector call per scan
+        ok = scan.valid
+        xy = points_world_from_scan(scan.angles_rad[ok], scan.ranges_m[ok], scan.tilt_rad[ok], np.eye(4))[:, :2]
+        d = detect_legs(xy, params).xy_m
+        win = (np.abs(np.arctan2(d[:, 1], d[:, 0])) <= np.deg2rad(window_deg)) & (np.hypot(d[:, 0], d[:, 1]) <= max_range_m)
+        a, b, c = match_detections(d[win], np.asarray(truth, dtype=float)[:, :2], max_distance_m)
+        tp, fp, fn = tp + a, fp + b, fn + c
+    return tp, fp, fn

@@ -37,6 +37,8 @@ def _register() -> None:
     # Each module adds its commands to ``app`` on import.
     from . import _demo  # noqa: F401
     from . import _laser  # noqa: F401
+    from . import _simulate  # noqa: F401
+    from . import _config, _check  # noqa: F401
 
 
 _register()

@@ -114,8 +114,8 @@ def legs() -> None:
     bag = DATA / "lrf2d_people_leg_tracker" / "positive_1_extracted.bag"
     _, scans = read_rosbag(bag, "/training_scan")
     _, labels = read_rosbag(bag, "/leg_cluster_positions")
-    tp, fp, fn = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
-    p, r = tp / (tp + fp), tp / (tp + fn)
+    sc = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
+    tp, fp, fn, p, r = sc.tp, sc.fp, sc.fn, sc.precision, sc.recall
     print("### Leg detection, positive_1_extracted.bag (197 scans, labels = leg-cluster centroids, "
           "evaluated within +-15 deg and 5 m as labelled)")
     print(f"- TP {tp}, FP {fp}, FN {fn}: precision {p:.3f}, recall {r:.3f}, F1 {2 * p * r / (p + r):.3f} at 0.3 m")

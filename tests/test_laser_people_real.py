@@ -12,6 +12,7 @@ from scipy.spatial.distance import cdist
 
 from conftest import shared_data
 from planefuse.geometry import apply_transform, transform_from_rotation_translation
+from planefuse.eval import detection_scores
 from planefuse.grid import GroundDetections
 from planefuse.laser import (
     LaserScannerSpec,
@@ -19,7 +20,6 @@ from planefuse.laser import (
     evaluate_leg_detection,
     map_entropy_bits,
     map_from_carmen_log,
-    match_detections,
     points_world_from_scan,
     read_carmen_log,
     read_rosbag,
@@ -28,14 +28,6 @@ from planefuse.laser import (
     simulate_scan,
     wall_spread_m,
 )
-
-
-def test_match_detections_is_one_to_one():
-    assert match_detections([[0, 0], [0.1, 0]], [[0.05, 0]], 0.3) == (1, 1, 0)
-    assert match_detections([[0, 0]], [[1, 0]], 0.3) == (0, 1, 1)
-    assert match_detections(np.zeros((0, 2)), [[1, 0]], 0.3) == (0, 0, 1)
-    # a far pair must not displace a close one
-    assert match_detections([[0, 0], [0.5, 0]], [[0.25, 0], [0.75, 0]], 0.3) == (2, 0, 0)
 
 
 def test_simulated_people_found_from_their_legs(rng):
@@ -50,13 +42,13 @@ def test_simulated_people_found_from_their_legs(rng):
     scan = simulate_scan(LaserScannerSpec.hokuyo_utm30lx(0.01), T, 0.0, cylinders, None, room, 2.0, rng)
     det = detect_people(scan)
     assert isinstance(det, GroundDetections) and det.source == "laser"
-    tp, fp, fn = match_detections(det.xy_m, centres, 0.1)
-    assert (tp, fn) == (3, 0)
+    scores = detection_scores([(centres, det.xy_m)], 0.1)
+    assert (scores.tp, scores.fn) == (3, 0)
     assert np.all(np.isnan(det.height_m))
     # the known limit of a geometric detector: the only false detections are leg-sized
     # stretches of wall between leg shadows
     far = cdist(det.xy_m, centres).min(axis=1) > 0.1
-    assert far.sum() == fp
+    assert far.sum() == scores.fp
     x0, x1, y0, y1 = room
     xy = det.xy_m[far]
     to_wall = np.min(np.abs(np.stack([xy[:, 0] - x0, xy[:, 0] - x1, xy[:, 1] - y0, xy[:, 1] - y1])), axis=0)
@@ -70,11 +62,10 @@ def test_leg_detection_on_labelled_real_scans_f1_at_0p3m():
     _, scans = read_rosbag(bag, "/training_scan")
     _, labels = read_rosbag(bag, "/leg_cluster_positions")
     assert len(scans) == len(labels) == 197  # paired by order: the PoseArrays have stamp 0
-    tp, fp, fn = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
-    precision, recall = tp / (tp + fp), tp / (tp + fn)
-    f1 = 2 * precision * recall / (precision + recall)
-    assert f1 >= 0.8, (precision, recall, f1)
-    assert tp + fn == sum(len(t) for t in labels)
+    scores = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
+    f1 = 2 * scores.precision * scores.recall / (scores.precision + scores.recall)
+    assert f1 >= 0.8, scores.as_dict()
+    assert scores.n_gt == sum(len(t) for t in labels)
 
 
 def test_intel_map_walls_are_sharp_and_pose_errors_blur_them():

@@ -6,7 +6,6 @@ from ._legs import (
     detect_legs,
     detect_people,
     evaluate_leg_detection,
-    match_detections,
     people_from_legs,
     segment_scan,
 )
@@ -45,6 +44,7 @@ from ._scanner import (
     origins_world_from_scan,
     points_laser_from_scan,
     points_world_from_scan,
+    scans_from_arrays,
 )
 from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 
@@ -54,7 +54,6 @@ __all__ = [
     "detect_legs",
     "detect_people",
     "evaluate_leg_detection",
-    "match_detections",
     "people_from_legs",
     "segment_scan",
     "LaserMap",
@@ -96,6 +95,7 @@ __all__ = [
     "origins_world_from_scan",
     "points_laser_from_scan",
     "points_world_from_scan",
+    "scans_from_arrays",
     "ScanTruth",
     "simulate_nodding_sweep",
     "simulate_scan",

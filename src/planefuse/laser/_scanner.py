@@ -37,6 +37,7 @@ __all__ = [
     "points_laser_from_scan",
     "points_world_from_scan",
     "origins_world_from_scan",
+    "scans_from_arrays",
 ]
 
 
@@ -393,3 +394,49 @@ def points_world_from_scan(angles_rad, ranges_m, tilt_rad, T_world_laser, unit: 
         World points [m].
     """
     return _apply_pose(T_world_laser, points_laser_from_scan(angles_rad, ranges_m, tilt_rad, unit))
+
+
+def scans_from_arrays(times_s, angles_rad, ranges_m, tilt_rad, T_world_laser, range_min_m: float, range_max_m: float,
+                      *, nan_is_no_return: bool = True) -> list[LaserScan]:
+    """:class:`LaserScan` objects from stacked arrays (e.g. ``planefuse.io.LaserScans`` of a recording).
+
+    Parameters
+    ----------
+    times_s : array_like (S,)
+        Scan times [s].
+    angles_rad : array_like (B,)
+        Beam angles [rad].
+    ranges_m : array_like (S, B)
+        Ranges [m].
+    tilt_rad : array_like (S,) or (S, B)
+        Tilt per scan or per beam [rad].
+    T_world_laser : array_like (4, 4) or (S, 4, 4)
+        Unit pose, fixed or per scan.
+    range_min_m, range_max_m : float
+        Valid range interval of the device [m].
+    nan_is_no_return : bool
+        The recording format writes NaN for "no return within max range"; True maps NaN to
+        ``inf`` (a max-range reading that frees space), False keeps NaN (an invalid return).
+
+    Returns
+    -------
+    list of LaserScan
+    """
+    t = np.asarray(times_s, dtype=float).reshape(-1)
+    a = np.asarray(angles_rad, dtype=float).reshape(-1)
+    r = np.asarray(ranges_m, dtype=float)
+    if r.shape != (t.size, a.size):
+        raise ValueError(f"ranges_m must have shape (S, B) = {(t.size, a.size)}, got {r.shape}")
+    tilt = np.asarray(tilt_rad, dtype=float)
+    if tilt.shape not in ((t.size,), (t.size, a.size)):
+        raise ValueError(f"tilt_rad must have shape (S,) or (S, B) = {(t.size, a.size)}, got {tilt.shape}")
+    if tilt.ndim == 1:
+        tilt = np.broadcast_to(tilt[:, None], r.shape)
+    T = check_transform(T_world_laser, "T_world_laser")
+    if T.ndim == 2:
+        T = np.broadcast_to(T, (t.size, 4, 4))
+    elif T.shape != (t.size, 4, 4):
+        raise ValueError(f"T_world_laser must be (4, 4) or (S, 4, 4) = {(t.size, 4, 4)}, got {T.shape}")
+    if nan_is_no_return:
+        r = np.where(np.isnan(r), np.inf, r)
+    return [LaserScan(float(t[k]), a, r[k], tilt[k], range_min_m, range_max_m, T[k]) for k in range(t.size)]

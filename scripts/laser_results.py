@@ -14,51 +14,33 @@ import scipy.io
 
 from planefuse.geometry import apply_transform
 from planefuse.grid import PlaneStack
-from planefuse.laser import (
-    HIT_CYLINDER,
-    HIT_WALL,
-    LaserScannerSpec,
-    T_world_laser_from_pose_2d,
-    TiltingUnit,
-    detect_people,
-    evaluate_leg_detection,
-    map_entropy_bits,
-    map_from_carmen_log,
-    points_world_from_scan,
-    read_carmen_log,
-    read_rosbag,
-    read_transform_yaml,
-    read_xyz,
-    register_scan,
-    simulate_scan,
-    wall_spread_m,
-)
+from planefuse import laser
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
 def simulated_tilting_scanner() -> None:
     rng = np.random.default_rng(0)
-    unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
+    unit = laser.TiltingUnit(laser.LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
                        tilt_min_rad=-0.15, tilt_max_rad=0.5)
-    T = T_world_laser_from_pose_2d(0.5, 0.5, np.pi / 4, z_m=1.3)  # looking diagonally into the room
+    T = laser.T_world_laser_from_pose_2d(0.5, 0.5, np.pi / 4, z_m=1.3)  # looking diagonally into the room
     cyl = np.array([[3.0, 2.0, 0.25, 0.0, 1.75], [2.0, 4.0, 0.2, 0.0, 1.2], [5.0, 5.0, 0.3, 0.0, 1.6]])
     room, wall_h = (0.0, 7.0, 0.0, 7.0), 2.2
     stack = PlaneStack.from_extent([0.1, 0.5, 0.9, 1.4, 1.7, 2.0], (0, 7), (0, 7), 0.05)
     d_cyl, d_wall, r_err = [], [], []
     acc = np.zeros(stack.shape, np.float32)
     for tilt in np.linspace(unit.tilt_min_rad, unit.tilt_max_rad, 40):
-        scan, truth = simulate_scan(unit, T, tilt, cyl, None, room, wall_h, rng, return_truth=True)
+        scan, truth = laser.simulate_scan(unit, T, tilt, cyl, None, room, wall_h, rng, return_truth=True)
         ok = scan.valid
-        p = points_world_from_scan(scan.angles_rad[ok], scan.ranges_m[ok], scan.tilt_rad[ok], T, unit)
+        p = laser.points_world_from_scan(scan.angles_rad[ok], scan.ranges_m[ok], scan.tilt_rad[ok], T, unit)
         kind, idx = truth.hit_kind[ok], truth.hit_index[ok]
-        side = (kind == HIT_CYLINDER) & (p[:, 2] < cyl[idx, 4] - 0.02)
+        side = (kind == laser.HIT_CYLINDER) & (p[:, 2] < cyl[idx, 4] - 0.02)
         d_cyl.append(np.hypot(p[side, 0] - cyl[idx[side], 0], p[side, 1] - cyl[idx[side], 1]) - cyl[idx[side], 2])
-        w = kind == HIT_WALL
+        w = kind == laser.HIT_WALL
         d_wall.append(np.min(np.abs(np.stack([p[w, 0] - room[0], p[w, 0] - room[1], p[w, 1] - room[2],
                                                p[w, 1] - room[3]])), axis=0))
         r_err.append(scan.ranges_m[ok] - truth.range_m[ok])
-        acc += register_scan(scan, stack, unit=unit).evidence.log_odds
+        acc += laser.register_scan(scan, stack, unit=unit).evidence.log_odds
     d_cyl, d_wall, r_err = map(np.concatenate, (d_cyl, d_wall, r_err))
     print("### Simulated tilting scanner (Hokuyo UTM-30LX model, sigma 10 mm, 40 tilts -0.15..0.5 rad)")
     print(f"- range error vs analytic ray casting: RMS {1e3 * np.sqrt(np.mean(r_err ** 2)):.2f} mm over {r_err.size} beams")
@@ -95,8 +77,8 @@ def simulated_tilting_scanner() -> None:
 def intel_map() -> None:
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        log = read_carmen_log(DATA / "lrf2d_carmen" / "intel-corrected.log.gz")
-    m, pts = map_from_carmen_log(log)
+        log = laser.read_carmen_log(DATA / "lrf2d_carmen" / "intel-corrected.log.gz")
+    m, pts = laser.map_from_carmen_log(log)
     rng = np.random.default_rng(0)
     pose = log.pose_xy_theta + rng.normal(0, [0.05, 0.05, np.deg2rad(1.0)], log.pose_xy_theta.shape)
     bad = log.returns_world_xy(pose)
@@ -104,30 +86,30 @@ def intel_map() -> None:
     print(f"- warnings: {[str(x.message)[:80] for x in w]}")
     print(f"- beams: {m.n_valid} real returns, {m.n_no_return} max-range, {m.n_invalid} invalid; "
           f"time stamps backwards {log.n_time_backwards} times")
-    print(f"- map entropy of observed cells: {map_entropy_bits(m.log_odds):.3f} bit")
+    print(f"- map entropy of observed cells: {laser.map_entropy_bits(m.log_odds):.3f} bit")
     print(f"- median wall spread (RMS distance of 20 neighbours to their local line): corrected poses "
-          f"{1e3 * np.median(wall_spread_m(pts)):.1f} mm, poses perturbed by 5 cm / 1 deg "
-          f"{1e3 * np.median(wall_spread_m(bad)):.1f} mm")
+          f"{1e3 * np.median(laser.wall_spread_m(pts)):.1f} mm, poses perturbed by 5 cm / 1 deg "
+          f"{1e3 * np.median(laser.wall_spread_m(bad)):.1f} mm")
 
 
 def legs() -> None:
     bag = DATA / "lrf2d_people_leg_tracker" / "positive_1_extracted.bag"
-    _, scans = read_rosbag(bag, "/training_scan")
-    _, labels = read_rosbag(bag, "/leg_cluster_positions")
-    sc = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
+    _, scans = laser.read_rosbag(bag, "/training_scan")
+    _, labels = laser.read_rosbag(bag, "/leg_cluster_positions")
+    sc = laser.evaluate_leg_detection(scans, labels, max_distance_m=0.3)
     tp, fp, fn, p, r = sc.tp, sc.fp, sc.fn, sc.precision, sc.recall
     print("### Leg detection, positive_1_extracted.bag (197 scans, labels = leg-cluster centroids, "
           "evaluated within +-15 deg and 5 m as labelled)")
     print(f"- TP {tp}, FP {fp}, FN {fn}: precision {p:.3f}, recall {r:.3f}, F1 {2 * p * r / (p + r):.3f} at 0.3 m")
-    _, demo = read_rosbag(DATA / "lrf2d_people_leg_tracker" / "demo_stationary_simple_environment.bag", "/scan")
-    n = np.array([len(detect_people(s)) for s in demo])
+    _, demo = laser.read_rosbag(DATA / "lrf2d_people_leg_tracker" / "demo_stationary_simple_environment.bag", "/scan")
+    n = np.array([len(laser.detect_people(s)) for s in demo])
     print(f"- demo bag (unlabelled, 1265 scans): people candidates per scan median {np.median(n):.0f}, "
           f"range {n.min()}-{n.max()}")
 
 
 def camera_laser() -> None:
     d = DATA / "lrf3d_camera_lcct"
-    T_camera_laser = read_transform_yaml(d / "T_camera_laser_stageII.yaml")
+    T_camera_laser = laser.read_transform_yaml(d / "T_camera_laser_stageII.yaml")
     calib = scipy.io.loadmat(d / "Calib_Results.mat")
     K, kc = calib["KK"], calib["kc"].ravel()
     print("### Camera + 3-D laser (LCCT, stage-II T_camera_laser)")
@@ -137,7 +119,7 @@ def camera_laser() -> None:
     for i in range(1, 5):
         R, t = calib[f"Rc_{i}"], calib[f"Tc_{i}"].ravel() / 1000.0
         hull = cv2.convexHull(calib[f"x_{i}"].T.astype(np.float32))
-        p = apply_transform(T_camera_laser, read_xyz(d / f"laser_target{i}.xyz"))
+        p = apply_transform(T_camera_laser, laser.read_xyz(d / f"laser_target{i}.xyz"))
         p = p[p[:, 2] > 0]
         uv = cv2.projectPoints(p, np.zeros(3), np.zeros(3), K, kc)[0].reshape(-1, 2)
         margin = np.array([cv2.pointPolygonTest(hull, (float(u), float(v)), True) for u, v in uv])

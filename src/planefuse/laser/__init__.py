@@ -5,7 +5,7 @@ from ._legs import (
     LegDetectorParams,
     detect_legs,
     detect_people,
-    match_detections,
+    evaluate_leg_detection,
     people_from_legs,
     segment_scan,
 )
@@ -44,6 +44,7 @@ from ._scanner import (
     origins_world_from_scan,
     points_laser_from_scan,
     points_world_from_scan,
+    scans_from_arrays,
 )
 from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 
@@ -52,7 +53,7 @@ __all__ = [
     "LegDetectorParams",
     "detect_legs",
     "detect_people",
-    "match_detections",
+    "evaluate_leg_detection",
     "people_from_legs",
     "segment_scan",
     "LaserMap",
@@ -94,6 +95,7 @@ __all__ = [
     "origins_world_from_scan",
     "points_laser_from_scan",
     "points_world_from_scan",
+    "scans_from_arrays",
     "ScanTruth",
     "simulate_nodding_sweep",
     "simulate_scan",

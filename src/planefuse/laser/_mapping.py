@@ -150,11 +150,8 @@ def map_from_carmen_log(log, *, cell_size_m: float = 0.05, z_m: float = 0.3, mar
     points_xy : ndarray (M, 2)
         World XY of every real return [m] (for :func:`wall_spread_m`).
     """
-    from ._scanner import points_world_from_scan
-
     scans = log.scans(z_m)
-    pts = np.concatenate([points_world_from_scan(s.angles_rad[s.valid], s.ranges_m[s.valid], 0.0, s.T_world_laser)
-                          for s in scans])[:, :2]
+    pts = log.returns_world_xy()
     lo, hi = np.percentile(pts, 0.1, axis=0) - margin_m, np.percentile(pts, 99.9, axis=0) + margin_m
     stack = PlaneStack.from_extent([z_m], (lo[0], hi[0]), (lo[1], hi[1]), cell_size_m,
                                    band_edges_m=(z_m - 0.1, z_m + 0.1))

@@ -29,7 +29,7 @@ from numba import njit
 
 from ..geometry._checks import check_points, check_transform
 from ..grid import Evidence, PlaneStack, log_odds_from_probability
-from ._scanner import LaserScan, TiltingUnit, origins_world_from_scan
+from ._scanner import LaserScan, TiltingUnit, _beams_world
 
 __all__ = [
     "P_REF_FROM_WORLD",
@@ -322,14 +322,16 @@ def register_scan(
         Evidence plus the registered points and the beam counts.
     """
     if T_world_laser is None:
-        T_world_laser = scan.T_world_laser
-    if T_world_laser is None:
-        raise ValueError("register_scan needs T_world_laser (argument or scan.T_world_laser)")
+        T_world_laser = scan.T_world_laser  # checked when the scan was made
+        if T_world_laser is None:
+            raise ValueError("register_scan needs T_world_laser (argument or scan.T_world_laser)")
+    else:
+        T_world_laser = check_transform(T_world_laser, "T_world_laser")
     valid, no_ret, invalid = scan.valid, scan.no_return, scan.invalid
     free_m = scan.range_max_m if model.no_return_free_m is None else model.no_return_free_m
     r = np.where(valid, scan.ranges_m, free_m)
     frees = valid | no_ret | (invalid & model.invalid_frees)
-    o_W, d_W = origins_world_from_scan(scan.angles_rad, scan.tilt_rad, T_world_laser, unit)
+    o_W, d_W = _beams_world(scan.angles_rad, scan.tilt_rad, T_world_laser, unit)
     e_W = o_W + r[:, None] * d_W
     ground = valid & (e_W[..., 2] < model.ground_clearance_m)
     is_hit = valid & ~ground

@@ -37,6 +37,7 @@ __all__ = [
     "points_laser_from_scan",
     "points_world_from_scan",
     "origins_world_from_scan",
+    "scans_from_arrays",
 ]
 
 
@@ -328,6 +329,27 @@ def _beams_world_kernel(angles, tilt, R_ts, off, T, o_out, d_out):
             o_out[i, k] = T[k, 0] * ox + T[k, 1] * oy + T[k, 2] * oz + T[k, 3]
 
 
+def _beams_world(angles_rad, tilt_rad, T: np.ndarray, unit: TiltingUnit | None):
+    """:func:`origins_world_from_scan` for a ``T`` that :func:`check_transform` has already accepted."""
+    a, _, t = _as_beams(angles_rad, np.zeros_like(np.asarray(angles_rad, dtype=float)), tilt_rad)
+    R_ts = np.eye(3) if unit is None else unit.R_tilt_scanner
+    off = np.zeros(3) if unit is None else np.asarray(unit.offset_tilt_scanner_m)
+    if T.ndim == 2 and a.ndim == 1:  # the common case, one fused loop
+        o_W = np.empty((a.size, 3))
+        d_W = np.empty((a.size, 3))
+        _beams_world_kernel(a, np.ascontiguousarray(t), np.ascontiguousarray(R_ts), off,
+                            np.ascontiguousarray(T), o_W, d_W)
+        return o_W, d_W
+    # per-beam poses (moving platform): vectorised numpy
+    d_T = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=-1) @ R_ts.T
+    od = np.stack(np.broadcast_arrays(off, d_T))  # Ry(tilt) applied to origins and directions together
+    c, s = np.cos(t), np.sin(t)
+    od_L = np.stack([c * od[..., 0] + s * od[..., 2], od[..., 1], -s * od[..., 0] + c * od[..., 2]], axis=-1)
+    o_W = _apply_pose(T, od_L[0])
+    d_W = np.einsum("...ij,...j->...i", T[..., :3, :3], od_L[1])
+    return o_W, d_W
+
+
 def origins_world_from_scan(angles_rad, tilt_rad, T_world_laser, unit: TiltingUnit | None = None):
     """Beam origins and unit directions in {W} for every beam.
 
@@ -349,27 +371,7 @@ def origins_world_from_scan(angles_rad, tilt_rad, T_world_laser, unit: TiltingUn
     directions_W : ndarray (N, 3)
         Unit beam directions in {W}; the beam's point at range r is ``origins_W + r directions_W``.
     """
-    a, _, t = _as_beams(angles_rad, np.zeros_like(np.asarray(angles_rad, dtype=float)), tilt_rad)
-    T = check_transform(T_world_laser, "T_world_laser")
-    R_ts = np.eye(3) if unit is None else unit.R_tilt_scanner
-    off = np.zeros(3) if unit is None else np.asarray(unit.offset_tilt_scanner_m)
-    if T.ndim == 2 and a.ndim == 1:  # the common case, one fused loop
-        o_W = np.empty((a.size, 3))
-        d_W = np.empty((a.size, 3))
-        _beams_world_kernel(a, np.ascontiguousarray(t), np.ascontiguousarray(R_ts), off,
-                            np.ascontiguousarray(T), o_W, d_W)
-        return o_W, d_W
-    d_T = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=-1)
-    o_T = np.zeros_like(d_T)
-    d_T = d_T @ R_ts.T
-    o_T = o_T + off
-    od = np.stack([o_T, d_T])  # Ry(tilt) applied to origins and directions together
-    c, s = np.cos(t), np.sin(t)
-    od_L = np.stack([c * od[..., 0] + s * od[..., 2], od[..., 1], -s * od[..., 0] + c * od[..., 2]], axis=-1)
-    o_W = _apply_pose(T, od_L[0])
-    R = T[..., :3, :3]
-    d_W = od_L[1] @ R.T if T.ndim == 2 else np.einsum("...ij,...j->...i", R, od_L[1])
-    return o_W, d_W
+    return _beams_world(angles_rad, tilt_rad, check_transform(T_world_laser, "T_world_laser"), unit)
 
 
 def points_world_from_scan(angles_rad, ranges_m, tilt_rad, T_world_laser, unit: TiltingUnit | None = None) -> np.ndarray:
@@ -392,3 +394,49 @@ def points_world_from_scan(angles_rad, ranges_m, tilt_rad, T_world_laser, unit: 
         World points [m].
     """
     return _apply_pose(T_world_laser, points_laser_from_scan(angles_rad, ranges_m, tilt_rad, unit))
+
+
+def scans_from_arrays(times_s, angles_rad, ranges_m, tilt_rad, T_world_laser, range_min_m: float, range_max_m: float,
+                      *, nan_is_no_return: bool = True) -> list[LaserScan]:
+    """:class:`LaserScan` objects from stacked arrays (e.g. ``planefuse.io.LaserScans`` of a recording).
+
+    Parameters
+    ----------
+    times_s : array_like (S,)
+        Scan times [s].
+    angles_rad : array_like (B,)
+        Beam angles [rad].
+    ranges_m : array_like (S, B)
+        Ranges [m].
+    tilt_rad : array_like (S,) or (S, B)
+        Tilt per scan or per beam [rad].
+    T_world_laser : array_like (4, 4) or (S, 4, 4)
+        Unit pose, fixed or per scan.
+    range_min_m, range_max_m : float
+        Valid range interval of the device [m].
+    nan_is_no_return : bool
+        The recording format writes NaN for "no return within max range"; True maps NaN to
+        ``inf`` (a max-range reading that frees space), False keeps NaN (an invalid return).
+
+    Returns
+    -------
+    list of LaserScan
+    """
+    t = np.asarray(times_s, dtype=float).reshape(-1)
+    a = np.asarray(angles_rad, dtype=float).reshape(-1)
+    r = np.asarray(ranges_m, dtype=float)
+    if r.shape != (t.size, a.size):
+        raise ValueError(f"ranges_m must have shape (S, B) = {(t.size, a.size)}, got {r.shape}")
+    tilt = np.asarray(tilt_rad, dtype=float)
+    if tilt.shape not in ((t.size,), (t.size, a.size)):
+        raise ValueError(f"tilt_rad must have shape (S,) or (S, B) = {(t.size, a.size)}, got {tilt.shape}")
+    if tilt.ndim == 1:
+        tilt = np.broadcast_to(tilt[:, None], r.shape)
+    T = check_transform(T_world_laser, "T_world_laser")
+    if T.ndim == 2:
+        T = np.broadcast_to(T, (t.size, 4, 4))
+    elif T.shape != (t.size, 4, 4):
+        raise ValueError(f"T_world_laser must be (4, 4) or (S, 4, 4) = {(t.size, 4, 4)}, got {T.shape}")
+    if nan_is_no_return:
+        r = np.where(np.isnan(r), np.inf, r)
+    return [LaserScan(float(t[k]), a, r[k], tilt[k], range_min_m, range_max_m, T[k]) for k in range(t.size)]

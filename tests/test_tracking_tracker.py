@@ -72,7 +72,9 @@ def test_births_and_deaths(rng):
     outs = list(track_evidence(STACK, evidence, params))
     ids_at = {round(o.time_s, 1): set(o.tracks.ids.tolist()) for o in outs}
     assert ids_at[0.0] == set() and ids_at[0.1] == set()  # tentative: not reported before 3 hits
-    (id_a,) = ids_at[0.2]
+    t_a0 = min(t for t, ids in ids_at.items() if ids)
+    assert t_a0 <= 0.4  # the filter lifts A over the threshold in 1-2 updates, then 3 hits confirm it
+    (id_a,) = ids_at[t_a0]
     # B: the filter needs 1-2 updates to lift a prior cell over the threshold, then 3 hits confirm it
     t_b = min(t for t, ids in ids_at.items() if ids - {id_a})
     assert 1.5 + 2 * DT <= t_b <= 1.5 + 5 * DT
@@ -132,3 +134,16 @@ def test_empty_and_bad_input():
         tr.step(Clusters(-1.0, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0), occ[0]))
     with pytest.raises(ValueError, match="gate_m"):
         TrackerParams(gate_m=0)
+
+
+def test_column_observed_free_on_one_body_plane_is_not_a_person():
+    """A multi-camera ghost: occupied on three body planes, observed free on the fourth -> no cluster;
+    the same column with the fourth plane unobserved (at the prior) -> a cluster."""
+    centres = STACK.cell_centers_xy()
+    inside = np.sum((centres - [3.0, 2.5]) ** 2, axis=-1) <= 0.25**2
+    vel = np.zeros(STACK.shape + (2,))
+    for p_plane3, expected in ((1e-4, 0), (0.05, 1)):
+        occ = np.full(STACK.shape, 0.05)
+        occ[:3, inside] = 0.99
+        occ[3, inside] = p_plane3
+        assert len(cluster_occupancy(0.0, occ, vel, STACK, 0.05)) == expected

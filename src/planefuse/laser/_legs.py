@@ -46,8 +46,8 @@ class LegDetectorParams:
     def __post_init__(self) -> None:
         if not 0 < self.min_width_m < self.max_width_m <= self.max_pair_width_m:
             raise ValueError("need 0 < min_width_m < max_width_m <= max_pair_width_m")
-        if self.jump_m <= 0 or self.min_points < 1 or self.pair_distance_m <= 0:
-            raise ValueError("jump_m, pair_distance_m must be > 0 and min_points >= 1")
+        if self.jump_m <= 0 or self.min_points < 1 or self.pair_distance_m <= 0 or self.background_margin_m < 0:
+            raise ValueError("jump_m, pair_distance_m must be > 0, background_margin_m >= 0 and min_points >= 1")
 
 
 @dataclass(frozen=True)

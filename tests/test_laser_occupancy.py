@@ -11,6 +11,7 @@ from planefuse.laser import (
     CELL_FREE,
     CELL_OCCUPIED,
     LaserScan,
+    LaserRegistrar,
     LaserScannerSpec,
     T_world_laser_from_pose_2d,
     LaserSensorModel,
@@ -178,3 +179,18 @@ def test_moving_platform_per_beam_pose_equals_fixed_pose(rng):
     a = register_scan(scan, stack, unit=unit)
     b = register_scan(scan, stack, unit=unit, T_world_laser=np.broadcast_to(T, (len(scan), 4, 4)))
     np.testing.assert_array_equal(a.evidence.log_odds, b.evidence.log_odds)
+
+
+def test_registrar_reuses_its_grid_without_aliasing_evidence(rng):
+    unit, T, cylinders = _sim_setup()
+    stack = PlaneStack.from_extent([0.1, 0.9, 1.7], (0, 7), (0, 7), 0.1)
+    scans = [simulate_scan(unit, T, tilt, cylinders, None, (0, 7, 0, 7), 2.2, rng) for tilt in (0.0, 0.4)]
+    registrar = LaserRegistrar(stack, unit)
+    first = registrar.register(scans[0])
+    kept = first.evidence.log_odds.copy()
+    second = registrar.register(scans[1])
+    np.testing.assert_array_equal(first.evidence.log_odds, kept)  # not overwritten by the next scan
+    for scan, reg in zip(scans, (first, second)):
+        np.testing.assert_array_equal(reg.evidence.log_odds, register_scan(scan, stack, unit=unit).evidence.log_odds)
+    with pytest.raises(ValueError, match="out must be"):
+        traverse_beams(np.zeros((1, 3)), np.ones((1, 3)), [True], stack, out=np.zeros((1, 2, 3), np.float32))

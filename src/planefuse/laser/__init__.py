@@ -3,6 +3,7 @@
 from ._legs import (
     LegClusters,
     LegDetectorParams,
+    background_ranges_m,
     detect_legs,
     detect_people,
     evaluate_leg_detection,
@@ -15,6 +16,7 @@ from ._occupancy import (
     CELL_OCCUPIED,
     CELL_UNKNOWN,
     P_REF_FROM_WORLD,
+    LaserRegistrar,
     LaserSensorModel,
     ScanRegistration,
     register_points,
@@ -51,6 +53,7 @@ from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 __all__ = [
     "LegClusters",
     "LegDetectorParams",
+    "background_ranges_m",
     "detect_legs",
     "detect_people",
     "evaluate_leg_detection",
@@ -76,6 +79,7 @@ __all__ = [
     "CELL_OCCUPIED",
     "CELL_UNKNOWN",
     "P_REF_FROM_WORLD",
+    "LaserRegistrar",
     "LaserSensorModel",
     "ScanRegistration",
     "register_points",

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grid import LOG_ODDS_CLIP, PlaneStack, probability_from_log_odds
-from ._occupancy import LaserSensorModel, register_scan
+from ._occupancy import LaserRegistrar, LaserSensorModel
 from ._scanner import LaserScan, TiltingUnit
 
 __all__ = ["LaserMap", "map_from_scans", "map_from_carmen_log", "map_entropy_bits", "wall_spread_m"]
@@ -61,8 +61,9 @@ def map_from_scans(
     acc = np.zeros(stack.shape, np.float32)
     tot = np.zeros(5, np.int64)
     n = 0
+    registrar = LaserRegistrar(stack, unit, model)
     for scan in scans:  # one numba traversal per scan
-        reg = register_scan(scan, stack, unit=unit, model=model)
+        reg = registrar.register(scan)
         acc += reg.evidence.log_odds
         np.clip(acc, -LOG_ODDS_CLIP, LOG_ODDS_CLIP, out=acc)
         tot += (reg.n_valid, reg.n_no_return, reg.n_invalid, reg.n_ground, reg.n_outside_bands)

@@ -74,21 +74,26 @@ def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityR
 
 def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityReport,
                    keep_points_every: int = 40) -> Iterator[Evidence]:
-    """Every scan of every laser registered with free space on every plane (planefuse.laser)."""
-    from ..laser import LaserScan, register_scan
+    """Every scan of every laser registered with free space on every plane (planefuse.laser).
+
+    The recording format writes NaN for "no return within range"; such beams free space up to the
+    maximum range (``scans_from_arrays(nan_is_no_return=True)``).
+    """
+    from ..laser import LaserRegistrar, scans_from_arrays
     from ..sim._sensors import tilting_unit_from_model
 
     for name in rec.lasers:
         ls = rec.laser(name)
         unit = tilting_unit_from_model(ls.model)
+        registrar = LaserRegistrar(stack, unit, model, sensor=name)
         sc = unit.scanner
         for chunk in ls.chunks():
-            for k in range(len(chunk.times_s)):
-                scan = LaserScan(float(chunk.times_s[k]), chunk.angles_rad, chunk.ranges_m[k], chunk.tilt_rad[k],
-                                 sc.range_min_m, sc.range_max_m, ls.T_world_base)
-                reg = register_scan(scan, stack, unit=unit, model=model, sensor=name)
+            scans = scans_from_arrays(chunk.times_s, chunk.angles_rad, chunk.ranges_m, chunk.tilt_rad,
+                                      ls.T_world_base, sc.range_min_m, sc.range_max_m)
+            for scan in scans:
+                reg = registrar.register(scan)
                 report.n_laser_scans += 1
-                report.n_laser_invalid_beams += int(np.count_nonzero(scan.invalid))
+                report.n_laser_invalid_beams += reg.n_invalid
                 if report.n_laser_scans % keep_points_every == 1:
                     report.laser_points_world.append(reg.points_world)
                 yield reg.evidence

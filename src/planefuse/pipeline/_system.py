@@ -72,13 +72,15 @@ class SystemResult:
     metrics: dict = field(default_factory=dict)
 
 
-def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
-    """The plane stack covering the recording's monitored area (``rec.room_xy_m``)."""
+def stack_for_recording(rec: Recording, params: SystemParams, wall_margin_m: float = 0.2) -> PlaneStack:
+    """The plane stack covering the recording's monitored area: ``rec.room_xy_m`` less ``wall_margin_m``
+    on every side, so that the walls (static, seen by the laser) are not inside the grid."""
     if rec.room_xy_m is None:
         raise ValueError("recording has no room_xy_m: give the plane stack extent explicitly")
     x0, x1, y0, y1 = rec.room_xy_m
+    m = wall_margin_m
     heights = params.heights_m if params.heights_m is not None else tuple(rec.planes_heights_m)
-    return PlaneStack.from_extent(heights, (x0, x1), (y0, y1), params.cell_size_m)
+    return PlaneStack.from_extent(heights, (x0 + m, x1 - m), (y0 + m, y1 - m), params.cell_size_m)
 
 
 def run_system(

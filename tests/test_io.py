@@ -116,6 +116,27 @@ def test_round_trip_is_identical(written):
     assert len(det) == 3 and det.time_s == 0.48
 
 
+def test_events_are_time_ordered_and_complete(written):
+    _, out = written
+    back = read_recording(out)
+    evs = list(back.events(audio_block_s=0.1))
+    times = [e.time_s for e in evs]
+    assert times == sorted(times)
+    count = {}
+    for e in evs:
+        count[(e.kind, e.name)] = count.get((e.kind, e.name), 0) + 1
+    assert count[("camera", "a")] == 25 and count[("camera", "b")] == 10
+    assert count[("imu", "a_imu")] == 200 and count[("laser", "syn_laser")] == 90
+    assert count[("binaural", "syn_head")] == 11  # 16037 samples in blocks of 1600
+    frame = next(e for e in evs if e.kind == "camera" and e.name == "b")
+    np.testing.assert_array_equal(frame.data.image, back.camera("b").frame(0))
+    at0 = [(e.kind, e.name) for e in evs if e.time_s == 0.0]  # ties keep the order of kinds
+    assert at0 == [("camera", "a"), ("imu", "a_imu"), ("imu", "b_imu"), ("laser", "laser0"),
+                   ("binaural", "head"), ("binaural", "syn_head")]
+    with pytest.raises(ValueError, match="kinds must be among"):
+        next(back.events(kinds=("radar",)))
+
+
 def test_streams_are_lazy_and_chunked(written):
     _, out = written
     back = read_recording(out)

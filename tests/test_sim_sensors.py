@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import soundfile as sf
 import pytest
 from scipy.signal import correlate
 
@@ -84,3 +85,20 @@ def test_binaural_itd_matches_groundtruth_azimuth(rec):
     quiet = x[: int(0.15 * fs)]
     loud = x[int(0.3 * fs) : int(1.7 * fs)]
     assert np.sqrt(np.mean(quiet**2)) < 0.3 * np.sqrt(np.mean(loud**2))
+
+
+def test_speaker_wav_file_is_heard_only_while_talking(tmp_path):
+    fs = 16000
+    t = np.arange(int(0.3 * fs)) / fs
+    sf.write(tmp_path / "voice.wav", (0.5 * np.sin(2 * np.pi * 440 * t)).astype(np.float32), fs)
+    cfg = SceneConfig.model_validate({
+        "duration_s": 2.0, "n_people": 2, "seed": 1, "cameras": [], "imu": None, "laser": None,
+        "head": {"rt60_s": 0.0},
+        "speakers": [{"person_id": 1, "intervals_s": [[0.8, 1.4]], "wav_path": str(tmp_path / "voice.wav")}],
+    })
+    x = simulate(cfg).binaural().read()
+    rms = np.sqrt(np.mean(x.reshape(20, -1, 2) ** 2, axis=(1, 2)))  # per 100 ms
+    # The tone (looped) during [0.8, 1.4] s; elsewhere sensor noise 20 dB below the mean power of the recording.
+    assert rms[9:13].min() > 10 * rms[:7].max()
+    spec = np.abs(np.fft.rfft(x[int(0.9 * fs) : int(1.3 * fs), 0]))
+    assert abs(np.argmax(spec) * fs / (0.4 * fs) - 440) < 5

@@ -11,7 +11,9 @@ from planefuse.laser import (
     CELL_FREE,
     CELL_OCCUPIED,
     LaserScan,
+    LaserRegistrar,
     LaserScannerSpec,
+    T_world_laser_from_pose_2d,
     LaserSensorModel,
     TiltingUnit,
     register_points,
@@ -104,9 +106,7 @@ def test_eq5_projection_and_band_assignment():
 def _sim_setup():
     unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
                        tilt_min_rad=-0.15, tilt_max_rad=0.5, tilt_period_s=2.0)
-    T = transform_from_rotation_translation(np.eye(3), [0.5, 0.5, 1.3])
-    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
-    T[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T = T_world_laser_from_pose_2d(0.5, 0.5, np.pi / 4, z_m=1.3)  # looking diagonally into the room
     cylinders = np.array([[3.0, 2.0, 0.25, 0.0, 1.75], [2.0, 4.0, 0.2, 0.0, 1.2], [5.0, 5.0, 0.3, 0.0, 1.6]])
     return unit, T, cylinders
 
@@ -138,7 +138,7 @@ def test_simulated_per_plane_occupancy_marks_true_cross_sections(rng):
                 d = np.minimum(d, np.maximum(rho - r, 0.0) if cap_in_band else np.abs(rho - r))
                 if not cap_in_band:
                     inside |= rho < r - stack.cell_size_m
-                if min(zt, edges[l + 1]) - edges[l] > 0.2:
+                if min(zt, edges[l + 1]) - edges[l] >= 0.15:
                     # the cross-section is seen: occupied cells within one cell of its rim
                     near = occ & (np.abs(rho - r) < 1.5 * stack.cell_size_m)
                     assert near.sum() >= 3, (l, cx, cy)
@@ -179,3 +179,18 @@ def test_moving_platform_per_beam_pose_equals_fixed_pose(rng):
     a = register_scan(scan, stack, unit=unit)
     b = register_scan(scan, stack, unit=unit, T_world_laser=np.broadcast_to(T, (len(scan), 4, 4)))
     np.testing.assert_array_equal(a.evidence.log_odds, b.evidence.log_odds)
+
+
+def test_registrar_reuses_its_grid_without_aliasing_evidence(rng):
+    unit, T, cylinders = _sim_setup()
+    stack = PlaneStack.from_extent([0.1, 0.9, 1.7], (0, 7), (0, 7), 0.1)
+    scans = [simulate_scan(unit, T, tilt, cylinders, None, (0, 7, 0, 7), 2.2, rng) for tilt in (0.0, 0.4)]
+    registrar = LaserRegistrar(stack, unit)
+    first = registrar.register(scans[0])
+    kept = first.evidence.log_odds.copy()
+    second = registrar.register(scans[1])
+    np.testing.assert_array_equal(first.evidence.log_odds, kept)  # not overwritten by the next scan
+    for scan, reg in zip(scans, (first, second)):
+        np.testing.assert_array_equal(reg.evidence.log_odds, register_scan(scan, stack, unit=unit).evidence.log_odds)
+    with pytest.raises(ValueError, match="out must be"):
+        traverse_beams(np.zeros((1, 3)), np.ones((1, 3)), [True], stack, out=np.zeros((1, 2, 3), np.float32))

@@ -12,16 +12,15 @@ from scipy.spatial.distance import cdist
 
 from conftest import shared_data
 from planefuse.geometry import apply_transform, transform_from_rotation_translation
+from planefuse.eval import detection_scores
 from planefuse.grid import GroundDetections
 from planefuse.laser import (
     LaserScannerSpec,
-    T_world_laser_from_pose_2d,
-    detect_legs,
     detect_people,
+    evaluate_leg_detection,
     map_entropy_bits,
     map_from_carmen_log,
-    match_detections,
-    points_laser_from_scan,
+    points_world_from_scan,
     read_carmen_log,
     read_rosbag,
     read_transform_yaml,
@@ -29,14 +28,6 @@ from planefuse.laser import (
     simulate_scan,
     wall_spread_m,
 )
-
-
-def test_match_detections_is_one_to_one():
-    assert match_detections([[0, 0], [0.1, 0]], [[0.05, 0]], 0.3) == (1, 1, 0)
-    assert match_detections([[0, 0]], [[1, 0]], 0.3) == (0, 1, 1)
-    assert match_detections(np.zeros((0, 2)), [[1, 0]], 0.3) == (0, 0, 1)
-    # a far pair must not displace a close one
-    assert match_detections([[0, 0], [0.5, 0]], [[0.25, 0], [0.75, 0]], 0.3) == (2, 0, 0)
 
 
 def test_simulated_people_found_from_their_legs(rng):
@@ -51,13 +42,13 @@ def test_simulated_people_found_from_their_legs(rng):
     scan = simulate_scan(LaserScannerSpec.hokuyo_utm30lx(0.01), T, 0.0, cylinders, None, room, 2.0, rng)
     det = detect_people(scan)
     assert isinstance(det, GroundDetections) and det.source == "laser"
-    tp, fp, fn = match_detections(det.xy_m, centres, 0.1)
-    assert (tp, fn) == (3, 0)
+    scores = detection_scores([(centres, det.xy_m)], 0.1)
+    assert (scores.tp, scores.fn) == (3, 0)
     assert np.all(np.isnan(det.height_m))
     # the known limit of a geometric detector: the only false detections are leg-sized
     # stretches of wall between leg shadows
     far = cdist(det.xy_m, centres).min(axis=1) > 0.1
-    assert far.sum() == fp
+    assert far.sum() == scores.fp
     x0, x1, y0, y1 = room
     xy = det.xy_m[far]
     to_wall = np.min(np.abs(np.stack([xy[:, 0] - x0, xy[:, 0] - x1, xy[:, 1] - y0, xy[:, 1] - y1])), axis=0)
@@ -71,18 +62,10 @@ def test_leg_detection_on_labelled_real_scans_f1_at_0p3m():
     _, scans = read_rosbag(bag, "/training_scan")
     _, labels = read_rosbag(bag, "/leg_cluster_positions")
     assert len(scans) == len(labels) == 197  # paired by order: the PoseArrays have stamp 0
-    tp = fp = fn = 0
-    for scan, truth in zip(scans, labels):
-        ok = scan.valid
-        xy = points_laser_from_scan(scan.angles_rad[ok], scan.ranges_m[ok])[:, :2]
-        d = detect_legs(xy).xy_m
-        window = (np.abs(np.arctan2(d[:, 1], d[:, 0])) <= np.deg2rad(15)) & (np.hypot(d[:, 0], d[:, 1]) <= 5)
-        a, b, c = match_detections(d[window], truth[:, :2], 0.3)
-        tp, fp, fn = tp + a, fp + b, fn + c
-    precision, recall = tp / (tp + fp), tp / (tp + fn)
-    f1 = 2 * precision * recall / (precision + recall)
-    assert f1 >= 0.8, (precision, recall, f1)
-    assert tp + fn == sum(len(t) for t in labels)
+    scores = evaluate_leg_detection(scans, labels, max_distance_m=0.3)
+    f1 = 2 * scores.precision * scores.recall / (scores.precision + scores.recall)
+    assert f1 >= 0.8, scores.as_dict()
+    assert scores.n_gt == sum(len(t) for t in labels)
 
 
 def test_intel_map_walls_are_sharp_and_pose_errors_blur_them():
@@ -97,11 +80,13 @@ def test_intel_map_walls_are_sharp_and_pose_errors_blur_them():
     # the same scans with poses off by 5 cm / 1 deg give visibly thicker walls
     rng = np.random.default_rng(0)
     pose = log.pose_xy_theta + rng.normal(0, [0.05, 0.05, np.deg2rad(1.0)], log.pose_xy_theta.shape)
-    T = T_world_laser_from_pose_2d(pose[:, 0], pose[:, 1], pose[:, 2])
-    ok = (log.ranges_m > 0) & (log.ranges_m < log.range_max_m)
-    bad = np.concatenate([apply_transform(T[k], points_laser_from_scan(log.angles_rad[ok[k]], log.ranges_m[k, ok[k]]))
-                          for k in range(len(log))])[:, :2]
-    assert np.median(wall_spread_m(bad)) > 1.5 * spread
+    assert np.median(wall_spread_m(log.returns_world_xy(pose))) > 1.5 * spread
+    # the closed form of returns_world_xy equals the general registration of the scans
+    scan = log.scans()[100]
+    np.testing.assert_allclose(
+        points_world_from_scan(scan.angles_rad[scan.valid], scan.ranges_m[scan.valid], 0.0, scan.T_world_laser)[:, :2],
+        log.returns_world_xy()[np.repeat(np.arange(len(log)), ((log.ranges_m > 0) & (log.ranges_m < 80)).sum(1)) == 100],
+        atol=1e-9)
 
 
 @pytest.mark.parametrize("i", [1, 2, 3, 4])

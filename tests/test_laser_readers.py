@@ -190,3 +190,25 @@ def test_transform_yaml(tmp_path):
         bad.write_text("R: [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\nt: [0, 0, 0]\n")
         with pytest.raises(ValueError, match="determinant"):
             read_transform_yaml(bad)
+
+
+def test_laser_map_cli_writes_png_and_reports_backwards_time(tmp_path):
+    from typer.testing import CliRunner
+
+    from planefuse.cli import app
+
+    # a square room 4 x 4 m seen from its centre with 1-degree beams, three poses, one stamp going back
+    angles = -np.pi / 2 + np.arange(180) * np.pi / 180
+    lines = []
+    for k, (theta, t) in enumerate([(0.0, 1.0), (np.pi / 2, 0.5), (np.pi, 2.0)]):
+        a = angles + theta
+        r = np.minimum(2.0 / np.maximum(np.abs(np.cos(a)), 1e-9), 2.0 / np.maximum(np.abs(np.sin(a)), 1e-9))
+        lines.append(_flaser(180, np.round(r, 4), (0.0, 0.0, theta), t))
+    log = tmp_path / "room.log"
+    log.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "map.png"
+    res = CliRunner().invoke(app, ["laser-map", str(log), "--out", str(out), "--cell-size-m", "0.1"])
+    assert res.exit_code == 0, res.output
+    assert out.exists() and out.stat().st_size > 1000
+    assert "backwards 1 times" in res.output.replace("\n", " ")
+    assert "540" in res.output  # 3 x 180 real returns, all counted

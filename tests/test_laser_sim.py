@@ -16,6 +16,7 @@ from planefuse.laser import (
     HIT_WALL,
     LaserScan,
     LaserScannerSpec,
+    T_world_laser_from_pose_2d,
     TiltingUnit,
     points_laser_from_scan,
     points_world_from_scan,
@@ -36,10 +37,7 @@ def _people_scene():
 def _unit_pose():
     unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(0.01), offset_tilt_scanner_m=(0.03, 0.0, 0.05),
                        tilt_min_rad=-0.2, tilt_max_rad=0.6)
-    T_world_laser = transform_from_rotation_translation(np.eye(3), [1.0, 1.5, 1.2])
-    # looking along +x+y diagonally into the room
-    c, s = np.cos(np.pi / 4), np.sin(np.pi / 4)
-    T_world_laser[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    T_world_laser = T_world_laser_from_pose_2d(1.0, 1.5, np.pi / 4, z_m=1.2)  # looking diagonally into the room
     return unit, T_world_laser
 
 
@@ -179,3 +177,43 @@ def test_fixed_scanner_world_points_round_trip(rng):
     # beam straight ahead hits the cylinder at x = 7 - 0.3
     assert p[90, 0] == pytest.approx(6.7)
     np.testing.assert_allclose(apply_transform(T, np.zeros(3)), [5, 4, 0.4])
+
+
+def test_beam_origins_directions_fused_equals_per_beam_pose_and_points(rng):
+    from scipy.spatial.transform import Rotation
+
+    from planefuse.laser import origins_world_from_scan
+
+    unit = TiltingUnit(LaserScannerSpec.hokuyo_utm30lx(), (0.03, 0.01, 0.05), Rotation.random(random_state=2).as_matrix())
+    T = transform_from_rotation_translation(Rotation.random(random_state=3).as_matrix(), [1.0, 2.0, 3.0])
+    a, t = rng.uniform(-2, 2, 50), rng.uniform(-1, 1, 50)
+    o, d = origins_world_from_scan(a, t, T, unit)  # fused numba path
+    o2, d2 = origins_world_from_scan(a, t, np.broadcast_to(T, (50, 4, 4)), unit)  # per-beam numpy path
+    np.testing.assert_allclose(o, o2, atol=1e-12)
+    np.testing.assert_allclose(d, d2, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
+    np.testing.assert_allclose(o + 2.0 * d, points_world_from_scan(a, np.full(50, 2.0), t, T, unit), atol=1e-12)
+
+
+def test_scans_from_recording_arrays_round_trip(rng):
+    """The recording format stores NaN for no return; scans_from_arrays turns it into max-range readings."""
+    from planefuse.io import LaserScans
+    from planefuse.laser import scans_from_arrays
+
+    unit, T = _unit_pose()
+    cylinders, spheres = _people_scene()
+    sims = [simulate_scan(unit, T, tilt, cylinders, spheres, ROOM, WALL_H, rng, time_s=0.025 * k)
+            for k, tilt in enumerate([0.0, 0.2, 0.4])]
+    rec = LaserScans(np.array([s.time_s for s in sims]), sims[0].angles_rad,
+                     np.array([np.where(np.isinf(s.ranges_m), np.nan, s.ranges_m) for s in sims]),
+                     np.array([s.tilt_rad[0] for s in sims]))
+    back = scans_from_arrays(rec.times_s, rec.angles_rad, rec.ranges_m, rec.tilt_rad, T, 0.1, 30.0)
+    for a, b in zip(sims, back):
+        np.testing.assert_array_equal(a.no_return, b.no_return)
+        np.testing.assert_array_equal(a.valid, b.valid)
+        np.testing.assert_allclose(points_world_from_scan(b.angles_rad[b.valid], b.ranges_m[b.valid], b.tilt_rad[b.valid],
+                                                          b.T_world_laser, unit),
+                                   points_world_from_scan(a.angles_rad[a.valid], a.ranges_m[a.valid], a.tilt_rad[a.valid],
+                                                          T, unit))
+    with pytest.raises(ValueError, match="ranges_m must have shape"):
+        scans_from_arrays(rec.times_s, rec.angles_rad, rec.ranges_m[:, :5], rec.tilt_rad, T, 0.1, 30.0)

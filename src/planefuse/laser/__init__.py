@@ -5,7 +5,7 @@ from ._legs import (
     LegDetectorParams,
     detect_legs,
     detect_people,
-    match_detections,
+    evaluate_leg_detection,
     people_from_legs,
     segment_scan,
 )
@@ -15,6 +15,7 @@ from ._occupancy import (
     CELL_OCCUPIED,
     CELL_UNKNOWN,
     P_REF_FROM_WORLD,
+    LaserRegistrar,
     LaserSensorModel,
     ScanRegistration,
     register_points,
@@ -44,6 +45,7 @@ from ._scanner import (
     origins_world_from_scan,
     points_laser_from_scan,
     points_world_from_scan,
+    scans_from_arrays,
 )
 from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 
@@ -52,7 +54,7 @@ __all__ = [
     "LegDetectorParams",
     "detect_legs",
     "detect_people",
-    "match_detections",
+    "evaluate_leg_detection",
     "people_from_legs",
     "segment_scan",
     "LaserMap",
@@ -75,6 +77,7 @@ __all__ = [
     "CELL_OCCUPIED",
     "CELL_UNKNOWN",
     "P_REF_FROM_WORLD",
+    "LaserRegistrar",
     "LaserSensorModel",
     "ScanRegistration",
     "register_points",
@@ -94,6 +97,7 @@ __all__ = [
     "origins_world_from_scan",
     "points_laser_from_scan",
     "points_world_from_scan",
+    "scans_from_arrays",
     "ScanTruth",
     "simulate_nodding_sweep",
     "simulate_scan",

@@ -16,14 +16,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.spatial.distance import cdist
 
+from ..eval import DetectionScores, detection_scores
 from ..grid import GroundDetections
 from ._scanner import LaserScan, points_world_from_scan
 
 __all__ = ["LegDetectorParams", "LegClusters", "segment_scan", "detect_legs", "people_from_legs",
-           "detect_people", "match_detections"]
+           "detect_people", "evaluate_leg_detection"]
 
 
 @dataclass(frozen=True)
@@ -178,31 +178,37 @@ def detect_people(scan: LaserScan, T_world_laser=None, params: LegDetectorParams
     return GroundDetections(float(scan.time_s), xy, conf, None, source)
 
 
-def match_detections(pred_xy, true_xy, max_distance_m: float = 0.3) -> tuple[int, int, int]:
-    """Optimal one-to-one matching (Hungarian) of detections to truth within ``max_distance_m``.
+def evaluate_leg_detection(scans, labels, *, max_distance_m: float = 0.3, window_deg: float = 15.0,
+                           max_range_m: float = 5.0, params: LegDetectorParams = LegDetectorParams(),
+                           ) -> DetectionScores:
+    """Leg detection scored against labelled leg centroids in the laser frame (leg-tracker bags).
+
+    The labels of ``angusleigh/leg_tracker``'s extracted bags only cover legs within
+    ``+-window_deg`` of the scanner's axis and ``max_range_m``; detections are scored in the same
+    window.
 
     Parameters
     ----------
-    pred_xy : array_like (M, 2)
-        Detections [m].
-    true_xy : array_like (G, 2)
-        Ground truth [m].
-    max_distance_m : float
-        A pair farther apart than this is no match [m].
+    scans : sequence of LaserScan
+    labels : sequence of ndarray (P_i, 2 or 3)
+        Labelled leg centroids per scan, laser frame [m] (paired with ``scans`` by order).
 
     Returns
     -------
-    tp, fp, fn : int
-        Matched pairs, unmatched detections, unmatched truths.
+    DetectionScores
+        :func:`planefuse.eval.detection_scores` (one-to-one Hungarian matching within
+        ``max_distance_m``) over the scans.
     """
-    p = np.asarray(pred_xy, dtype=float).reshape(-1, 2)
-    g = np.asarray(true_xy, dtype=float).reshape(-1, 2)
-    if not (np.isfinite(p).all() and np.isfinite(g).all()):
-        raise ValueError("pred_xy and true_xy must be finite")
-    if len(p) == 0 or len(g) == 0:
-        return 0, len(p), len(g)
-    D = cdist(p, g)
-    # forbid far pairs so that they cannot displace close ones
-    r, c = linear_sum_assignment(np.where(D <= max_distance_m, D, 1e6))
-    tp = int(np.sum(D[r, c] <= max_distance_m))
-    return tp, len(p) - tp, len(g) - tp
+    if len(scans) != len(labels):
+        raise ValueError(f"{len(scans)} scans but {len(labels)} label sets")
+
+    def frames():
+        for scan, truth in zip(scans, labels):  # one detector call per scan
+            ok = scan.valid
+            xy = points_world_from_scan(scan.angles_rad[ok], scan.ranges_m[ok], scan.tilt_rad[ok], np.eye(4))[:, :2]
+            d = detect_legs(xy, params).xy_m
+            win = (np.abs(np.arctan2(d[:, 1], d[:, 0])) <= np.deg2rad(window_deg)) \
+                & (np.hypot(d[:, 0], d[:, 1]) <= max_range_m)
+            yield np.asarray(truth, dtype=float)[:, :2], d[win]
+
+    return detection_scores(frames(), max_distance_m)

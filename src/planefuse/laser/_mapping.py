@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..grid import LOG_ODDS_CLIP, PlaneStack, probability_from_log_odds
-from ._occupancy import LaserSensorModel, register_scan
+from ._occupancy import LaserRegistrar, LaserSensorModel
 from ._scanner import LaserScan, TiltingUnit
 
 __all__ = ["LaserMap", "map_from_scans", "map_from_carmen_log", "map_entropy_bits", "wall_spread_m"]
@@ -61,8 +61,9 @@ def map_from_scans(
     acc = np.zeros(stack.shape, np.float32)
     tot = np.zeros(5, np.int64)
     n = 0
+    registrar = LaserRegistrar(stack, unit, model)
     for scan in scans:  # one numba traversal per scan
-        reg = register_scan(scan, stack, unit=unit, model=model)
+        reg = registrar.register(scan)
         acc += reg.evidence.log_odds
         np.clip(acc, -LOG_ODDS_CLIP, LOG_ODDS_CLIP, out=acc)
         tot += (reg.n_valid, reg.n_no_return, reg.n_invalid, reg.n_ground, reg.n_outside_bands)
@@ -150,11 +151,8 @@ def map_from_carmen_log(log, *, cell_size_m: float = 0.05, z_m: float = 0.3, mar
     points_xy : ndarray (M, 2)
         World XY of every real return [m] (for :func:`wall_spread_m`).
     """
-    from ._scanner import points_world_from_scan
-
     scans = log.scans(z_m)
-    pts = np.concatenate([points_world_from_scan(s.angles_rad[s.valid], s.ranges_m[s.valid], 0.0, s.T_world_laser)
-                          for s in scans])[:, :2]
+    pts = log.returns_world_xy()
     lo, hi = np.percentile(pts, 0.1, axis=0) - margin_m, np.percentile(pts, 99.9, axis=0) + margin_m
     stack = PlaneStack.from_extent([z_m], (lo[0], hi[0]), (lo[1], hi[1]), cell_size_m,
                                    band_edges_m=(z_m - 0.1, z_m + 0.1))

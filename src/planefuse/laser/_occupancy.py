@@ -29,7 +29,7 @@ from numba import njit
 
 from ..geometry._checks import check_points, check_transform
 from ..grid import Evidence, PlaneStack, log_odds_from_probability
-from ._scanner import LaserScan, TiltingUnit, points_laser_from_scan
+from ._scanner import LaserScan, TiltingUnit, _beams_world
 
 __all__ = [
     "P_REF_FROM_WORLD",
@@ -38,6 +38,7 @@ __all__ = [
     "xy_ref_from_points_laser",
     "register_points",
     "register_scan",
+    "LaserRegistrar",
     "traverse_beams",
     "CELL_UNKNOWN",
     "CELL_FREE",
@@ -259,7 +260,7 @@ def _traverse_kernel(origins, ends, is_hit, edges, x_min, y_min, cell, nx, ny, o
 
 
 def traverse_beams(origins_world, ends_world, is_hit, stack: PlaneStack,
-                   model: LaserSensorModel = LaserSensorModel()) -> np.ndarray:
+                   model: LaserSensorModel = LaserSensorModel(), out: np.ndarray | None = None) -> np.ndarray:
     """Per-plane log-odds of 3-D beams (numba Amanatides-Woo traversal, inverse sensor model).
 
     Parameters
@@ -272,6 +273,8 @@ def traverse_beams(origins_world, ends_world, is_hit, stack: PlaneStack,
     stack : PlaneStack
     model : LaserSensorModel
         Log-odds written into free and occupied cells.
+    out : ndarray (L, ny, nx) float32, optional
+        Buffer to reuse (zeroed here); saves allocating (and page-faulting) a new grid per scan.
 
     Returns
     -------
@@ -284,22 +287,16 @@ def traverse_beams(origins_world, ends_world, is_hit, stack: PlaneStack,
     hit = np.ascontiguousarray(np.asarray(is_hit, dtype=np.bool_).reshape(-1))
     if o.ndim != 2 or e.shape != o.shape or hit.shape != (o.shape[0],):
         raise ValueError(f"origins_world {o.shape}, ends_world {e.shape} and is_hit {hit.shape} must be (N,3),(N,3),(N,)")
-    out = np.zeros(stack.shape, dtype=np.float32)
+    if out is None:
+        out = np.zeros(stack.shape, dtype=np.float32)
+    elif out.shape != stack.shape or out.dtype != np.float32 or not out.flags.c_contiguous:
+        raise ValueError(f"out must be a C-contiguous float32 array of shape {stack.shape}, got {out.dtype} {out.shape}")
+    else:
+        out.fill(0.0)
     lo = model.log_odds_table
     _traverse_kernel(o, e, hit, np.asarray(stack.band_edges_m), stack.x_min_m, stack.y_min_m,
                      stack.cell_size_m, stack.nx, stack.ny, out, lo[CELL_FREE], lo[CELL_OCCUPIED])
     return out
-
-
-def _world(T_world_laser, p_L: np.ndarray) -> np.ndarray:
-    T = check_transform(T_world_laser, "T_world_laser")
-    if T.ndim == 2:
-        return p_L @ T[:3, :3].T + T[:3, 3]
-    try:
-        np.broadcast_shapes(T.shape[:-2], p_L.shape[:-1])
-    except ValueError:
-        raise ValueError(f"T_world_laser batch {T.shape[:-2]} does not match the beams {p_L.shape[:-1]}") from None
-    return np.einsum("...ij,...j->...i", T[..., :3, :3], p_L) + T[..., :3, 3]
 
 
 def register_scan(
@@ -332,32 +329,58 @@ def register_scan(
     ScanRegistration
         Evidence plus the registered points and the beam counts.
     """
-    if T_world_laser is None:
-        T_world_laser = scan.T_world_laser
-    if T_world_laser is None:
-        raise ValueError("register_scan needs T_world_laser (argument or scan.T_world_laser)")
-    valid, no_ret, invalid = scan.valid, scan.no_return, scan.invalid
-    free_m = scan.range_max_m if model.no_return_free_m is None else model.no_return_free_m
-    r = np.where(valid, scan.ranges_m, free_m)
-    frees = valid | no_ret | (invalid & model.invalid_frees)
-    # optical centres and end points together, one transform
-    p_L = points_laser_from_scan(np.stack([scan.angles_rad] * 2), np.stack([np.zeros_like(r), r]),
-                                 scan.tilt_rad, unit)
-    T = np.asarray(T_world_laser, dtype=float)
-    p_W = _world(T[None] if T.ndim == 3 else T, p_L)
-    o_W, e_W = p_W[0], p_W[1]
-    ground = valid & (e_W[..., 2] < model.ground_clearance_m)
-    is_hit = valid & ~ground
-    log_odds = traverse_beams(o_W[frees], e_W[frees], is_hit[frees], stack, model)
-    pts = e_W[is_hit]
-    plane = stack.plane_index_from_z(pts[:, 2])
-    return ScanRegistration(
-        evidence=Evidence(float(scan.time_s), sensor, log_odds),
-        points_world=pts,
-        plane_index=plane,
-        n_valid=int(valid.sum()),
-        n_no_return=int(no_ret.sum()),
-        n_invalid=int(invalid.sum()),
-        n_ground=int(ground.sum()),
-        n_outside_bands=int(np.sum(plane < 0)),
-    )
+    return LaserRegistrar(stack, unit, model, sensor).register(scan, T_world_laser)
+
+
+class LaserRegistrar:
+    """:func:`register_scan` for a stream of scans: same stack, unit and model, one reused scratch grid.
+
+    Parameters
+    ----------
+    stack : PlaneStack
+    unit : TiltingUnit, optional
+    model : LaserSensorModel
+    sensor : str
+
+    Notes
+    -----
+    Each :class:`Evidence` owns its own (clipped) copy of the log-odds, so reusing the
+    scratch grid between scans is safe; it avoids allocating and page-faulting a fresh
+    (L, ny, nx) grid per scan, which costs as much as the traversal itself.
+    """
+
+    def __init__(self, stack: PlaneStack, unit: TiltingUnit | None = None,
+                 model: LaserSensorModel = LaserSensorModel(), sensor: str = "laser") -> None:
+        self.stack, self.unit, self.model, self.sensor = stack, unit, model, sensor
+        self._scratch = np.zeros(stack.shape, dtype=np.float32)
+
+    def register(self, scan: LaserScan, T_world_laser=None) -> ScanRegistration:
+        """Register ``scan`` (see :func:`register_scan`); ``T_world_laser`` defaults to ``scan.T_world_laser``."""
+        stack, unit, model, sensor = self.stack, self.unit, self.model, self.sensor
+        if T_world_laser is None:
+            T_world_laser = scan.T_world_laser  # checked when the scan was made
+            if T_world_laser is None:
+                raise ValueError("register_scan needs T_world_laser (argument or scan.T_world_laser)")
+        else:
+            T_world_laser = check_transform(T_world_laser, "T_world_laser")
+        valid, no_ret, invalid = scan.valid, scan.no_return, scan.invalid
+        free_m = scan.range_max_m if model.no_return_free_m is None else model.no_return_free_m
+        r = np.where(valid, scan.ranges_m, free_m)
+        frees = valid | no_ret | (invalid & model.invalid_frees)
+        o_W, d_W = _beams_world(scan.angles_rad, scan.tilt_rad, T_world_laser, unit)
+        e_W = o_W + r[:, None] * d_W
+        ground = valid & (e_W[..., 2] < model.ground_clearance_m)
+        is_hit = valid & ~ground
+        log_odds = traverse_beams(o_W[frees], e_W[frees], is_hit[frees], stack, model, self._scratch)
+        pts = e_W[is_hit]
+        plane = stack.plane_index_from_z(pts[:, 2])
+        return ScanRegistration(
+            evidence=Evidence(float(scan.time_s), sensor, log_odds),
+            points_world=pts,
+            plane_index=plane,
+            n_valid=int(valid.sum()),
+            n_no_return=int(no_ret.sum()),
+            n_invalid=int(invalid.sum()),
+            n_ground=int(ground.sum()),
+            n_outside_bands=int(np.sum(plane < 0)),
+        )

@@ -90,6 +90,23 @@ class CarmenLog:
         p = self.pose_xy_theta
         return T_world_laser_from_pose_2d(p[:, 0], p[:, 1], p[:, 2], z_m)
 
+    def returns_world_xy(self, pose_xy_theta=None) -> np.ndarray:
+        """World XY (M, 2) [m] of every real return (``0 < r < range_max_m``), all scans stacked.
+
+        Parameters
+        ----------
+        pose_xy_theta : array_like (K, 3), optional
+            Poses to register with instead of the log's (e.g. perturbed ones).
+        """
+        pose = self.pose_xy_theta if pose_xy_theta is None else np.asarray(pose_xy_theta, dtype=float)
+        if pose.shape != self.pose_xy_theta.shape:
+            raise ValueError(f"pose_xy_theta must have shape {self.pose_xy_theta.shape}, got {pose.shape}")
+        ok = (self.ranges_m > 0) & (self.ranges_m < self.range_max_m)
+        k, i = np.nonzero(ok)
+        a = self.angles_rad[i] + pose[k, 2]
+        r = self.ranges_m[k, i]
+        return np.column_stack([pose[k, 0] + r * np.cos(a), pose[k, 1] + r * np.sin(a)])
+
     def scans(self, z_m: float = 0.0) -> list[LaserScan]:
         """One :class:`LaserScan` per record, with its ``T_world_laser`` at height ``z_m`` [m]."""
         T = self.T_world_laser(z_m)

@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from ..geometry._checks import check_rotation, check_transform
 
@@ -36,6 +37,7 @@ __all__ = [
     "points_laser_from_scan",
     "points_world_from_scan",
     "origins_world_from_scan",
+    "scans_from_arrays",
 ]
 
 
@@ -298,25 +300,78 @@ def points_laser_from_scan(angles_rad, ranges_m, tilt_rad=0.0, unit: TiltingUnit
     return np.stack([x, p_T[..., 1], z], axis=-1)
 
 
+def _apply_pose(T_world_laser, p_L: np.ndarray) -> np.ndarray:
+    """``T_world_laser`` (4, 4) or per-beam (..., N, 4, 4) applied to ``p_L`` (..., N, 3)."""
+    T = check_transform(T_world_laser, "T_world_laser")
+    if T.ndim == 2:
+        return p_L @ T[:3, :3].T + T[:3, 3]
+    try:
+        np.broadcast_shapes(T.shape[:-2], p_L.shape[:-1])
+    except ValueError:
+        raise ValueError(f"T_world_laser batch {T.shape[:-2]} does not match the beams {p_L.shape[:-1]}") from None
+    return np.einsum("...ij,...j->...i", T[..., :3, :3], p_L) + T[..., :3, 3]
+
+
+@njit(cache=True)
+def _beams_world_kernel(angles, tilt, R_ts, off, T, o_out, d_out):
+    for i in range(angles.shape[0]):
+        ca, sa = np.cos(angles[i]), np.sin(angles[i])
+        ct, st = np.cos(tilt[i]), np.sin(tilt[i])
+        # direction and origin in the tilting frame
+        dx = R_ts[0, 0] * ca + R_ts[0, 1] * sa
+        dy = R_ts[1, 0] * ca + R_ts[1, 1] * sa
+        dz = R_ts[2, 0] * ca + R_ts[2, 1] * sa
+        # Ry(tilt): x' = c x + s z, z' = -s x + c z
+        lx, ly, lz = ct * dx + st * dz, dy, -st * dx + ct * dz
+        ox, oy, oz = ct * off[0] + st * off[2], off[1], -st * off[0] + ct * off[2]
+        for k in range(3):
+            d_out[i, k] = T[k, 0] * lx + T[k, 1] * ly + T[k, 2] * lz
+            o_out[i, k] = T[k, 0] * ox + T[k, 1] * oy + T[k, 2] * oz + T[k, 3]
+
+
+def _beams_world(angles_rad, tilt_rad, T: np.ndarray, unit: TiltingUnit | None):
+    """:func:`origins_world_from_scan` for a ``T`` that :func:`check_transform` has already accepted."""
+    a, _, t = _as_beams(angles_rad, np.zeros_like(np.asarray(angles_rad, dtype=float)), tilt_rad)
+    R_ts = np.eye(3) if unit is None else unit.R_tilt_scanner
+    off = np.zeros(3) if unit is None else np.asarray(unit.offset_tilt_scanner_m)
+    if T.ndim == 2 and a.ndim == 1:  # the common case, one fused loop
+        o_W = np.empty((a.size, 3))
+        d_W = np.empty((a.size, 3))
+        _beams_world_kernel(a, np.ascontiguousarray(t), np.ascontiguousarray(R_ts), off,
+                            np.ascontiguousarray(T), o_W, d_W)
+        return o_W, d_W
+    # per-beam poses (moving platform): vectorised numpy
+    d_T = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=-1) @ R_ts.T
+    od = np.stack(np.broadcast_arrays(off, d_T))  # Ry(tilt) applied to origins and directions together
+    c, s = np.cos(t), np.sin(t)
+    od_L = np.stack([c * od[..., 0] + s * od[..., 2], od[..., 1], -s * od[..., 0] + c * od[..., 2]], axis=-1)
+    o_W = _apply_pose(T, od_L[0])
+    d_W = np.einsum("...ij,...j->...i", T[..., :3, :3], od_L[1])
+    return o_W, d_W
+
+
 def origins_world_from_scan(angles_rad, tilt_rad, T_world_laser, unit: TiltingUnit | None = None):
     """Beam origins and unit directions in {W} for every beam.
+
+    Parameters
+    ----------
+    angles_rad : array_like (N,)
+        Beam angles in the scanner frame [rad].
+    tilt_rad : float or array_like (N,)
+        Tilt per beam [rad].
+    T_world_laser : array_like (4, 4) or (N, 4, 4)
+        Unit pose, for the scan or per beam.
+    unit : TiltingUnit, optional
+        Mechanical model.
 
     Returns
     -------
     origins_W : ndarray (N, 3)
         Scanner optical centre per beam [m] (depends on tilt when the unit has an offset).
     directions_W : ndarray (N, 3)
-        Unit beam directions in {W}.
+        Unit beam directions in {W}; the beam's point at range r is ``origins_W + r directions_W``.
     """
-    a = np.asarray(angles_rad, dtype=float).reshape(-1)
-    T = check_transform(T_world_laser, "T_world_laser")
-    if T.shape != (4, 4):
-        raise ValueError(f"T_world_laser must have shape (4, 4) here, got {T.shape}")
-    zeros = np.zeros_like(a)
-    o_L = points_laser_from_scan(a, zeros, tilt_rad, unit)
-    d_L = points_laser_from_scan(a, np.ones_like(a), tilt_rad, unit) - o_L
-    R, t = T[:3, :3], T[:3, 3]
-    return o_L @ R.T + t, d_L @ R.T
+    return _beams_world(angles_rad, tilt_rad, check_transform(T_world_laser, "T_world_laser"), unit)
 
 
 def points_world_from_scan(angles_rad, ranges_m, tilt_rad, T_world_laser, unit: TiltingUnit | None = None) -> np.ndarray:
@@ -338,10 +393,50 @@ def points_world_from_scan(angles_rad, ranges_m, tilt_rad, T_world_laser, unit: 
     ndarray (N, 3)
         World points [m].
     """
-    p_L = points_laser_from_scan(angles_rad, ranges_m, tilt_rad, unit)
+    return _apply_pose(T_world_laser, points_laser_from_scan(angles_rad, ranges_m, tilt_rad, unit))
+
+
+def scans_from_arrays(times_s, angles_rad, ranges_m, tilt_rad, T_world_laser, range_min_m: float, range_max_m: float,
+                      *, nan_is_no_return: bool = True) -> list[LaserScan]:
+    """:class:`LaserScan` objects from stacked arrays (e.g. ``planefuse.io.LaserScans`` of a recording).
+
+    Parameters
+    ----------
+    times_s : array_like (S,)
+        Scan times [s].
+    angles_rad : array_like (B,)
+        Beam angles [rad].
+    ranges_m : array_like (S, B)
+        Ranges [m].
+    tilt_rad : array_like (S,) or (S, B)
+        Tilt per scan or per beam [rad].
+    T_world_laser : array_like (4, 4) or (S, 4, 4)
+        Unit pose, fixed or per scan.
+    range_min_m, range_max_m : float
+        Valid range interval of the device [m].
+    nan_is_no_return : bool
+        The recording format writes NaN for "no return within max range"; True maps NaN to
+        ``inf`` (a max-range reading that frees space), False keeps NaN (an invalid return).
+
+    Returns
+    -------
+    list of LaserScan
+    """
+    t = np.asarray(times_s, dtype=float).reshape(-1)
+    a = np.asarray(angles_rad, dtype=float).reshape(-1)
+    r = np.asarray(ranges_m, dtype=float)
+    if r.shape != (t.size, a.size):
+        raise ValueError(f"ranges_m must have shape (S, B) = {(t.size, a.size)}, got {r.shape}")
+    tilt = np.asarray(tilt_rad, dtype=float)
+    if tilt.shape not in ((t.size,), (t.size, a.size)):
+        raise ValueError(f"tilt_rad must have shape (S,) or (S, B) = {(t.size, a.size)}, got {tilt.shape}")
+    if tilt.ndim == 1:
+        tilt = np.broadcast_to(tilt[:, None], r.shape)
     T = check_transform(T_world_laser, "T_world_laser")
     if T.ndim == 2:
-        return p_L @ T[:3, :3].T + T[:3, 3]
-    if T.shape[:-2] != p_L.shape[:-1]:
-        raise ValueError(f"T_world_laser batch {T.shape[:-2]} does not match the beams {p_L.shape[:-1]}")
-    return np.einsum("...ij,...j->...i", T[..., :3, :3], p_L) + T[..., :3, 3]
+        T = np.broadcast_to(T, (t.size, 4, 4))
+    elif T.shape != (t.size, 4, 4):
+        raise ValueError(f"T_world_laser must be (4, 4) or (S, 4, 4) = {(t.size, 4, 4)}, got {T.shape}")
+    if nan_is_no_return:
+        r = np.where(np.isnan(r), np.inf, r)
+    return [LaserScan(float(t[k]), a, r[k], tilt[k], range_min_m, range_max_m, T[k]) for k in range(t.size)]

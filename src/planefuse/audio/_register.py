@@ -23,6 +23,7 @@ capped at ``max_log_odds``.
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from ..geometry import apply_transform, check_transform, invert_transform
 from ..grid import Evidence, PlaneStack
@@ -54,6 +55,7 @@ def evidence_from_saliency(
     speaker_probability: float = 0.1,
     max_log_odds: float = 2.0,
     min_range_m: float = 0.2,
+    wedge_sigma_rad: float = np.deg2rad(4.0),
 ) -> Evidence:
     """Register an auditory saliency map as wedge log-odds on every plane.
 
@@ -78,6 +80,9 @@ def evidence_from_saliency(
         Cap of the positive evidence along the wedge.
     min_range_m : float
         Cells closer than this to the head's vertical axis get 0 (the azimuth is undefined there).
+    wedge_sigma_rad : float
+        The saliency is blurred by a Gaussian of this width [rad] before registration: the
+        angular uncertainty of the estimate (about twice its mean error), which sets the wedge's width.
 
     Returns
     -------
@@ -99,6 +104,7 @@ def evidence_from_saliency(
         raise ValueError(f"speaker_probability must be in (0, 1), got {speaker_probability}")
     if s.sum() == 0:
         return Evidence(float(time_s), sensor, np.zeros(stack.shape, np.float32))
+    s = gaussian_filter1d(s / s.sum(), wedge_sigma_rad / np.mean(np.diff(grid)), mode="constant")
     s = s / s.sum()
     lat, rng = lateral_angle_of_cells(stack, T_world_head)
     half = np.arctan2(0.5 * np.sqrt(2) * stack.cell_size_m, np.maximum(rng, 1e-9))

@@ -39,6 +39,7 @@ def _register() -> None:
     from . import _laser  # noqa: F401
     from . import _simulate  # noqa: F401
     from . import _config, _check  # noqa: F401
+    from . import _audio  # noqa: F401
 
 
 _register()

@@ -46,3 +46,21 @@ def test_simulate_bad_scene_names_file_and_field(tmp_path):
     res = CliRunner().invoke(app, ["simulate", str(scene), "--out", str(tmp_path / "x")])
     assert res.exit_code == 2
     assert "bad.yaml:2" in res.output and "n_peeple" in res.output
+
+
+def test_planefuse_check_reads_a_simulated_recording(tmp_path):
+    from planefuse.config import example_yaml
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["simulate", "--out", str(tmp_path / "scene"), "--duration-s", "0.5",
+                              "--image-format", "jpg"])
+    assert res.exit_code == 0, res.output
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text(example_yaml("scene"))
+    res = runner.invoke(app, ["check", str(cfg)], terminal_width=200)
+    assert res.exit_code == 0, res.output
+    assert "ready to run" in res.output
+    # A stream the configuration needs disappears: check names it.
+    (tmp_path / "scene/imu/cam2_imu.csv").unlink()
+    res = runner.invoke(app, ["check", str(cfg)], terminal_width=200)
+    assert res.exit_code == 1 and "missing stream of imu 'cam2_imu'" in " ".join(res.output.split())

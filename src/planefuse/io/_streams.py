@@ -118,7 +118,6 @@ class CameraStream:
         if not path.is_file():
             raise ValueError(f"{path}: file not found (missing stream of camera {entry.name!r})")
         times, images, masks = [], [], []
-        checker = TimeChecker(str(path), entry.rate_hz)
         with open(path, newline="") as fh:
             reader = csv.reader(fh)
             header = next(reader, None)
@@ -129,13 +128,13 @@ class CameraStream:
                 if len(row) != len(header):
                     raise ValueError(f"{path}:{line}: expected {len(header)} fields, got {len(row)} (truncated?)")
                 try:
-                    t = float(row[0])
+                    times.append(float(row[0]))
                 except ValueError:
                     raise ValueError(f"{path}:{line}: time_s {row[0]!r} is not a number") from None
-                checker.check(np.array([t]), [f"line {line}"])
-                times.append(t)
                 images.append(row[1])
                 masks.append(row[2] if len(row) > 2 else None)
+        checker = TimeChecker(str(path), entry.rate_hz)
+        checker.check(np.array(times), first_line=2)  # one row per line after the header
         if len(times) != entry.n_frames:
             raise ValueError(f"{path}: manifest says n_frames = {entry.n_frames}, file lists {len(times)} (truncated?)")
         has_masks = len(header) > 2
@@ -200,7 +199,7 @@ class ImuStream:
         checker = TimeChecker(str(self.path), self.rate_hz)
         n = 0
         for rows, line in read_csv_chunks(self.path, IMU_COLUMNS, max_rows):
-            checker.check(rows[:, 0], [f"line {line + k}" for k in range(len(rows))])
+            checker.check(rows[:, 0], line)
             n += len(rows)
             yield ImuData(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
         self.gaps = checker.gaps

@@ -111,7 +111,7 @@ def test_round_trip_is_identical(written):
     np.testing.assert_array_equal(ga.bodies, gb.bodies)
     for f in ("times_s", "person_ids", "speaking", "position_m", "azimuth_rad", "elevation_rad"):
         np.testing.assert_array_equal(getattr(ga.sound, f), getattr(gb.sound, f))
-    assert back.provenance["seed"] == 5
+    assert SceneConfig.model_validate(back.provenance) == rec.config  # simulation.yaml reproduces the scene
     det = gb.people.detections_at(0.5)
     assert len(det) == 3 and det.time_s == 0.5
     # Interpolated ground truth agrees with the scene's own state at an off-grid time (linear, 2 cm).

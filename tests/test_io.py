@@ -335,3 +335,42 @@ def test_time_checker_accepts_exactly_increasing_sequences(ts):
     else:
         with pytest.raises(ValueError, match=r"x\.csv: time_s\[\d+\]: (duplicate|time_s .* goes backwards)"):
             checker.check(t)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    n_scans=st.integers(0, 900),
+    n_beams=st.integers(1, 40),
+    per_beam_tilt=st.booleans(),
+    seed=st.integers(0, 2**31),
+)
+def test_laser_and_audio_round_trip_any_shape(tmp_path_factory, n_scans, n_beams, per_beam_tilt, seed):
+    from planefuse.io import Recording
+
+    rng = np.random.default_rng(seed)
+    times = np.cumsum(rng.uniform(0.01, 0.03, n_scans))  # no gaps at 40 Hz
+    ranges = rng.uniform(0, 30, (n_scans, n_beams))
+    ranges[rng.random(ranges.shape) < 0.1] = np.inf
+    ranges[rng.random(ranges.shape) < 0.05] = np.nan
+    tilt = rng.normal(size=(n_scans, n_beams) if per_beam_tilt else n_scans)
+    scans = LaserScans(times, rng.uniform(-3, 3, n_beams), ranges, tilt, {"id": np.arange(n_scans)})
+    audio = rng.normal(size=(int(rng.integers(0, 3000)), 2)).astype(np.float32)
+    T = np.eye(4)
+    rec = Recording(duration_s=float(times[-1]) if n_scans else 0.0,
+                    lasers={"l": LaserStream("l", T, 40.0, n_scans, data=scans)},
+                    audio={"h": AudioStream("h", T, 8000, 0.25, len(audio), data=audio)})
+    out = tmp_path_factory.mktemp("lr") / "r"
+    rec.write(out)
+    back = read_recording(out)
+    b = back.laser("l")
+    parts = list(b.chunks())
+    assert [len(p) for p in parts] == [min(400, n_scans - a) for a in range(0, n_scans, 400)]
+    if n_scans:
+        got = b.read()
+        np.testing.assert_array_equal(got.times_s, times)
+        np.testing.assert_array_equal(got.ranges_m, ranges)
+        np.testing.assert_array_equal(got.tilt_rad, tilt)
+        np.testing.assert_array_equal(got.extra["id"], np.arange(n_scans))
+    h = back.binaural("h")
+    np.testing.assert_array_equal(h.read(), audio)
+    assert h.start_time_s == 0.25 and h.fs_hz == 8000

@@ -83,6 +83,7 @@ def test_round_trip_is_identical(written):
             np.testing.assert_array_equal(fa.image, fb.image)
             np.testing.assert_array_equal(fa.mask, fb.mask)
     assert back.camera("b").times_s[0] == 0.013 and len(back.camera("b")) == 10
+    np.testing.assert_array_equal(back.camera("a").background(), rec.camera("a").background())
     for name, s in rec.imus.items():
         a, b = s.read(), back.imu(name).read()
         for f in ("times_s", "gyro_rad_s", "accel_m_s2"):

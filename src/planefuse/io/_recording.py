@@ -280,12 +280,18 @@ def _write_camera(root: Path, name: str, cs: CameraStream, masks: bool, image_fo
         rows.append(",".join(row))
     while pending:
         _wait(*pending.popleft())
+    bg_rel = None
+    if cs.has_background:
+        bg_rel = f"cameras/{name}/background.png"
+        if not cv2.imwrite(str(root / bg_rel), cs.background(), _PNG):
+            raise ValueError(f"{root / bg_rel}: could not write the image")
     header = "time_s,image_file,mask_file" if masks else "time_s,image_file"
     (base / "times.csv").write_text(header + "\n" + "".join(r + "\n" for r in rows))
     cam = cs.camera
     return CameraEntry(type="camera", name=name, width_px=cam.intrinsics.width_px, height_px=cam.intrinsics.height_px,
                        K=_matrix(cam.K), dist=cam.intrinsics.dist.tolist(), T_world_cam=_matrix(cam.T_world_cam),
-                       rate_hz=cs.rate_hz, n_frames=len(rows), times_file=f"cameras/{name}/times.csv")
+                       rate_hz=cs.rate_hz, n_frames=len(rows), times_file=f"cameras/{name}/times.csv",
+                       background_file=bg_rel)
 
 
 def read_recording(path: str | Path) -> Recording:

@@ -69,7 +69,8 @@ def simulate(config: SceneConfig | None = None) -> SimulatedRecording:
         renderer = CameraRenderer(cam, scene, cfg.render, cfg.seed, i, banks[key])
         times = sample_times(cfg.duration_s, spec.rate_hz, spec.time_offset_s)
         rec.camera_streams[spec.name] = CameraStream(
-            cam, times, lambda k, r=renderer, t=times: r.render(float(t[k]), k), True, spec.rate_hz
+            cam, times, lambda k, r=renderer, t=times: r.render(float(t[k]), k), True, spec.rate_hz,
+            get_background=lambda r=renderer: r.background,
         )
         if cfg.imu is not None:
             T = T_cam_imu()

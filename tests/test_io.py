@@ -120,6 +120,20 @@ def test_round_trip_is_identical(written):
     np.testing.assert_array_equal(gb.people.xy_at(gb.people.times_s), gb.people.xy_m)
 
 
+def test_a_read_recording_writes_an_identical_copy(written, tmp_path):
+    back = read_recording(written[1])
+    back.write(tmp_path / "copy")
+    again = read_recording(tmp_path / "copy")
+    for fa, fb in zip(back.camera("b"), again.camera("b"), strict=True):
+        np.testing.assert_array_equal(fa.image, fb.image)
+        np.testing.assert_array_equal(fa.mask, fb.mask)
+    np.testing.assert_array_equal(again.imu("b_imu").read().accel_m_s2, back.imu("b_imu").read().accel_m_s2)
+    np.testing.assert_array_equal(again.laser("laser0").read().ranges_m, back.laser("laser0").read().ranges_m)
+    np.testing.assert_array_equal(again.binaural("head").read(), back.binaural("head").read())
+    np.testing.assert_array_equal(again.groundtruth.people.xy_m, back.groundtruth.people.xy_m)
+    assert again.provenance == back.provenance
+
+
 def test_events_are_time_ordered_and_complete(written):
     _, out = written
     back = read_recording(out)

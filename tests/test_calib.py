@@ -228,3 +228,22 @@ def test_epfl_boxes_parse(tmp_path):
     np.testing.assert_array_equal(b.lost, [False, True])
     np.testing.assert_array_equal(b.occluded, [True, False])
     np.testing.assert_allclose(b.foot_uv(), [[20.0, 140.0], [3.0, 9.0]])
+
+
+# --- CLI ---------------------------------------------------------------------------------
+def test_cli_calib_show(tmp_path):
+    from typer.testing import CliRunner
+
+    from planefuse.cli import app
+
+    p = tmp_path / "cam.yml"
+    T_cam_world = np.linalg.inv(transform_from_rotation_translation(np.diag([1.0, -1.0, -1.0]), [1.0, 2.0, 3.0]))
+    write_fs(p, camera_matrix=K0, distortion_coefficients=DIST0.reshape(5, 1), image_width=1280, image_height=720,
+             rvec=cv2.Rodrigues(T_cam_world[:3, :3])[0], tvec=T_cam_world[:3, 3] * 100.0)
+    res = CliRunner().invoke(app, ["calib-show", str(p), "--metres-per-unit", "0.01"], terminal_width=200)
+    assert res.exit_code == 0, res.output
+    assert "1280 x 720" in res.output and "[1. 2. 3.]" in res.output
+    bad = tmp_path / "bad.yml"
+    write_fs(bad, camera_matrix=np.eye(2))
+    res = CliRunner().invoke(app, ["calib-show", str(bad)], terminal_width=200)
+    assert res.exit_code == 1 and "field 'camera_matrix': expected 9 values" in " ".join(res.output.split())

@@ -162,6 +162,8 @@ def test_attitude_bad_inputs_raise():
         attitude_from_imu(t, gyr, np.zeros_like(acc))
     with pytest.raises(ValueError, match="method must be one of"):
         attitude_from_imu(t, gyr, acc, method="kalman")
+    with pytest.raises(ValueError, match=r"params \['beta'\] unknown for method 'madgwick'"):
+        attitude_from_imu(t, gyr, acc, params={"beta": 0.1})
     with pytest.raises(ValueError, match="R_imu_cam"):
         attitude_from_imu(t, gyr, acc, R_imu_cam=2 * np.eye(3))
 

@@ -72,7 +72,7 @@ def _occ(stack: PlaneStack, k: int) -> np.ndarray:
 def job(tmp_path):
     script = tmp_path / "job.py"
     script.write_text(JOB)
-    text = (example_yaml("rec").replace("cell_size_m: 0.05", "cell_size_m: 0.5")
+    text = (example_yaml("rec").replace("cell_size_m: 0.1", "cell_size_m: 0.5")
             .replace("chunk_steps: 50", "chunk_steps: 5").replace("figures: true", "figures: false")
             .replace("report: true", "report: false").replace("animation: gif", "animation: none"))
     cfg_path = tmp_path / "run.yaml"

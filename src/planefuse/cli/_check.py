@@ -18,18 +18,30 @@ SCENE_FILE = "scene.yaml"
 
 
 def read_recording_for_check(cfg: RunConfig):
-    """Cameras, stream time stamps and required streams of ``cfg.recording``, or None where no reader exists.
+    """Cameras, stream time stamps [s] and required streams of ``cfg.recording`` (planefuse.io).
 
-    Delegates to ``planefuse.io.check_inputs(recording_dir, cfg)``, which returns
-    ``(cameras: list[PinholeCamera], stream_times_s: dict[str, ndarray], expected_streams: list[str])``
-    and raises ``ValueError`` for calibrations that do not load.
+    Reads only the streams' time stamps (laser scans chunk by chunk; audio as its first and
+    last sample time). Raises ``ValueError`` when the recording or a calibration does not load.
     """
-    try:
-        from .. import io as recording_io
-    except ImportError:
-        return None
-    reader = getattr(recording_io, "check_inputs", None)
-    return None if reader is None else reader(cfg.recording, cfg)
+    from ..io import read_recording
+
+    rec = read_recording(cfg.recording)
+    times: dict[str, np.ndarray] = {name: cs.times_s for name, cs in rec.camera_streams.items()}
+    for name, imu in rec.imus.items():
+        times[name] = np.concatenate([c.times_s for c in imu.chunks()]) if imu.n_samples else np.zeros(0)
+    for name, ls in rec.lasers.items():
+        times[name] = np.concatenate([c.times_s for c in ls.chunks()]) if ls.n_scans else np.zeros(0)
+    for name, au in rec.audio.items():
+        times[name] = au.start_time_s + np.array([0.0, max(au.n_samples - 1, 0) / au.fs_hz]) \
+            if au.n_samples else np.zeros(0)
+    expected: list[str] = []
+    if cfg.sensors.cameras.enabled:
+        expected += list(rec.camera_streams) or ["camera"]
+    if cfg.sensors.laser.enabled:
+        expected += list(rec.lasers) or ["laser"]
+    if cfg.sensors.sound.enabled:
+        expected += list(rec.audio) or ["binaural"]
+    return rec.cameras, times, expected
 
 
 def _report_json(report: CheckReport) -> str:
@@ -69,10 +81,6 @@ def check(
         except (ValueError, OSError) as err:
             report.add("error", "recording", f"cannot read the recording: {err}")
             inputs = None
-        else:
-            if inputs is None:
-                report.add("warning", "recording", "no recording reader in this build: only the configuration "
-                           "and the folder were checked")
         if inputs is not None:
             cameras, times, expected = inputs
             sub = check_recording(cameras if cfg.sensors.cameras.enabled else [], stack, times, expected)

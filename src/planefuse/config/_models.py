@@ -53,7 +53,7 @@ class PlanesConfig(_Model):
     """The stack of horizontal planes z = h_0..h_{L-1} and their common XY grid."""
 
     heights_m: list[Annotated[float, Field(ge=0.0, le=10.0)]] = _field(
-        [0.0, 0.5, 1.0, 1.5],
+        [0.1, 0.5, 1.0, 1.5],
         description="Heights of the planes above the ground plane pi_ref (z = 0)",
         unit="m",
         expected="at least one height, each in [0, 10], strictly increasing",
@@ -66,7 +66,7 @@ class PlanesConfig(_Model):
         (0.0, 10.0), description="World Y extent of the grid (min, max)", unit="m", expected="min < max"
     )
     cell_size_m: float = _field(
-        0.05, description="Side of a square grid cell", unit="m", expected="in (0, 5]", gt=0.0, le=5.0
+        0.1, description="Side of a square grid cell", unit="m", expected="in (0, 5]", gt=0.0, le=5.0
     )
 
     @field_validator("heights_m")
@@ -101,75 +101,60 @@ class PlanesConfig(_Model):
 
 
 class CameraSensorConfig(_Model):
-    """Cameras: background subtraction, then registration of the foreground on the planes."""
+    """Cameras: background subtraction, then registration of the foreground on the planes (planefuse.vision)."""
 
     enabled: bool = _field(True, description="Use the cameras")
-    names: list[str] | None = _field(
-        None, description="Cameras to use (names in scene.yaml); null uses all", expected="null or names"
-    )
     foreground_method: Literal["MOG2", "KNN"] = _field(
         "MOG2", description="OpenCV background subtractor", expected="MOG2 or KNN"
     )
     history_frames: int = _field(
         200, description="Frames in the background model's history", unit="frames", expected=">= 1", ge=1
     )
-    var_threshold: float = _field(
-        16.0,
-        description="MOG2 varThreshold (squared Mahalanobis distance) or KNN dist2Threshold",
-        expected="> 0",
+    var_threshold: float | None = _field(
+        None,
+        description="MOG2 varThreshold (squared Mahalanobis distance) or KNN dist2Threshold; null = OpenCV's default",
+        expected="null or > 0",
         gt=0.0,
     )
-    detect_shadows: bool = _field(False, description="Let the subtractor mark shadows (then treated as background)")
+    detect_shadows: bool = _field(True, description="Let the subtractor mark shadows (then treated as background)")
     p_foreground_given_occupied: float = _field(
-        0.8, description="Sensor model P(foreground | cell occupied)", expected="in (0, 1)", gt=0.0, lt=1.0
+        0.9, description="Sensor model P(foreground | cell occupied)", expected="in (0, 1)", gt=0.0, lt=1.0
     )
     p_foreground_given_free: float = _field(
-        0.1, description="Sensor model P(foreground | cell free)", expected="in (0, 1)", gt=0.0, lt=1.0
+        0.2, description="Sensor model P(foreground | cell free)", expected="in (0, 1)", gt=0.0, lt=1.0
     )
 
 
 class LaserSensorConfig(_Model):
-    """Laser range finders: hits become evidence on the plane whose height band holds them."""
+    """Laser range finders: hits become evidence on the plane whose height band holds them (planefuse.laser)."""
 
     enabled: bool = _field(True, description="Use the laser range finders")
-    max_range_m: float = _field(
-        20.0, description="Ranges beyond this are treated as no return", unit="m", expected="in (0, 200]", gt=0.0,
-        le=200.0,
+    p_occupied_hit: float = _field(
+        0.7, description="Inverse sensor model: P(occupied) of a cell holding a beam's end point",
+        expected="in (0.5, 1)", gt=0.5, lt=1.0,
     )
-    hit_log_odds: float = _field(
-        2.0, description="Log-odds added to a cell holding a hit", expected="> 0", gt=0.0
+    p_occupied_free: float = _field(
+        0.35, description="Inverse sensor model: P(occupied) of a cell a beam crossed before its end",
+        expected="in (0, 0.5)", gt=0.0, lt=0.5,
     )
-    free_log_odds: float = _field(
-        -0.5, description="Log-odds added to cells a beam traverses", expected="<= 0", le=0.0
+    no_return_free_m: float | None = _field(
+        None, description="Free space along a beam with no return, up to this range; null = the scanner's range_max",
+        unit="m", expected="null or > 0", gt=0.0,
     )
 
 
 class SoundSensorConfig(_Model):
-    """Binaural microphones: time-difference-of-arrival wedges on the planes."""
+    """Binaural microphones: Bayesian azimuth saliency registered as wedges on the planes (planefuse.audio)."""
 
     enabled: bool = _field(True, description="Use the binaural microphone pair")
-    frame_length_s: float = _field(
-        0.064, description="Length of an analysis frame", unit="s", expected="in (0, 1]", gt=0.0, le=1.0
+    block_length_s: float = _field(
+        0.5, description="Length of the audio blocks localised one at a time", unit="s", expected="in (0, 10]",
+        gt=0.0, le=10.0,
     )
-    min_frequency_hz: float = _field(
-        200.0, description="Lowest frequency used for localisation", unit="Hz", expected=">= 0", ge=0.0
+    model_path: Path | None = _field(
+        None, description="Calibrated sensor model (planefuse audio calibrate); null = the spherical-head model",
+        expected="null or a file path",
     )
-    max_frequency_hz: float = _field(
-        4000.0, description="Highest frequency used for localisation", unit="Hz", expected="> min_frequency_hz",
-        gt=0.0,
-    )
-    speed_of_sound_m_s: float = _field(
-        343.0, description="Speed of sound", unit="m/s", expected="in [300, 400]", ge=300.0, le=400.0
-    )
-
-    @model_validator(mode="after")
-    def _band(self) -> "SoundSensorConfig":
-        if self.max_frequency_hz <= self.min_frequency_hz:
-            raise ValueError(
-                f"max_frequency_hz ({self.max_frequency_hz} Hz) must exceed min_frequency_hz "
-                f"({self.min_frequency_hz} Hz)"
-            )
-        return self
 
 
 class SensorsConfig(_Model):
@@ -187,58 +172,71 @@ class SensorsConfig(_Model):
 
 
 class FilterModelConfig(_Model):
-    """Bayesian Occupancy Filter: prediction model per plane."""
+    """Bayesian Occupancy Filter per plane (planefuse.tracking.BOFParams) and its time handling."""
 
-    time_step_s: float = _field(
-        0.1, description="Filter time step", unit="s", expected="in (0, 10]", gt=0.0, le=10.0
+    n_velocities_per_axis: int = _field(
+        7, description="Velocity hypotheses per axis (odd: the set includes v = 0)", expected="odd, in [1, 15]",
+        ge=1, le=15,
     )
-    velocities_m_s: list[tuple[float, float]] = _field(
-        [(0.0, 0.0), (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)],
-        description="Velocity hypotheses (vx, vy) of a cell's content",
-        unit="m/s",
-        expected="at least one pair, each |v| <= 10",
-        min_length=1,
+    velocity_max_m_s: float = _field(
+        1.5, description="Largest velocity hypothesis per axis", unit="m/s", expected="in (0, 10]", gt=0.0, le=10.0
     )
-    p_keep_velocity: float = _field(
-        0.9, description="Probability that a cell's content keeps its velocity over a step",
+    prior_occupancy: float = _field(
+        0.05, description="Prior occupancy probability of a cell", expected="in (0, 1)", gt=0.0, lt=1.0
+    )
+    decay_rate_hz: float = _field(
+        0.5, description="Rate at which an unobserved cell's occupancy returns to the prior", unit="1/s",
+        expected=">= 0", ge=0.0,
+    )
+    velocity_noise_rate_hz: float = _field(
+        1.0, description="Rate of velocity changes (mixing between neighbouring velocity hypotheses)", unit="1/s",
+        expected=">= 0", ge=0.0,
+    )
+    merge_tolerance_s: float = _field(
+        0.05, description="Evidence messages closer in time than this are fused in one update", unit="s",
         expected="in [0, 1]", ge=0.0, le=1.0,
     )
-    p_appear: float = _field(
-        0.01, description="Probability that an empty cell becomes occupied over a step (births)",
-        expected="in [0, 1)", ge=0.0, lt=1.0,
+    window_s: float = _field(
+        0.2, description="Re-ordering window for out-of-order messages", unit="s", expected="in [0, 10]",
+        ge=0.0, le=10.0,
     )
-    p_occupied_prior: float = _field(
-        0.1, description="Prior occupancy probability of a cell", expected="in (0, 1)", gt=0.0, lt=1.0
+    output_period_s: float = _field(
+        0.2, description="Time between output steps (occupancy, detections, tracks)", unit="s",
+        expected="in (0, 10]", gt=0.0, le=10.0,
     )
 
-    @field_validator("velocities_m_s")
+    @field_validator("n_velocities_per_axis")
     @classmethod
-    def _speeds(cls, v: list[tuple[float, float]]) -> list[tuple[float, float]]:
-        for i, (vx, vy) in enumerate(v):
-            if (vx * vx + vy * vy) ** 0.5 > 10.0:
-                raise item_error(i, f"({vx}, {vy}) m/s is faster than 10 m/s")
+    def _odd(cls, v: int) -> int:
+        if v % 2 == 0:
+            raise ValueError(f"must be odd so that v = 0 is a hypothesis, got {v}")
         return v
 
 
 class DetectionModelConfig(_Model):
-    """From occupancy to people: thresholds, clustering and tracking gates."""
+    """From occupancy to people: column clustering and track management (planefuse.tracking)."""
 
-    occupancy_threshold: float = _field(
-        0.6, description="Cells above this posterior occupancy are candidate people",
-        expected="in (0, 1)", gt=0.0, lt=1.0,
+    column_threshold: float = _field(
+        3.0, description="Column log-odds above which a cluster is a person hypothesis", expected="> 0", gt=0.0
     )
     person_radius_m: float = _field(
         0.3, description="Radius of a person's footprint", unit="m", expected="in (0, 2]", gt=0.0, le=2.0
     )
-    min_planes: int = _field(
-        2, description="Planes on which a column must be occupied to count as a person", expected=">= 1", ge=1
+    min_separation_m: float = _field(
+        0.4, description="Closest two people may stand", unit="m", expected="in (0, 5]", gt=0.0, le=5.0
     )
-    gate_distance_m: float = _field(
-        1.0, description="Largest distance between a track and the detection it is associated with",
+    gate_m: float = _field(
+        0.75, description="Largest distance between a track's prediction and the cluster it is associated with",
         unit="m", expected="> 0", gt=0.0,
     )
-    max_missed_s: float = _field(
-        1.0, description="A track unseen for longer than this is ended", unit="s", expected=">= 0", ge=0.0
+    confirm_hits: int = _field(3, description="Associations before a track is reported", expected=">= 1", ge=1)
+    max_misses: int = _field(
+        10, description="Output steps a track may go unobserved before it is ended", unit="steps",
+        expected=">= 0", ge=0,
+    )
+    match_distance_m: float = _field(
+        0.5, description="Evaluation: largest distance of a correct detection from the truth", unit="m",
+        expected="> 0", gt=0.0,
     )
 
 

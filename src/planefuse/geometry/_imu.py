@@ -39,6 +39,14 @@ ATTITUDE_METHODS = ("madgwick", "mahony", "ekf", "imufusion")
 
 _G_M_S2 = 9.80665
 
+# Filter parameters each method accepts (ahrs' constructors swallow unknown keywords silently).
+_PARAMS = {
+    "madgwick": {"gain"},
+    "mahony": {"k_P", "k_I"},
+    "ekf": {"noises", "var_acc", "var_gyr", "P"},
+    "imufusion": {"gain", "gyroscope_range_deg_s", "acceleration_rejection_deg", "rejection_timeout_s"},
+}
+
 
 def _check_imu_streams(time_s, gyro_rad_s, accel_m_s2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     t = np.asarray(time_s, dtype=float)
@@ -141,10 +149,11 @@ def attitude_from_imu(
         Camera-IMU extrinsic rotation (maps camera-frame vectors into the IMU
         frame); identity (the IMU's own attitude) by default.
     params : dict, optional
-        Filter parameters passed to the ``ahrs`` constructor (e.g. ``k_P``,
-        ``k_I`` for Mahony, ``gain`` for Madgwick); for ``imufusion``: ``gain``,
-        ``gyroscope_range_deg_s``, ``acceleration_rejection_deg``,
-        ``rejection_timeout_s``.
+        Filter parameters passed to the ``ahrs`` constructor (``gain`` for
+        Madgwick; ``k_P``, ``k_I`` for Mahony; ``noises``, ``var_acc``,
+        ``var_gyr``, ``P`` for the EKF); for ``imufusion``: ``gain``,
+        ``gyroscope_range_deg_s`` (default 2000), ``acceleration_rejection_deg``
+        (default 10), ``rejection_timeout_s`` (default 5); 0 disables the last three.
 
     Returns
     -------
@@ -158,7 +167,8 @@ def attitude_from_imu(
     ------
     ValueError
         Non-increasing or non-finite ``time_s``, mismatched shapes, NaN samples,
-        an all-zero accelerometer sample, an unknown method or a bad ``R_imu_cam``.
+        an all-zero accelerometer sample, an unknown method or parameter, or a
+        bad ``R_imu_cam``.
     """
     t, gyr, acc = _check_imu_streams(time_s, gyro_rad_s, accel_m_s2)
     R_ic = np.eye(3) if R_imu_cam is None else check_rotation(R_imu_cam, "R_imu_cam")
@@ -168,6 +178,9 @@ def attitude_from_imu(
         raise ValueError(f"method must be one of {ATTITUDE_METHODS}, got {method!r}")
     dt = np.diff(t)
     params = dict(params or {})
+    unknown = set(params) - _PARAMS[method]
+    if unknown:
+        raise ValueError(f"params {sorted(unknown)} unknown for method {method!r}; accepted: {sorted(_PARAMS[method])}")
     if method == "imufusion":
         Q_wxyz = _run_imufusion(dt, gyr, acc, params)
     else:

@@ -1,23 +1,30 @@
 r"""From filtered occupancy on every plane to person hypotheses on the ground ("fast clustering").
 
 A person standing on cell ``c`` occupies the planes of its column from the ground band up to its head.
-The column evidence of ``c`` is the naive-Bayes sum, over the *body planes* (planes no higher than
-``body_max_height_m``, which every person reaches), of the filtered log-odds relative to the prior::
+The column evidence of ``c`` combines, over the *body planes* (planes no higher than
+``body_max_height_m``, which every person reaches), the filtered log-odds relative to the prior, each
+smoothed over the person's cross-section (``G``: Gaussian of ``smoothing_m``; legs and thin silhouettes
+spread into one blob) and capped above at ``plane_cap``::
 
-    S(c) = sum_{l in body} [ logit P_l(occ | c) - logit p0 ]
+    D_l(c) = G * [ logit P_l(occ) - logit p0 ](c)
+    S(c)   = sum_{l in body, |D_l(c)| > observed_min} min(D_l(c), plane_cap) / max(n_observed(c), 1)
 
-A plane no sensor has seen stays at the prior and adds 0, so a person seen only by the laser (one plane)
-or only by sound still produces a column; planes observed free subtract. ``S`` is smoothed with a Gaussian
-of ``smoothing_m`` (legs and thin silhouettes become one blob), its modes above ``threshold`` are found
-(local maxima at least ``min_separation_m`` apart) and each mode is refined by mean-shift steps with a flat
-disc kernel of radius ``person_radius_m`` on ``max(S, 0)``. Each cluster reports
+i.e. the mean, over the body planes whose belief departs from the prior (observed planes), of the capped
+log-odds. The cap and the mean make it a soft AND over planes: a column occupied on some body planes but
+observed free on another (a multi-camera "ghost", where silhouette rays of different people cross at some
+heights only) is pulled down by the free plane instead of being carried by the occupied ones, and a
+column must be occupied on every plane that was observed. A plane no sensor has seen stays at the prior
+and does not count, so a person seen only by the laser (one plane) or only by sound still produces a
+column. Modes of ``S`` above ``threshold`` (local maxima at least
+``min_separation_m`` apart) are refined by mean-shift steps with a flat disc kernel of radius
+``person_radius_m`` on ``max(S, 0)``. Each cluster reports
 
 * position: the mean-shift mode [m];
 * velocity: the occupancy-weighted mean of the BOF cell velocities ``E[V | occ]`` over the disc and the
   body planes, weights ``max(P_l - p0, 0)`` [m/s];
 * height: the highest plane whose disc-maximum occupancy reaches 0.5, linearly interpolated with the plane
   above it to the height where the profile crosses 0.5 [m] (NaN if no plane reaches 0.5);
-* confidence: ``logistic(S_smoothed(mode) - threshold)``.
+* confidence: ``logistic(S(mode) - threshold)``.
 """
 
 from __future__ import annotations
@@ -40,10 +47,15 @@ class ClusterParams:
     ----------
     body_max_height_m : float
         Planes at or below this height [m] form the column evidence (every person reaches them).
+    plane_cap : float
+        Largest contribution of one plane to ``S`` (> 0).
+    observed_min : float
+        A body plane counts as observed at a cell where its smoothed log-odds departs from the prior's by
+        more than this.
     threshold : float
-        Minimum smoothed column log-odds ``S`` of a mode.
+        Minimum column evidence ``S`` of a mode (mean capped log-odds per observed plane).
     smoothing_m : float
-        Standard deviation [m] of the Gaussian smoothing of ``S``.
+        Standard deviation [m] of the Gaussian smoothing of each plane's log-odds.
     person_radius_m : float
         Radius [m] of the mean-shift disc and of the velocity/height aggregation.
     min_separation_m : float
@@ -52,8 +64,10 @@ class ClusterParams:
         Mean-shift refinements of each mode.
     """
 
-    body_max_height_m: float = 1.2
-    threshold: float = 3.0
+    body_max_height_m: float = 1.5
+    plane_cap: float = 4.0
+    observed_min: float = 0.5
+    threshold: float = 2.5
     smoothing_m: float = 0.1
     person_radius_m: float = 0.3
     min_separation_m: float = 0.4
@@ -66,6 +80,8 @@ class ClusterParams:
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
         if not np.isfinite(self.threshold):
             raise ValueError(f"threshold must be finite, got {self.threshold}")
+        if not (np.isfinite(self.plane_cap) and self.plane_cap > 0):
+            raise ValueError(f"plane_cap must be finite and > 0, got {self.plane_cap}")
         if int(self.mean_shift_iterations) < 0:
             raise ValueError(f"mean_shift_iterations must be >= 0, got {self.mean_shift_iterations}")
 
@@ -87,7 +103,7 @@ class Clusters:
     confidence : ndarray, shape (N,)
         In [0, 1].
     column_log_odds : ndarray, shape (ny, nx)
-        The (unsmoothed) column evidence ``S``.
+        The column evidence ``S``.
     """
 
     time_s: float
@@ -131,7 +147,12 @@ def column_log_odds(occupancy, stack: PlaneStack, prior_occupancy: float, params
     if occ.shape != stack.shape:
         raise ValueError(f"occupancy must have shape {stack.shape}, got {occ.shape}")
     body = _body_planes(stack, params)
-    return (log_odds_from_probability(occ[body]) - log_odds_from_probability(prior_occupancy)).sum(axis=0)
+    d = log_odds_from_probability(occ[body]) - log_odds_from_probability(prior_occupancy)
+    if params.smoothing_m > 0:
+        sigma = params.smoothing_m / stack.cell_size_m
+        d = ndimage.gaussian_filter(d, (0, sigma, sigma), mode="nearest")
+    observed = np.abs(d) > params.observed_min
+    return np.where(observed, np.minimum(d, params.plane_cap), 0.0).sum(axis=0) / np.maximum(observed.sum(axis=0), 1)
 
 
 def _height_from_profile(profile: np.ndarray, heights_m: np.ndarray) -> float:
@@ -179,13 +200,12 @@ def cluster_occupancy(
         raise ValueError(f"velocity_mps must have shape {stack.shape + (2,)}, got {vel.shape}")
     S = column_log_odds(occ, stack, prior_occupancy, params)
     cell = stack.cell_size_m
-    S_s = ndimage.gaussian_filter(S, params.smoothing_m / cell, mode="nearest") if params.smoothing_m > 0 else S
 
     # modes: local maxima of the smoothed evidence, one per plateau, at least min_separation apart
     r_sep = max(int(round(params.min_separation_m / cell)), 1)
     yy, xx = np.mgrid[-r_sep:r_sep + 1, -r_sep:r_sep + 1]
-    peaks = (S_s == ndimage.maximum_filter(S_s, footprint=(yy**2 + xx**2) <= r_sep**2, mode="nearest"))
-    peaks &= S_s >= params.threshold
+    peaks = (S == ndimage.maximum_filter(S, footprint=(yy**2 + xx**2) <= r_sep**2, mode="nearest"))
+    peaks &= S >= params.threshold
     lab, n = ndimage.label(peaks)
     if n == 0:
         empty = np.zeros((0, 2))
@@ -214,7 +234,7 @@ def cluster_occupancy(
             if w.sum() > 0:
                 centres[i] = (np.sum(w * iy) / w.sum(), np.sum(w * ix) / w.sum())
     # modes that converged onto each other: keep the strongest
-    strength = ndimage.map_coordinates(S_s, centres.T, order=1, mode="nearest")
+    strength = ndimage.map_coordinates(S, centres.T, order=1, mode="nearest")
     order = np.argsort(-strength)
     keep: list[int] = []
     for i in order:

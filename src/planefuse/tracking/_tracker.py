@@ -8,10 +8,15 @@ Each step:
    tracks are served first, tentative ones get the remaining clusters;
 3. a matched track takes the cluster position and height and blends its velocity with the cluster's BOF
    velocity, ``v <- (1 - a) v + a v_cluster`` (``a = velocity_gain``);
-4. an unmatched track coasts on its prediction and counts a miss; a tentative track is confirmed after
+4. a confirmed track left without a cluster but predicted within the gate of a cluster taken by another
+   confirmed track moving differently (two people merged while crossing: velocities differing by at
+   least ``share_min_relative_speed_mps``) shares it for at most ``max_shared_s``: both keep their own
+   predicted positions and velocities;
+5. an unmatched track coasts on its prediction and counts a miss; a tentative track is confirmed after
    ``confirm_hits`` consecutive hits and dropped at its first miss, a confirmed track is deleted after more
    than ``max_misses`` consecutive misses or when its prediction leaves the grid;
-5. an unmatched cluster starts a tentative track with a new id.
+6. an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts a tentative
+   track with a new id.
 
 Reported tracks are the confirmed ones with at most ``max_coast_report`` consecutive misses; their
 confidence is the last cluster confidence times ``0.5 ** misses``.
@@ -46,13 +51,23 @@ class TrackerParams:
         Confirmed tracks with more consecutive misses than this are not reported (still kept).
     velocity_gain : float
         ``a`` in (0, 1]: weight of the cluster's BOF velocity in the track velocity.
+    max_shared_s : float
+        Longest time [s] a track may share another track's cluster (people merged while crossing).
+    share_min_relative_speed_mps : float
+        Tracks share a cluster only if their velocities differ by at least this [m/s] (people crossing;
+        a track moving with the cluster's owner is a duplicate and is left to die).
+    birth_exclusion_m : float
+        No track is started on a cluster closer than this [m] to a confirmed track.
     """
 
     gate_m: float = 0.75
     confirm_hits: int = 3
     max_misses: int = 10
-    max_coast_report: int = 5
+    max_coast_report: int = 2
     velocity_gain: float = 0.7
+    max_shared_s: float = 1.0
+    share_min_relative_speed_mps: float = 0.3
+    birth_exclusion_m: float = 0.5
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.gate_m) and self.gate_m > 0):
@@ -62,6 +77,10 @@ class TrackerParams:
         if int(self.max_misses) < 0 or int(self.max_coast_report) < 0:
             raise ValueError(f"max_misses and max_coast_report must be >= 0, got {self.max_misses}, "
                              f"{self.max_coast_report}")
+        if not (np.isfinite(self.max_shared_s) and self.max_shared_s >= 0):
+            raise ValueError(f"max_shared_s must be finite and >= 0, got {self.max_shared_s}")
+        if not (np.isfinite(self.birth_exclusion_m) and self.birth_exclusion_m >= 0):
+            raise ValueError(f"birth_exclusion_m must be finite and >= 0, got {self.birth_exclusion_m}")
         if not (0 < self.velocity_gain <= 1):
             raise ValueError(f"velocity_gain must be in (0, 1], got {self.velocity_gain}")
 
@@ -113,6 +132,7 @@ class _Track:
     pred: np.ndarray | None = None  # position predicted for the current step
     v_before: np.ndarray | None = None  # velocity before the current step's correction
     cluster: int = -1  # cluster matched in the current step
+    shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster
 
 
 class MultiPersonTracker:
@@ -171,8 +191,9 @@ class MultiPersonTracker:
                 tr.confidence = float(clusters.confidence[ci])
                 tr.hits += 1
                 tr.misses = 0
+                tr.shared_s = 0.0
                 tr.confirmed = tr.confirmed or tr.hits >= p.confirm_hits
-        self._share_merged_clusters(matched, clusters)
+        self._share_merged_clusters(matched, clusters, dt)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:
@@ -180,18 +201,21 @@ class MultiPersonTracker:
                 if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.xy):
                     continue
             alive.append(tr)
+        confirmed_xy = np.array([tr.xy for tr in alive if tr.confirmed]).reshape(-1, 2)
         for ci in np.flatnonzero(free):
+            if len(confirmed_xy) and np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1).min() < p.birth_exclusion_m:
+                continue  # a second mode of someone already tracked, not a new person
             alive.append(_Track(next(self._ids), clusters.xy_m[ci].copy(), clusters.velocity_mps[ci].copy(),
                                 float(clusters.height_m[ci]), float(clusters.confidence[ci]),
                                 confirmed=p.confirm_hits <= 1))
         self.tracks = alive
         return self.reported()
 
-    def _share_merged_clusters(self, matched: set[int], clusters: Clusters) -> None:
-        """People passing close merge into one cluster: confirmed tracks left without a cluster whose
-        prediction lies within the gate of a cluster taken by another confirmed track share that cluster.
-        All tracks sharing it keep their own predicted position and velocity (the merged cluster's mean
-        velocity belongs to none of them) and count a hit, not a miss."""
+    def _share_merged_clusters(self, matched: set[int], clusters: Clusters, dt: float) -> None:
+        """People passing close merge into one cluster: a confirmed track left without a cluster whose
+        prediction lies within the gate of a cluster taken by another confirmed track shares that cluster,
+        for at most ``max_shared_s`` in a row. Both tracks keep their own predicted position and velocity
+        (the merged cluster's mean velocity belongs to neither) and the sharer counts no miss."""
         owners = {tr.cluster: tr for tr in self.tracks if tr.confirmed and tr.id in matched}
         if not owners:
             return
@@ -200,11 +224,13 @@ class MultiPersonTracker:
             if not tr.confirmed or tr.id in matched:
                 continue
             d = np.linalg.norm(clusters.xy_m[cis] - tr.pred, axis=-1)
-            if d.min() > self.params.gate_m:
+            if d.min() > self.params.gate_m or tr.shared_s + dt > self.params.max_shared_s:
                 continue
             owner = owners[int(cis[np.argmin(d)])]
-            for t in (tr, owner):
-                t.xy, t.v, t.misses = t.pred.copy(), t.v_before.copy(), 0
+            if np.linalg.norm(tr.v - owner.v_before) < self.params.share_min_relative_speed_mps:
+                continue  # moving with the owner: a duplicate of the same person, not a crossing
+            owner.xy, owner.v = owner.pred.copy(), owner.v_before.copy()
+            tr.xy, tr.shared_s = tr.pred.copy(), tr.shared_s + dt
             matched.add(tr.id)
 
     def _inside(self, xy: np.ndarray) -> bool:

@@ -4,7 +4,6 @@ See ``docs/recording-format.md``. ``read_recording(dir)`` opens a folder lazily;
 writes one (simulated recordings come from :func:`planefuse.sim.simulate`).
 """
 
-from ._check import check_inputs
 from ._groundtruth import BODY_COLUMNS, PEOPLE_COLUMNS, SOUND_COLUMNS, GroundTruth, PeopleTruth, SoundTruth
 from ._manifest import (
     MANIFEST_NAME,
@@ -32,7 +31,6 @@ from ._timestamps import Gap
 from ._yaml import load_yaml_model
 
 __all__ = [
-    "check_inputs",
     "BODY_COLUMNS",
     "PEOPLE_COLUMNS",
     "SOUND_COLUMNS",

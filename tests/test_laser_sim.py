@@ -217,3 +217,31 @@ def test_scans_from_recording_arrays_round_trip(rng):
                                                           T, unit))
     with pytest.raises(ValueError, match="ranges_m must have shape"):
         scans_from_arrays(rec.times_s, rec.angles_rad, rec.ranges_m[:, :5], rec.tilt_rad, T, 0.1, 30.0)
+
+
+def test_nodding_sweep_tilts_each_beam_and_follows_the_scene():
+    from planefuse.laser import simulate_nodding_sweep
+
+    class MovingPerson:  # the scene contract of planefuse.sim.Scene
+        room_xy_m, wall_height_m = ROOM, WALL_H
+
+        def bodies_at(self, time_s):
+            return np.array([[3.0 + time_s, 3.0, 0.2, 0.0, 1.8]]), np.array([0]), np.zeros((0, 4)), np.zeros(0, int)
+
+    unit, T = _unit_pose()
+    times = np.arange(0.0, 1.0, 0.25)
+    scans = simulate_nodding_sweep(unit, T, MovingPerson(), times, np.random.default_rng(0))
+    assert [s.time_s for s in scans] == times.tolist()
+    for s in scans:
+        beam_t = s.time_s + np.arange(1081) / 1081 * 0.025
+        np.testing.assert_allclose(s.tilt_rad, unit.tilt_at(beam_t))
+    # the first scan again, cast directly with the body where the scene puts it: the same ranges
+    again = simulate_scan(unit, T, scans[0].tilt_rad, MovingPerson().bodies_at(0.0)[0], None, ROOM, WALL_H,
+                          np.random.default_rng(0))
+    np.testing.assert_array_equal(again.ranges_m, scans[0].ranges_m)
+    # a moving platform: a pose per scan time
+    moved = simulate_nodding_sweep(unit, lambda t: T_world_laser_from_pose_2d(1.0 + t, 1.5, np.pi / 4, z_m=1.2),
+                                   MovingPerson(), times, np.random.default_rng(0))
+    np.testing.assert_allclose([s.T_world_laser[0, 3] for s in moved], 1.0 + times)
+    assert unit.tilt_at(0.0) == pytest.approx(unit.tilt_min_rad)
+    assert unit.tilt_at(unit.tilt_period_s / 2) == pytest.approx(unit.tilt_max_rad)

@@ -3,6 +3,7 @@
 from ._legs import (
     LegClusters,
     LegDetectorParams,
+    background_ranges_m,
     detect_legs,
     detect_people,
     evaluate_leg_detection,
@@ -52,6 +53,7 @@ from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 __all__ = [
     "LegClusters",
     "LegDetectorParams",
+    "background_ranges_m",
     "detect_legs",
     "detect_people",
     "evaluate_leg_detection",

@@ -6,6 +6,10 @@
 2. A segment is a leg when it has at least ``min_points`` points and its chord (first to
    last point) is between ``min_width_m`` and ``max_width_m``; a wider segment up to
    ``max_pair_width_m`` is two legs side by side (one person).
+   With a background model of a static scanner (``background_ranges_m``, e.g. the per-beam
+   median over a recording), a segment must also be foreground: most of its points at least
+   ``background_margin_m`` closer than the background. This removes leg-sized pieces of wall
+   seen between the shadows of people, which geometry alone cannot tell from legs.
 3. Legs closer than ``pair_distance_m`` are paired greedily (closest first); a person is
    at the midpoint of a pair, at a merged two-leg segment, or at a lone leg (lower
    confidence, the other leg occluded).
@@ -13,6 +17,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +28,7 @@ from ..grid import GroundDetections
 from ._scanner import LaserScan, points_world_from_scan
 
 __all__ = ["LegDetectorParams", "LegClusters", "segment_scan", "detect_legs", "people_from_legs",
-           "detect_people", "evaluate_leg_detection"]
+           "detect_people", "evaluate_leg_detection", "background_ranges_m"]
 
 
 @dataclass(frozen=True)
@@ -36,12 +41,13 @@ class LegDetectorParams:
     max_width_m: float = 0.30
     max_pair_width_m: float = 0.55
     pair_distance_m: float = 0.6
+    background_margin_m: float = 0.1
 
     def __post_init__(self) -> None:
         if not 0 < self.min_width_m < self.max_width_m <= self.max_pair_width_m:
             raise ValueError("need 0 < min_width_m < max_width_m <= max_pair_width_m")
-        if self.jump_m <= 0 or self.min_points < 1 or self.pair_distance_m <= 0:
-            raise ValueError("jump_m, pair_distance_m must be > 0 and min_points >= 1")
+        if self.jump_m <= 0 or self.min_points < 1 or self.pair_distance_m <= 0 or self.background_margin_m < 0:
+            raise ValueError("jump_m, pair_distance_m must be > 0, background_margin_m >= 0 and min_points >= 1")
 
 
 @dataclass(frozen=True)
@@ -88,7 +94,7 @@ def segment_scan(xy, jump_m: float = 0.13) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(jump)]).astype(np.int64)
 
 
-def detect_legs(xy, params: LegDetectorParams = LegDetectorParams()) -> LegClusters:
+def detect_legs(xy, params: LegDetectorParams = LegDetectorParams(), foreground=None) -> LegClusters:
     """Leg-sized segments of one scan's valid returns, see the module docstring.
 
     Parameters
@@ -96,6 +102,9 @@ def detect_legs(xy, params: LegDetectorParams = LegDetectorParams()) -> LegClust
     xy : array_like (N, 2)
         Valid returns in beam order [m].
     params : LegDetectorParams
+    foreground : array_like (N,) bool, optional
+        Points in front of the static background; segments that are mostly background are
+        dropped. None: no background model (every segment may be a leg).
 
     Notes
     -----
@@ -117,6 +126,11 @@ def detect_legs(xy, params: LegDetectorParams = LegDetectorParams()) -> LegClust
     cx = np.bincount(lab, p[:, 0], n_seg) / counts
     cy = np.bincount(lab, p[:, 1], n_seg) / counts
     keep = (counts >= params.min_points) & (width >= params.min_width_m) & (width <= params.max_pair_width_m)
+    if foreground is not None:
+        fg = np.asarray(foreground, dtype=bool).reshape(-1)
+        if fg.shape != (len(p),):
+            raise ValueError(f"foreground must have one flag per point ({len(p)}), got {fg.shape}")
+        keep &= np.bincount(lab, fg.astype(float), n_seg) > 0.5 * counts
     return LegClusters(np.column_stack([cx, cy])[keep], width[keep], counts[keep],
                        width[keep] > params.max_width_m)
 
@@ -156,8 +170,23 @@ def people_from_legs(legs: LegClusters, params: LegDetectorParams = LegDetectorP
     return np.array(people), np.array(conf)
 
 
+def background_ranges_m(scans) -> np.ndarray:
+    """Per-beam background range (N,) [m] of a static scanner: the median of the valid ranges over ``scans``.
+
+    People move, so the median over a recording is the static scene. Beams that never
+    returned get ``inf`` (anything they see is foreground).
+    """
+    r = np.array([np.where(s.valid, s.ranges_m, np.nan) for s in scans])
+    if r.ndim != 2:
+        raise ValueError("scans must all have the same number of beams")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN beams: handled below
+        med = np.nanmedian(r, axis=0)
+    return np.where(np.isnan(med), np.inf, med)
+
+
 def detect_people(scan: LaserScan, T_world_laser=None, params: LegDetectorParams = LegDetectorParams(),
-                  source: str = "laser") -> GroundDetections:
+                  source: str = "laser", background_ranges_m=None) -> GroundDetections:
     """People in one 2-D scan, in world XY, as :class:`GroundDetections` (height unknown: NaN).
 
     Parameters
@@ -169,12 +198,21 @@ def detect_people(scan: LaserScan, T_world_laser=None, params: LegDetectorParams
         Laser pose; default ``scan.T_world_laser``, or the laser frame itself if neither is set.
     params : LegDetectorParams
     source : str
+    background_ranges_m : array_like (N,), optional
+        Static background range per beam (:func:`background_ranges_m`) for a fixed scanner;
+        returns not ``params.background_margin_m`` closer than it are background.
     """
     T = scan.T_world_laser if T_world_laser is None else T_world_laser
     T = np.eye(4) if T is None else T
     ok = scan.valid
     p = points_world_from_scan(scan.angles_rad[ok], scan.ranges_m[ok], scan.tilt_rad[ok], T)
-    xy, conf = people_from_legs(detect_legs(p[:, :2], params), params)
+    fg = None
+    if background_ranges_m is not None:
+        bg = np.asarray(background_ranges_m, dtype=float).reshape(-1)
+        if bg.shape != scan.ranges_m.shape:
+            raise ValueError(f"background_ranges_m has {bg.size} beams, the scan {scan.ranges_m.size}")
+        fg = scan.ranges_m[ok] < bg[ok] - params.background_margin_m
+    xy, conf = people_from_legs(detect_legs(p[:, :2], params, fg), params)
     return GroundDetections(float(scan.time_s), xy, conf, None, source)
 
 

@@ -73,10 +73,11 @@ def test_hair_cell_is_half_wave_rectified_and_smooth(rng):
 
 
 # -- binaural unit ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("front_end", ["time", "fft"])
 @pytest.mark.parametrize("lead_s", [0.0, 137e-6, -402.5e-6, 610e-6])
-def test_itd_with_sub_sample_precision_and_sign(rng, lead_s):
+def test_itd_with_sub_sample_precision_and_sign(rng, lead_s, front_end):
     x = _delayed_pair(rng.standard_normal(8000), lead_s)
-    cues = binaural_cues(x, FS, onset_db=None)
+    cues = binaural_cues(x, FS, onset_db=None, front_end=front_end)
     tau = cues.tau_s[cues.active]
     assert tau.size > 100
     assert np.median(tau) == pytest.approx(lead_s, abs=8e-6)  # an eighth of a sample
@@ -125,6 +126,8 @@ def test_bad_inputs(model):
         localize(x, FS, model)
     with pytest.raises(ValueError, match="calibrated at 16000"):
         localize(np.zeros((1000, 2)), 44100.0, model)
+    with pytest.raises(ValueError, match="front_end"):
+        binaural_cues(np.zeros((1000, 2)), FS, front_end="wavelet")
 
 
 # -- sensor model ----------------------------------------------------------------------------------

@@ -23,49 +23,76 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+import scipy.fft as sfft
 
 from ._cochlea import GammatoneFilterbank, check_binaural_signal
 
 __all__ = ["BinauralCues", "binaural_cues", "clipped_samples"]
 
 
-@njit(cache=True, fastmath=True)
-def _frame_xcorr(env, frame_len, hop, max_lag):  # pragma: no cover - compiled
-    """Mean-removed cross-correlation (F, B, 2L+1) and energies (F, B, 2) of env (B, 2, n) float32."""
+def _unbias(frame_len: int, max_lag: int) -> np.ndarray:
+    """Weights N / (N - |l|) that undo the triangular taper of a correlation within one frame.
+
+    Without them the peak of a within-frame correlation is pulled towards lag 0.
+    """
+    lags = np.arange(-max_lag, max_lag + 1)
+    return (frame_len / (frame_len - np.abs(lags))).astype(np.float32)
+
+
+def _frame_xcorr_fft(env: np.ndarray, frame_len: int, hop: int, max_lag: int):
+    """Mean-removed cross-correlation (F, B, 2L+1) and energies (F, B, 2) of cochlear outputs env (B, 2, n).
+
+    Each frame of each band is transformed once (zero-padded so that lags up to
+    ``max_lag`` do not wrap) and the correlation read from the inverse transform of
+    ``conj(X_L) X_R``: the correlation of the frame with itself shifted, one FFT pair per band and frame.
+    """
     n_bands, _, n = env.shape
     n_frames = max(0, (n - frame_len) // hop + 1)
-    n_lags = 2 * max_lag + 1
-    cc = np.zeros((n_frames, n_bands, n_lags), dtype=np.float32)
-    en = np.zeros((n_frames, n_bands, 2), dtype=np.float32)
-    for b in range(n_bands):
-        xl = env[b, 0]
-        xr = env[b, 1]
-        for f in range(n_frames):
-            s = f * hop
-            ml = np.float32(0.0)
-            mr = np.float32(0.0)
-            for k in range(s, s + frame_len):
-                ml += xl[k]
-                mr += xr[k]
-            ml /= frame_len
-            mr /= frame_len
-            el = np.float32(0.0)
-            er = np.float32(0.0)
-            for k in range(s, s + frame_len):
-                el += (xl[k] - ml) ** 2
-                er += (xr[k] - mr) ** 2
-            en[f, b, 0] = el
-            en[f, b, 1] = er
-            for j in range(n_lags):
-                lag = j - max_lag
-                lo = max(s, -lag)
-                hi = min(s + frame_len, n - lag)
-                acc = np.float32(0.0)
-                for k in range(lo, hi):
-                    acc += xl[k] * xr[k + lag]
-                cc[f, b, j] = acc - (hi - lo) * ml * mr
-    return cc, en
+    n_fft = sfft.next_fast_len(frame_len + max_lag + 1, real=True)
+    cc = np.empty((n_frames, n_bands, 2 * max_lag + 1), dtype=np.float32)
+    en = np.empty((n_frames, n_bands, 2), dtype=np.float32)
+    idx = np.arange(frame_len)
+    step = max(1, 2**18 // (n_bands * frame_len))
+    for s in range(0, n_frames, step):
+        starts = np.arange(s, min(n_frames, s + step)) * hop
+        fr = env[:, :, starts[:, None] + idx]  # (B, 2, f, N)
+        fr = fr - fr.mean(axis=-1, keepdims=True)
+        en[s : s + len(starts)] = np.einsum("befn,befn->fbe", fr, fr)
+        X = sfft.rfft(fr, n_fft, axis=-1)
+        c = sfft.irfft(np.conj(X[:, 0]) * X[:, 1], n_fft, axis=-1)  # (B, f, n_fft), lag l at index l mod n_fft
+        cc[s : s + len(starts)] = np.concatenate([c[..., n_fft - max_lag :], c[..., : max_lag + 1]], -1).transpose(
+            1, 0, 2)
+    return cc * _unbias(frame_len, max_lag), en
+
+
+def _frame_xcorr_fd(x, fb: GammatoneFilterbank, frame_len: int, hop: int, max_lag: int):
+    """Band cross-correlations (F, B, 2L+1) and energies (F, B, 2) computed in the frequency domain.
+
+    The cross-correlation of ``h_b * x_L`` and ``h_b * x_R`` is the inverse transform
+    of ``|H_b|^2 conj(X_L) X_R``: each frame is transformed once and each band costs
+    one short inverse FFT (the band-pass acts within the frame only).
+    """
+    n = len(x)
+    n_frames = max(0, (n - frame_len) // hop + 1)
+    n_fft = sfft.next_fast_len(frame_len + max_lag + 1, real=True)
+    idx = np.arange(n_frames)[:, None] * hop + np.arange(frame_len)
+    fr = x[idx].astype(np.float32)  # (F, N, 2)
+    fr -= fr.mean(axis=1, keepdims=True)
+    X = sfft.rfft(fr, n_fft, axis=1)  # (F, K, 2)
+    f = np.fft.rfftfreq(n_fft, 1.0 / fb.fs_hz)
+    G = (np.abs(fb.frequency_response(f)) ** 2).astype(np.float32)  # (B, K)
+    w = np.full(f.size, 2.0 / n_fft, dtype=np.float32)  # Parseval weights of a one-sided spectrum
+    w[0] = 1.0 / n_fft
+    if n_fft % 2 == 0:
+        w[-1] = 1.0 / n_fft
+    en = np.stack([(np.abs(X[:, :, e]) ** 2 * w) @ G.T for e in range(2)], axis=-1)  # (F, B, 2)
+    cross = np.conj(X[:, :, 0]) * X[:, :, 1]  # (F, K)
+    cc = np.empty((n_frames, fb.n_bands, 2 * max_lag + 1), dtype=np.float32)
+    step = max(1, 2**20 // (fb.n_bands * f.size))
+    for s in range(0, n_frames, step):
+        c = sfft.irfft(cross[s : s + step, None, :] * G[None], n_fft, axis=-1)
+        cc[s : s + step] = np.concatenate([c[..., n_fft - max_lag :], c[..., : max_lag + 1]], axis=-1)
+    return cc * _unbias(frame_len, max_lag), en
 
 
 def clipped_samples(signal, rel_tol: float = 1e-4, min_run: int = 2) -> np.ndarray:
@@ -133,6 +160,7 @@ def binaural_cues(
     snr_gate_db: float = 6.0,
     onset_db: float | None = 3.0,
     coherence_min: float = 0.5,
+    front_end: str = "time",
 ) -> BinauralCues:
     """ITD, ILD and activity of every band and frame of a two-channel signal.
 
@@ -159,6 +187,12 @@ def binaural_cues(
         is a reverberant tail and gives no evidence [dB]; None disables the test.
     coherence_min : float
         Smallest normalised correlation peak accepted.
+    front_end : {"time", "fft"}
+        ``"time"``: the gammatone filterbank runs continuously over the signal (with the
+        hair cell if configured), then each frame is correlated. ``"fft"``: each frame is
+        transformed once and every band's correlation is ``irfft(|H_b|^2 conj(X_L) X_R)``
+        (same gammatone responses, no hair cell, band-limited within the frame only:
+        faster, less accurate in reverberation; see docs/audio.md).
     """
     x = check_binaural_signal(signal)
     fb = GammatoneFilterbank(fs_hz=fs_hz) if filterbank is None else filterbank
@@ -169,8 +203,12 @@ def binaural_cues(
     if frame_len < 8 or hop < 1:
         raise ValueError(f"frame_s={frame_s} s / hop_s={hop_s} s are too short at {fs_hz} Hz")
     max_lag = int(np.ceil(max_itd_s * fs_hz)) + 1
-    env = fb.process(x)
-    cc, en = _frame_xcorr(env, frame_len, hop, max_lag)
+    if front_end == "time":
+        cc, en = _frame_xcorr_fft(fb.process(x), frame_len, hop, max_lag)
+    elif front_end == "fft":
+        cc, en = _frame_xcorr_fd(x, fb, frame_len, hop, max_lag)
+    else:
+        raise ValueError(f"front_end must be 'time' or 'fft', got {front_end!r}")
     n_frames, n_bands = cc.shape[:2]
     t = (np.arange(n_frames) * hop + frame_len / 2) / fs_hz
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy.signal import gammatone, tf2sos
+from scipy.signal import gammatone, sosfreqz, tf2sos
 
 __all__ = ["GammatoneFilterbank", "erb_space_hz", "check_binaural_signal"]
 
@@ -124,6 +124,11 @@ class GammatoneFilterbank:
     def center_freqs_hz(self) -> np.ndarray:
         """Centre frequencies (B,) [Hz], ERB-spaced."""
         return erb_space_hz(self.f_min_hz, self.f_max_hz, self.n_bands)
+
+    def frequency_response(self, freqs_hz) -> np.ndarray:
+        """Complex response (B, K) of every band at ``freqs_hz`` (K,) [Hz] (unit gain at the centre)."""
+        f = np.asarray(freqs_hz, dtype=float)
+        return np.stack([sosfreqz(s, worN=f, fs=self.fs_hz)[1] for s in self._sos])
 
     def process(self, signal) -> np.ndarray:
         """Cochleagram of a multi-channel signal.

@@ -92,7 +92,7 @@ def _frame_xcorr_fd(x, fb: GammatoneFilterbank, frame_len: int, hop: int, max_la
     for s in range(0, n_frames, step):
         c = sfft.irfft(cross[s : s + step, None, :] * G[None], n_fft, axis=-1)
         cc[s : s + step] = np.concatenate([c[..., n_fft - max_lag :], c[..., : max_lag + 1]], axis=-1)
-    return cc * _unbias(frame_len, max_lag), en
+    return cc, en
 
 
 def clipped_samples(signal, rel_tol: float = 1e-4, min_run: int = 2) -> np.ndarray:

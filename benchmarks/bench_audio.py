@@ -19,9 +19,14 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 import pyroomacoustics as pra  # noqa: E402
 
-from planefuse.audio import HEAD_RADIUS_M, default_sensor_model, localize, speech_like_signal  # noqa: E402
+from planefuse.audio import (  # noqa: E402
+    HEAD_RADIUS_M,
+    SphericalHead,
+    default_sensor_model,
+    localize,
+    speech_like_signal,
+)
 from planefuse.audio._evaluate import SweepScene, sweep_recordings  # noqa: E402
-from planefuse.audio import SphericalHead  # noqa: E402
 
 FS = 16000.0
 DURATION_S = 10.0

@@ -246,3 +246,28 @@ def test_evidence_rejects_bad_saliency():
         evidence_from_saliency(np.ones(5), grid, np.eye(4), stack, 0.0)
     with pytest.raises(ValueError, match="lateral"):
         evidence_from_saliency(np.ones(181), np.linspace(0, 4, 181), np.eye(4), stack, 0.0)
+
+
+# -- command line ----------------------------------------------------------------------------------
+def test_cli_calibrate_and_localize(tmp_path):
+    import soundfile as sf
+    from typer.testing import CliRunner
+
+    from planefuse.cli import app
+
+    runner = CliRunner()
+    out = tmp_path / "model.npz"
+    r = runner.invoke(app, ["audio", "calibrate", "--out", str(out), "--step-deg", "30", "--bands", "16"])
+    assert r.exit_code == 0, r.output
+    m = BinauralSensorModel.load(out)
+    assert m.filterbank.n_bands == 16 and "spherical head" in m.source
+    x = sweep_recordings(speech_like_signal(1.0, FS, seed=8), [np.deg2rad(-30.0)], SweepScene(), SphericalHead(), FS)[0]
+    wav = tmp_path / "rec.wav"
+    sf.write(wav, x / np.abs(x).max() * 0.5, int(FS), subtype="FLOAT")
+    r = runner.invoke(app, ["audio", "localize", str(wav), "--model", str(out)])
+    assert r.exit_code == 0, r.output
+    az = float(r.output.split("azimuth")[1].split("deg")[0])
+    assert az == pytest.approx(-30.0, abs=6.0)
+    sf.write(tmp_path / "mono.wav", x[:, 0], int(FS))
+    r = runner.invoke(app, ["audio", "localize", str(tmp_path / "mono.wav")])
+    assert r.exit_code != 0 and "mono" in str(r.exception)

@@ -1,0 +1,62 @@
+"""Recording format: a folder with a manifest (``scene.yaml``) and one stream per sensor, plus ground truth.
+
+See ``docs/recording-format.md``. ``read_recording(dir)`` opens a folder lazily; ``Recording.write(dir)``
+writes one (simulated recordings come from :func:`planefuse.sim.simulate`).
+"""
+
+from ._groundtruth import BODY_COLUMNS, PEOPLE_COLUMNS, SOUND_COLUMNS, GroundTruth, PeopleTruth, SoundTruth
+from ._manifest import (
+    MANIFEST_NAME,
+    BinauralEntry,
+    CameraEntry,
+    GroundTruthEntry,
+    ImuEntry,
+    LaserEntry,
+    RecordingManifest,
+    load_manifest,
+)
+from ._recording import Recording, read_recording, write_recording
+from ._streams import (
+    IMU_COLUMNS,
+    AudioStream,
+    CameraFrame,
+    CameraStream,
+    ImuData,
+    ImuStream,
+    LaserScans,
+    LaserStream,
+    camera_from_entry,
+)
+from ._timestamps import Gap
+from ._yaml import load_yaml_model
+
+__all__ = [
+    "BODY_COLUMNS",
+    "PEOPLE_COLUMNS",
+    "SOUND_COLUMNS",
+    "IMU_COLUMNS",
+    "MANIFEST_NAME",
+    "GroundTruth",
+    "PeopleTruth",
+    "SoundTruth",
+    "BinauralEntry",
+    "CameraEntry",
+    "GroundTruthEntry",
+    "ImuEntry",
+    "LaserEntry",
+    "RecordingManifest",
+    "load_manifest",
+    "Recording",
+    "read_recording",
+    "write_recording",
+    "AudioStream",
+    "CameraFrame",
+    "CameraStream",
+    "ImuData",
+    "ImuStream",
+    "LaserScans",
+    "LaserStream",
+    "camera_from_entry",
+    "Gap",
+    "load_yaml_model",
+]

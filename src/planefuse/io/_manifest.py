@@ -1,0 +1,186 @@
+"""The recording manifest ``scene.yaml``: planes, every sensor's calibration (frames, units) and data files.
+
+See ``docs/recording-format.md``. Paths in the manifest are relative to the recording folder.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ..geometry import check_transform
+from ._yaml import load_yaml_model
+
+__all__ = [
+    "CameraEntry",
+    "ImuEntry",
+    "LaserEntry",
+    "BinauralEntry",
+    "GroundTruthEntry",
+    "RecordingManifest",
+    "SensorEntry",
+    "load_manifest",
+    "MANIFEST_NAME",
+    "FORMAT_VERSION",
+]
+
+MANIFEST_NAME = "scene.yaml"
+FORMAT_VERSION = 1
+
+Matrix = list[list[float]]
+
+
+class _Entry(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+def _rigid(v: Matrix, what: str) -> Matrix:
+    T = np.asarray(v, dtype=float)
+    if T.shape != (4, 4):
+        raise ValueError(f"{what} must be a 4x4 matrix, got shape {T.shape}")
+    check_transform(T, what)
+    return v
+
+
+class CameraEntry(_Entry):
+    """A camera: pinhole intrinsics with OpenCV distortion, pose ``T_world_cam`` (camera x right, y down,
+    z forward), frames as PNG files listed with their times in ``times_file``."""
+
+    type: Literal["camera"]
+    name: str
+    width_px: int = Field(gt=0)
+    height_px: int = Field(gt=0)
+    K: Matrix
+    dist: list[float] = [0.0, 0.0, 0.0, 0.0, 0.0]
+    T_world_cam: Matrix
+    rate_hz: float = Field(gt=0)
+    n_frames: int = Field(ge=0)
+    times_file: str = Field(description="CSV: time_s,image_file[,mask_file] relative to the recording")
+
+    @field_validator("K")
+    @classmethod
+    def _k(cls, v: Matrix) -> Matrix:
+        if np.asarray(v, dtype=float).shape != (3, 3):
+            raise ValueError("K must be a 3x3 matrix")
+        return v
+
+    @field_validator("dist")
+    @classmethod
+    def _dist(cls, v: list[float]) -> list[float]:
+        if len(v) not in (4, 5):
+            raise ValueError(f"dist must have 4 or 5 coefficients (k1 k2 p1 p2 [k3]), got {len(v)}")
+        return v
+
+    @field_validator("T_world_cam")
+    @classmethod
+    def _t(cls, v: Matrix) -> Matrix:
+        return _rigid(v, "T_world_cam")
+
+
+class ImuEntry(_Entry):
+    """An IMU rigidly attached to camera ``attached_to``; CSV columns
+    ``time_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,accel_x_m_s2,accel_y_m_s2,accel_z_m_s2`` in the IMU frame."""
+
+    type: Literal["imu"]
+    name: str
+    attached_to: str
+    T_cam_imu: Matrix
+    rate_hz: float = Field(gt=0)
+    n_samples: int = Field(ge=0)
+    file: str
+    gyro_noise_rad_s: float = Field(0.0, ge=0)
+    accel_noise_m_s2: float = Field(0.0, ge=0)
+    gravity_m_s2: float = Field(9.81, gt=0)
+
+    @field_validator("T_cam_imu")
+    @classmethod
+    def _t(cls, v: Matrix) -> Matrix:
+        return _rigid(v, "T_cam_imu")
+
+
+class LaserEntry(_Entry):
+    """A (nodding) laser range finder. Scans are NPZ chunks with ``time_s (S,)``, ``angles_rad (B,)``,
+    ``ranges_m (S, B)`` (inf = no return, NaN = invalid) and ``tilt_rad (S,)`` or ``(S, B)``; other per-scan arrays are
+    kept. ``T_world_base`` is the pose of the untilted scanner; ``model`` holds the device parameters."""
+
+    type: Literal["laser"]
+    name: str
+    T_world_base: Matrix
+    rate_hz: float = Field(gt=0)
+    n_scans: int = Field(ge=0)
+    files: list[str]
+    model: dict[str, Any] = {}
+
+    @field_validator("T_world_base")
+    @classmethod
+    def _t(cls, v: Matrix) -> Matrix:
+        return _rigid(v, "T_world_base")
+
+
+class BinauralEntry(_Entry):
+    """A binaural head: a two-channel WAV (left, right), sample ``i`` at ``start_time_s + i / fs_hz``.
+    Head frame: x forward (nose), y left (left ear), z up."""
+
+    type: Literal["binaural"]
+    name: str
+    T_world_head: Matrix
+    fs_hz: int = Field(gt=0)
+    start_time_s: float = 0.0
+    n_samples: int = Field(ge=0)
+    file: str
+    head_radius_m: float = Field(0.0875, gt=0)
+    hrtf_sofa: str | None = None
+
+    @field_validator("T_world_head")
+    @classmethod
+    def _t(cls, v: Matrix) -> Matrix:
+        return _rigid(v, "T_world_head")
+
+
+SensorEntry = Annotated[Union[CameraEntry, ImuEntry, LaserEntry, BinauralEntry], Field(discriminator="type")]
+
+
+class GroundTruthEntry(_Entry):
+    """Ground-truth files (CSV, relative paths); see ``docs/recording-format.md``."""
+
+    people_file: str | None = None
+    bodies_file: str | None = None
+    sound_sources_file: str | None = None
+
+
+class RecordingManifest(_Entry):
+    """Top level of ``scene.yaml``."""
+
+    format: Literal["planefuse-recording"] = "planefuse-recording"
+    format_version: Literal[1] = FORMAT_VERSION
+    duration_s: float = Field(ge=0)
+    planes_heights_m: list[float] = [0.0, 0.5, 1.0, 1.5]
+    room_xy_m: tuple[float, float, float, float] | None = None
+    wall_height_m: float | None = None
+    sensors: list[SensorEntry] = []
+    groundtruth: GroundTruthEntry | None = None
+    source: str = ""
+
+    @model_validator(mode="after")
+    def _refs(self) -> RecordingManifest:
+        names = [s.name for s in self.sensors]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"sensor names must be unique, repeated: {dup}")
+        cams = {s.name for s in self.sensors if s.type == "camera"}
+        for s in self.sensors:
+            if s.type == "imu" and s.attached_to not in cams:
+                raise ValueError(f"imu {s.name!r} is attached_to {s.attached_to!r}, which is not a camera here {sorted(cams)}")
+        return self
+
+    def entries(self, kind: str) -> list:
+        """Sensor entries of one ``type`` ("camera", "imu", "laser", "binaural"), in file order."""
+        return [s for s in self.sensors if s.type == kind]
+
+
+def load_manifest(path: str | Path) -> RecordingManifest:
+    """Read and validate a recording's ``scene.yaml``; errors name the file, line and field."""
+    return load_yaml_model(path, RecordingManifest)

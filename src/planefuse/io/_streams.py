@@ -1,0 +1,432 @@
+"""Sensor streams: the same accessors for simulated (in memory) and recorded (on disk, lazy) data.
+
+* :class:`CameraStream` -- ``camera`` (PinholeCamera), ``times_s``, ``frame(i)``, ``mask(i)``, iteration
+  yields :class:`CameraFrame`; files are read one at a time.
+* :class:`ImuStream` -- ``chunks()`` of :class:`ImuData`, or ``read()`` for everything.
+* :class:`LaserStream` -- ``chunks()`` of :class:`LaserScans` (one NPZ file per chunk), or ``read()``.
+* :class:`AudioStream` -- ``blocks(n)`` of (start time, samples (n, 2)), or ``read()``.
+"""
+
+from __future__ import annotations
+
+import csv
+import zipfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import soundfile as sf
+
+from ..geometry import CameraIntrinsics, PinholeCamera
+from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
+from ._timestamps import Gap, TimeChecker, read_csv_chunks
+
+__all__ = [
+    "CameraFrame",
+    "CameraStream",
+    "ImuData",
+    "ImuStream",
+    "LaserScans",
+    "LaserStream",
+    "AudioStream",
+    "IMU_COLUMNS",
+    "camera_from_entry",
+]
+
+IMU_COLUMNS = ["time_s", "gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s", "accel_x_m_s2", "accel_y_m_s2", "accel_z_m_s2"]
+
+
+def camera_from_entry(e: CameraEntry) -> PinholeCamera:
+    """The :class:`PinholeCamera` a manifest entry describes."""
+    intr = CameraIntrinsics(np.asarray(e.K, dtype=float), e.width_px, e.height_px, np.asarray(e.dist, dtype=float))
+    return PinholeCamera(intr, np.asarray(e.T_world_cam, dtype=float), name=e.name)
+
+
+# --------------------------------------------------------------------------- cameras
+@dataclass(frozen=True)
+class CameraFrame:
+    """One camera frame: ``image`` (H, W, 3) uint8 BGR; ``mask`` (H, W) uint8 labels (0 background,
+    ``pid + 1`` person ``pid``) or None when the stream has no ground-truth masks."""
+
+    index: int
+    time_s: float
+    image: np.ndarray
+    mask: np.ndarray | None
+
+
+class CameraStream:
+    """Frames of one camera.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+    times_s : ndarray, shape (F,)
+        Frame times on the recording clock [s].
+    get : callable ``i -> (image, mask or None)``
+        Produces frame ``i`` (renders it, or reads its files).
+    has_masks : bool
+    rate_hz : float
+        Nominal frame rate.
+    """
+
+    def __init__(self, camera: PinholeCamera, times_s, get: Callable[[int], tuple], has_masks: bool,
+                 rate_hz: float, gaps: list[Gap] | None = None) -> None:
+        self.camera = camera
+        self.times_s = np.asarray(times_s, dtype=float)
+        self._get = get
+        self.has_masks = has_masks
+        self.rate_hz = float(rate_hz)
+        self.gaps = gaps or []
+        self._cache: tuple[int, tuple] | None = None
+
+    @property
+    def name(self) -> str:
+        return self.camera.name
+
+    def __len__(self) -> int:
+        return len(self.times_s)
+
+    def _item(self, i: int) -> tuple:
+        if not -len(self) <= i < len(self):
+            raise IndexError(f"{self.name}: frame {i} out of range (0..{len(self) - 1})")
+        i = i % len(self)
+        if self._cache is None or self._cache[0] != i:
+            self._cache = (i, self._get(i))
+        return self._cache[1]
+
+    def frame(self, i: int) -> np.ndarray:
+        """Image ``i`` (H, W, 3) uint8 BGR."""
+        return self._item(i)[0]
+
+    def mask(self, i: int) -> np.ndarray:
+        """Ground-truth label mask ``i`` (H, W) uint8: 0 background, ``pid + 1`` for person ``pid``."""
+        if not self.has_masks:
+            raise ValueError(f"{self.name}: this stream has no ground-truth masks")
+        return self._item(i)[1]
+
+    def __iter__(self) -> Iterator[CameraFrame]:
+        for i in range(len(self)):
+            img, mask = self._item(i)
+            yield CameraFrame(i, float(self.times_s[i]), img, mask)
+
+    @classmethod
+    def from_files(cls, root: Path, entry: CameraEntry) -> CameraStream:
+        """Open a recorded camera: reads ``times_file`` now (checking timestamps), images on demand."""
+        path = root / entry.times_file
+        if not path.is_file():
+            raise ValueError(f"{path}: file not found (missing stream of camera {entry.name!r})")
+        times, images, masks = [], [], []
+        checker = TimeChecker(str(path), entry.rate_hz)
+        with open(path, newline="") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header not in (["time_s", "image_file"], ["time_s", "image_file", "mask_file"]):
+                raise ValueError(f"{path}:1: header must be 'time_s,image_file[,mask_file]', got {header}")
+            for row in reader:
+                line = reader.line_num
+                if len(row) != len(header):
+                    raise ValueError(f"{path}:{line}: expected {len(header)} fields, got {len(row)} (truncated?)")
+                try:
+                    t = float(row[0])
+                except ValueError:
+                    raise ValueError(f"{path}:{line}: time_s {row[0]!r} is not a number") from None
+                checker.check(np.array([t]), [f"line {line}"])
+                times.append(t)
+                images.append(row[1])
+                masks.append(row[2] if len(row) > 2 else None)
+        if len(times) != entry.n_frames:
+            raise ValueError(f"{path}: manifest says n_frames = {entry.n_frames}, file lists {len(times)} (truncated?)")
+        has_masks = len(header) > 2
+        base = path.parent
+
+        def get(i: int) -> tuple:
+            img = _read_png(base / images[i], cv2.IMREAD_COLOR)
+            mask = _read_png(base / masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
+            return img, mask
+
+        return cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps)
+
+
+def _read_png(path: Path, flags: int) -> np.ndarray:
+    if not path.is_file():
+        raise ValueError(f"{path}: file not found (missing frame)")
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise ValueError(f"{path}: cannot decode image (truncated or corrupt file)")
+    return img
+
+
+# --------------------------------------------------------------------------- IMU
+@dataclass(frozen=True)
+class ImuData:
+    """IMU samples: ``times_s`` (N,), ``gyro_rad_s`` (N, 3), ``accel_m_s2`` (N, 3), in the IMU frame."""
+
+    times_s: np.ndarray
+    gyro_rad_s: np.ndarray
+    accel_m_s2: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.times_s)
+
+
+@dataclass
+class ImuStream:
+    """An IMU attached to a camera. ``T_cam_imu`` (4, 4) maps IMU coordinates into the camera frame.
+
+    Use :meth:`chunks` to stream, :meth:`read` to load everything.
+    """
+
+    name: str
+    attached_to: str
+    T_cam_imu: np.ndarray
+    rate_hz: float
+    n_samples: int
+    gyro_noise_rad_s: float = 0.0
+    accel_noise_m_s2: float = 0.0
+    gravity_m_s2: float = 9.81
+    data: ImuData | None = None
+    path: Path | None = None
+    gaps: list[Gap] = field(default_factory=list)
+
+    def chunks(self, max_rows: int = 100_000) -> Iterator[ImuData]:
+        """Consecutive pieces of at most ``max_rows`` samples, timestamps checked."""
+        if self.data is not None:
+            for a in range(0, len(self.data), max_rows):
+                d = self.data
+                yield ImuData(d.times_s[a : a + max_rows], d.gyro_rad_s[a : a + max_rows], d.accel_m_s2[a : a + max_rows])
+            return
+        checker = TimeChecker(str(self.path), self.rate_hz)
+        n = 0
+        for rows, line in read_csv_chunks(self.path, IMU_COLUMNS, max_rows):
+            checker.check(rows[:, 0], [f"line {line + k}" for k in range(len(rows))])
+            n += len(rows)
+            yield ImuData(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+        self.gaps = checker.gaps
+        if n != self.n_samples:
+            raise ValueError(f"{self.path}: manifest says n_samples = {self.n_samples}, file has {n} rows (truncated?)")
+
+    def read(self) -> ImuData:
+        """All samples at once."""
+        if self.data is not None:
+            return self.data
+        parts = list(self.chunks())
+        if not parts:
+            return ImuData(np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3)))
+        return ImuData(*(np.concatenate([getattr(p, f) for p in parts]) for f in ("times_s", "gyro_rad_s", "accel_m_s2")))
+
+    @classmethod
+    def from_entry(cls, root: Path, e: ImuEntry) -> ImuStream:
+        path = root / e.file
+        if not path.is_file():
+            raise ValueError(f"{path}: file not found (missing stream of imu {e.name!r})")
+        return cls(e.name, e.attached_to, np.asarray(e.T_cam_imu, dtype=float), e.rate_hz, e.n_samples,
+                   e.gyro_noise_rad_s, e.accel_noise_m_s2, e.gravity_m_s2, path=path)
+
+
+# --------------------------------------------------------------------------- laser
+@dataclass(frozen=True)
+class LaserScans:
+    """A batch of S scans of B beams.
+
+    Attributes
+    ----------
+    times_s : ndarray, shape (S,)
+        Start time of each scan [s].
+    angles_rad : ndarray, shape (B,)
+        Beam angles in the scanner's plane, counter-clockwise from its x axis [rad].
+    ranges_m : ndarray, shape (S, B)
+        Ranges [m]; ``inf`` where there is no return within the maximum range, NaN for an invalid
+        return (closer than the minimum range), as in :class:`planefuse.laser.LaserScan`.
+    tilt_rad : ndarray, shape (S,) or (S, B)
+        Nodding angle of the scanner for each scan (or each beam) [rad].
+    extra : dict of str -> ndarray
+        Further per-scan arrays (leading dimension S), e.g. ``T_world_scanner`` (S, 4, 4).
+    """
+
+    times_s: np.ndarray
+    angles_rad: np.ndarray
+    ranges_m: np.ndarray
+    tilt_rad: np.ndarray
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        S, B = len(self.times_s), len(self.angles_rad)
+        if np.shape(self.ranges_m) != (S, B):
+            raise ValueError(f"ranges_m must have shape (S, B) = {(S, B)}, got {np.shape(self.ranges_m)}")
+        if np.shape(self.tilt_rad) not in ((S,), (S, B)):
+            raise ValueError(f"tilt_rad must have shape (S,) or (S, B) = {(S, B)}, got {np.shape(self.tilt_rad)}")
+        for k, v in self.extra.items():
+            if len(v) != S:
+                raise ValueError(f"extra array {k!r} must have leading dimension S = {S}, got {np.shape(v)}")
+
+    def __len__(self) -> int:
+        return len(self.times_s)
+
+    def slice(self, a: int, b: int) -> LaserScans:
+        return LaserScans(self.times_s[a:b], self.angles_rad, self.ranges_m[a:b], self.tilt_rad[a:b],
+                          {k: v[a:b] for k, v in self.extra.items()})
+
+    @staticmethod
+    def concatenate(parts: list[LaserScans]) -> LaserScans:
+        p0 = parts[0]
+        return LaserScans(
+            np.concatenate([p.times_s for p in parts]), p0.angles_rad, np.concatenate([p.ranges_m for p in parts]),
+            np.concatenate([p.tilt_rad for p in parts]),
+            {k: np.concatenate([p.extra[k] for p in parts]) for k in p0.extra},
+        )
+
+
+_LASER_KEYS = ("time_s", "angles_rad", "ranges_m", "tilt_rad")
+
+
+@dataclass
+class LaserStream:
+    """A laser range finder on a nodding unit. ``T_world_base`` (4, 4): pose of the untilted scanner."""
+
+    name: str
+    T_world_base: np.ndarray
+    rate_hz: float
+    n_scans: int
+    model: dict = field(default_factory=dict)
+    data: LaserScans | None = None
+    paths: list[Path] = field(default_factory=list)
+    gaps: list[Gap] = field(default_factory=list)
+    generate: Callable[[int], Iterator[LaserScans]] | None = None
+
+    def chunks(self, max_scans: int = 400) -> Iterator[LaserScans]:
+        """Consecutive batches of scans (one NPZ file each when reading from disk), timestamps checked.
+
+        In-memory streams slice ``data``; simulated streams call ``generate(max_scans)`` (ray casting on demand).
+        """
+        if self.data is not None:
+            for a in range(0, len(self.data), max_scans):
+                yield self.data.slice(a, a + max_scans)
+            return
+        if self.generate is not None:
+            yield from self.generate(max_scans)
+            return
+        checker = TimeChecker(self.name, self.rate_hz)
+        n = 0
+        angles = None
+        for p in self.paths:
+            scans = _read_laser_npz(p)
+            if angles is not None and not np.array_equal(scans.angles_rad, angles):
+                raise ValueError(f"{p}: field angles_rad differs from the previous chunk's")
+            angles = scans.angles_rad
+            checker.source = str(p)
+            checker.check(scans.times_s)
+            n += len(scans)
+            yield scans
+        self.gaps = checker.gaps
+        if n != self.n_scans:
+            raise ValueError(f"laser {self.name!r}: manifest says n_scans = {self.n_scans}, files hold {n} (truncated?)")
+
+    def read(self) -> LaserScans:
+        """All scans at once."""
+        if self.data is not None:
+            return self.data
+        return LaserScans.concatenate(list(self.chunks()))
+
+    @classmethod
+    def from_entry(cls, root: Path, e: LaserEntry) -> LaserStream:
+        paths = [root / f for f in e.files]
+        for p in paths:
+            if not p.is_file():
+                raise ValueError(f"{p}: file not found (missing stream of laser {e.name!r})")
+        return cls(e.name, np.asarray(e.T_world_base, dtype=float), e.rate_hz, e.n_scans, dict(e.model), paths=paths)
+
+
+def _read_laser_npz(path: Path) -> LaserScans:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read NPZ (truncated or corrupt file): {exc}") from None
+    for k in _LASER_KEYS:
+        if k not in arrays:
+            raise ValueError(f"{path}: field {k!r} is missing (has {sorted(arrays)})")
+    extra = {k: v for k, v in arrays.items() if k not in _LASER_KEYS}
+    try:
+        return LaserScans(arrays["time_s"], arrays["angles_rad"], arrays["ranges_m"], arrays["tilt_rad"], extra)
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def write_laser_npz(path: Path, scans: LaserScans) -> None:
+    """One chunk of scans as an uncompressed NPZ (fields as in :class:`LaserScans`)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, time_s=scans.times_s, angles_rad=scans.angles_rad, ranges_m=scans.ranges_m,
+             tilt_rad=scans.tilt_rad, **scans.extra)
+
+
+# --------------------------------------------------------------------------- audio
+@dataclass
+class AudioStream:
+    """A binaural head's two ear signals (left, right), float32, sample ``i`` at ``start_time_s + i / fs_hz``.
+
+    ``T_world_head`` (4, 4): head frame x forward, y left, z up. ``hrtf_sofa``: the SOFA file used to
+    simulate it, or None for the spherical head model of radius ``head_radius_m``.
+    """
+
+    name: str
+    T_world_head: np.ndarray
+    fs_hz: int
+    start_time_s: float
+    n_samples: int
+    head_radius_m: float = 0.0875
+    hrtf_sofa: str | None = None
+    data: np.ndarray | None = None
+    path: Path | None = None
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """Sample times (N,) [s]."""
+        return self.start_time_s + np.arange(self.n_samples) / self.fs_hz
+
+    def blocks(self, block_size: int = 16000) -> Iterator[tuple[float, np.ndarray]]:
+        """Yield ``(time_s of the block's first sample, samples (n, 2) float32)``."""
+        if self.data is not None:
+            for a in range(0, len(self.data), block_size):
+                yield self.start_time_s + a / self.fs_hz, self.data[a : a + block_size]
+            return
+        n = 0
+        with self._open() as f:
+            for block in f.blocks(blocksize=block_size, dtype="float32", always_2d=True):
+                yield self.start_time_s + n / self.fs_hz, block
+                n += len(block)
+        if n != self.n_samples:
+            raise ValueError(f"{self.path}: manifest says n_samples = {self.n_samples}, file has {n} (truncated?)")
+
+    def read(self) -> np.ndarray:
+        """All samples (N, 2) float32."""
+        if self.data is not None:
+            return self.data
+        parts = [b for _, b in self.blocks(1 << 20)]
+        return np.concatenate(parts) if parts else np.zeros((0, 2), np.float32)
+
+    def _open(self) -> sf.SoundFile:
+        try:
+            f = sf.SoundFile(self.path)
+        except (sf.LibsndfileError, RuntimeError) as exc:
+            raise ValueError(f"{self.path}: cannot read WAV (truncated or corrupt file): {exc}") from None
+        if f.samplerate != self.fs_hz or f.channels != 2:
+            f.close()
+            raise ValueError(
+                f"{self.path}: expected 2 channels at fs_hz = {self.fs_hz}, got {f.channels} at {f.samplerate}"
+            )
+        if f.frames != self.n_samples:
+            f.close()
+            raise ValueError(f"{self.path}: manifest says n_samples = {self.n_samples}, file has {f.frames} (truncated?)")
+        return f
+
+    @classmethod
+    def from_entry(cls, root: Path, e: BinauralEntry) -> AudioStream:
+        path = root / e.file
+        if not path.is_file():
+            raise ValueError(f"{path}: file not found (missing stream of binaural head {e.name!r})")
+        s = cls(e.name, np.asarray(e.T_world_head, dtype=float), e.fs_hz, e.start_time_s, e.n_samples,
+                e.head_radius_m, e.hrtf_sofa, path=path)
+        s._open().close()  # header checks now, samples later
+        return s

@@ -1,0 +1,31 @@
+"""Cameras: foreground likelihoods, multi-view fusion on the plane stack, people on the ground."""
+
+from ._foreground import (
+    BackgroundSubtractor,
+    ForegroundParams,
+    foreground_from_boxes,
+    foreground_from_mask,
+    read_mot_detections,
+)
+from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio
+from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
+from ._pipeline import CameraParams, CameraReport, camera_detections, lookups_from_cameras
+
+__all__ = [
+    "BackgroundSubtractor",
+    "CameraFusion",
+    "CameraParams",
+    "CameraReport",
+    "ForegroundParams",
+    "FusionParams",
+    "PersonParams",
+    "camera_detections",
+    "foreground_from_boxes",
+    "foreground_from_mask",
+    "ground_detections_from_log_odds",
+    "log_odds_table",
+    "lookups_from_cameras",
+    "max_log_ratio",
+    "person_score_map",
+    "read_mot_detections",
+]

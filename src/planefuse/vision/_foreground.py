@@ -1,0 +1,275 @@
+"""Per-camera foreground likelihood in [0, 1]: background subtraction, masks, person boxes.
+
+Every foreground source here returns a ``float32`` image of shape
+``(height_px, width_px)`` whose value is the probability that the pixel shows a
+moving person (1) rather than the static background (0). The multi-view fusion
+(:mod:`._fusion`) reads it as a soft observation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "BackgroundSubtractor",
+    "ForegroundParams",
+    "foreground_from_boxes",
+    "foreground_from_mask",
+    "read_mot_detections",
+]
+
+# Values written by OpenCV's MOG2/KNN subtractors into their masks.
+_CV_FOREGROUND = 255
+_CV_SHADOW = 127
+
+
+@dataclass(frozen=True)
+class ForegroundParams:
+    """Background subtraction settings.
+
+    Attributes
+    ----------
+    method : {"mog2", "knn"}
+        OpenCV subtractor (``createBackgroundSubtractorMOG2`` / ``...KNN``).
+    history : int
+        Frames in the background model.
+    threshold : float
+        MOG2 ``varThreshold`` (squared Mahalanobis distance) or KNN
+        ``dist2Threshold`` (squared distance); ``None`` = OpenCV's default
+        (16 for MOG2, 400 for KNN).
+    detect_shadows : bool
+        Let OpenCV mark shadows (value 127) instead of foreground.
+    shadow_likelihood : float
+        Foreground likelihood given to shadow pixels (low: shadows are most
+        likely background lit differently, not a person).
+    open_px, close_px : int
+        Side of the square structuring elements of the morphological opening
+        (removes speckle) and closing (fills holes) [px]; 0 disables.
+    blur_px : int
+        Side of the box filter that turns the cleaned mask into a smooth
+        likelihood [px] (odd; 0 or 1 disables).
+    floor, ceiling : float
+        The likelihood is mapped affinely to ``[floor, ceiling]`` so that no pixel
+        is certain: a subtractor's "background" still leaves ``floor`` chance of
+        a person (camouflage), its "foreground" ``1 - ceiling`` of noise.
+    learning_rate : float
+        OpenCV learning rate (-1 = automatic from ``history``).
+    """
+
+    method: str = "mog2"
+    history: int = 200
+    threshold: float | None = None
+    detect_shadows: bool = True
+    shadow_likelihood: float = 0.1
+    open_px: int = 3
+    close_px: int = 5
+    blur_px: int = 5
+    floor: float = 0.02
+    ceiling: float = 0.98
+    learning_rate: float = -1.0
+
+    def __post_init__(self) -> None:
+        if self.method not in ("mog2", "knn"):
+            raise ValueError(f"ForegroundParams.method must be 'mog2' or 'knn', got {self.method!r}")
+        if self.history < 1:
+            raise ValueError(f"ForegroundParams.history must be >= 1, got {self.history}")
+        if not 0.0 <= self.shadow_likelihood <= 1.0:
+            raise ValueError(f"ForegroundParams.shadow_likelihood must be in [0, 1], got {self.shadow_likelihood}")
+        if not 0.0 <= self.floor < self.ceiling <= 1.0:
+            raise ValueError(f"ForegroundParams needs 0 <= floor < ceiling <= 1, got {self.floor}, {self.ceiling}")
+        for name in ("open_px", "close_px", "blur_px"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"ForegroundParams.{name} must be >= 0, got {getattr(self, name)}")
+
+
+class BackgroundSubtractor:
+    """One camera's OpenCV background model turning frames into foreground likelihoods.
+
+    Parameters
+    ----------
+    width_px, height_px : int
+        Frame size the camera's calibration expects; other sizes are refused.
+    params : ForegroundParams
+    name : str
+        Camera name used in error messages.
+    """
+
+    def __init__(self, width_px: int, height_px: int, params: ForegroundParams = ForegroundParams(),
+                 name: str = "camera") -> None:
+        self.width_px = int(width_px)
+        self.height_px = int(height_px)
+        self.params = params
+        self.name = name
+        if params.method == "mog2":
+            self._model = cv2.createBackgroundSubtractorMOG2(
+                history=params.history,
+                varThreshold=16.0 if params.threshold is None else float(params.threshold),
+                detectShadows=params.detect_shadows,
+            )
+        else:
+            self._model = cv2.createBackgroundSubtractorKNN(
+                history=params.history,
+                dist2Threshold=400.0 if params.threshold is None else float(params.threshold),
+                detectShadows=params.detect_shadows,
+            )
+        # Mask value -> likelihood: 0 background, 127 shadow, 255 foreground.
+        lut = np.zeros(256, dtype=np.float32)
+        lut[_CV_SHADOW] = params.shadow_likelihood
+        lut[_CV_FOREGROUND] = 1.0
+        self._lut = lut
+        self._open = _kernel(params.open_px)
+        self._close = _kernel(params.close_px)
+
+    def apply(self, frame) -> np.ndarray:
+        """Update the background model with ``frame`` and return its foreground likelihood.
+
+        Parameters
+        ----------
+        frame : ndarray, shape (height_px, width_px) or (height_px, width_px, 3), uint8
+            Grey or BGR frame.
+
+        Returns
+        -------
+        ndarray, shape (height_px, width_px), float32
+            Foreground likelihood in ``[floor, ceiling]``.
+        """
+        img = np.asarray(frame)
+        if img.shape[:2] != (self.height_px, self.width_px) or img.ndim not in (2, 3):
+            raise ValueError(
+                f"{self.name}: frame must be {self.height_px}x{self.width_px} (rows x cols) as in the camera's "
+                f"calibration, got shape {img.shape}"
+            )
+        if img.dtype != np.uint8:
+            raise ValueError(f"{self.name}: frame must be uint8, got {img.dtype}")
+        mask = self._model.apply(img, learningRate=self.params.learning_rate)
+        # Clean the hard decision (foreground only) before softening it.
+        hard = np.where(mask == _CV_FOREGROUND, np.uint8(255), np.uint8(0))
+        if self._open is not None:
+            hard = cv2.morphologyEx(hard, cv2.MORPH_OPEN, self._open)
+        if self._close is not None:
+            hard = cv2.morphologyEx(hard, cv2.MORPH_CLOSE, self._close)
+        cleaned = np.where(hard == 255, np.uint8(_CV_FOREGROUND), np.where(mask == _CV_SHADOW, _CV_SHADOW, 0))
+        like = self._lut[cleaned.astype(np.uint8)]
+        return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling)
+
+
+def _kernel(side_px: int):
+    return None if side_px <= 1 else cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side_px, side_px))
+
+
+def _soften(like: np.ndarray, blur_px: int, floor: float, ceiling: float) -> np.ndarray:
+    if blur_px > 1:
+        like = cv2.blur(like, (blur_px, blur_px), borderType=cv2.BORDER_REPLICATE)
+    return (floor + (ceiling - floor) * like).astype(np.float32)
+
+
+def foreground_from_mask(mask, width_px: int | None = None, height_px: int | None = None, *,
+                         blur_px: int = 0, floor: float = 0.02, ceiling: float = 0.98,
+                         name: str = "mask") -> np.ndarray:
+    """Foreground likelihood from an external binary or soft mask.
+
+    Parameters
+    ----------
+    mask : ndarray, shape (H, W) or (H, W, C)
+        ``bool``, ``uint8`` (0..255; 255 = foreground) or float in ``[0, 1]``.
+        Multi-channel images must have equal channels (the first is used).
+    width_px, height_px : int, optional
+        Expected size; a mismatch raises ``ValueError``.
+    blur_px : int
+        Box-filter side [px] softening the edges (0 = none).
+    floor, ceiling : float
+        Affine mapping of ``[0, 1]`` to ``[floor, ceiling]`` (no certain pixel).
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+    """
+    m = np.asarray(mask)
+    if m.ndim == 3:
+        m = m[..., 0]
+    if m.ndim != 2:
+        raise ValueError(f"{name}: mask must be an (H, W) or (H, W, C) image, got shape {np.shape(mask)}")
+    if width_px is not None and height_px is not None and m.shape != (height_px, width_px):
+        raise ValueError(f"{name}: mask must be {height_px}x{width_px} (rows x cols), got {m.shape}")
+    if m.dtype == bool:
+        f = m.astype(np.float32)
+    elif m.dtype == np.uint8:
+        f = m.astype(np.float32) / 255.0
+    else:
+        f = m.astype(np.float32)
+        if not np.isfinite(f).all() or f.min() < 0 or f.max() > 1:
+            raise ValueError(f"{name}: a float mask must hold values in [0, 1]")
+    return _soften(f, blur_px, floor, ceiling)
+
+
+def foreground_from_boxes(boxes_ltwh, width_px: int, height_px: int, confidence=None, *,
+                          floor: float = 0.02, ceiling: float = 0.98, blur_px: int = 0) -> np.ndarray:
+    """Render person boxes as filled soft boxes: a foreground likelihood image.
+
+    Parameters
+    ----------
+    boxes_ltwh : array_like, shape (N, 4)
+        ``left, top, width, height`` in pixels (MOTChallenge layout; top-left
+        origin, u right, v down).
+    width_px, height_px : int
+        Image size [px].
+    confidence : array_like, shape (N,), optional
+        Detector score in [0, 1] per box (1 if omitted); a pixel inside several
+        boxes takes the largest.
+    floor, ceiling : float
+        Likelihood outside any box, and inside a box of confidence 1.
+    blur_px : int
+        Box-filter side [px] softening the box edges (0 = none).
+
+    Returns
+    -------
+    ndarray, shape (height_px, width_px), float32
+    """
+    b = np.asarray(boxes_ltwh, dtype=float).reshape(-1, 4) if np.size(boxes_ltwh) else np.zeros((0, 4))
+    if not np.isfinite(b).all():
+        raise ValueError("boxes_ltwh has non-finite entries")
+    conf = np.ones(len(b)) if confidence is None else np.asarray(confidence, dtype=float).reshape(-1)
+    if conf.shape != (len(b),):
+        raise ValueError(f"confidence must have shape ({len(b)},), got {conf.shape}")
+    if len(conf) and (conf.min() < 0 or conf.max() > 1):
+        raise ValueError("confidence must lie in [0, 1] (rescale detector scores first)")
+    img = np.zeros((int(height_px), int(width_px)), dtype=np.float32)
+    x0 = np.clip(np.floor(b[:, 0]), 0, width_px).astype(int)
+    y0 = np.clip(np.floor(b[:, 1]), 0, height_px).astype(int)
+    x1 = np.clip(np.ceil(b[:, 0] + b[:, 2]), 0, width_px).astype(int)
+    y1 = np.clip(np.ceil(b[:, 1] + b[:, 3]), 0, height_px).astype(int)
+    # Few boxes per frame: one slice assignment each.
+    for i in np.argsort(conf):
+        img[y0[i]:y1[i], x0[i]:x1[i]] = np.maximum(img[y0[i]:y1[i], x0[i]:x1[i]], conf[i])
+    return _soften(img, blur_px, floor, ceiling)
+
+
+def read_mot_detections(path) -> dict[int, np.ndarray]:
+    """Read a MOTChallenge detection/ground-truth file.
+
+    Rows: ``frame, id, left, top, width, height, conf, ...`` (comma-separated;
+    extra columns ignored; frames as written in the file, usually 1-based).
+
+    Returns
+    -------
+    dict
+        ``frame -> ndarray (N, 5)`` of ``left, top, width, height, conf`` [px].
+    """
+    p = Path(path)
+    try:
+        a = np.loadtxt(p, delimiter=",", ndmin=2, usecols=range(7))
+    except ValueError as exc:
+        raise ValueError(f"{p}: expected MOTChallenge rows 'frame,id,left,top,width,height,conf,...': {exc}") from None
+    if a.size == 0:
+        return {}
+    frames = a[:, 0].astype(int)
+    out: dict[int, np.ndarray] = {}
+    order = np.argsort(frames, kind="stable")
+    splits = np.flatnonzero(np.diff(frames[order])) + 1
+    for idx in np.split(order, splits):
+        out[int(frames[idx[0]])] = a[idx][:, 2:7]
+    return out

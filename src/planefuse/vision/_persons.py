@@ -1,0 +1,170 @@
+"""People on the ground from per-plane occupancy log-odds (multi-plane column model).
+
+A person standing at ground cell X with their head between planes k and k+1
+occupies the vertical column over X on planes 0..k and leaves planes above free.
+With the planes' observations independent given the column state, the
+log-likelihood ratio of "person whose top plane is k" against "empty column" is
+(the free planes above k cancel)::
+
+    S_k(X) = sum_{l <= k} L_l(X)                 L_l = per-plane log-odds (Khan & Shah synergy per plane)
+
+The person's top plane is ``k*(X) = argmax_{k >= k_min} S_k(X)``, where
+``k_min`` is the highest plane every person reaches (``min_height_m``): a column
+must be occupied from the ground up to at least that plane. ``k*`` gives the
+height estimate.
+
+``S`` grows with the number of views behind it (cells seen by 2 cameras cannot
+collect the evidence of cells seen by 4), so detection uses the *agreement*::
+
+    A(X) = sum_{footprint} S_{k*}(X') / sum_{footprint} N_{k*}(X')    N_k = (camera, plane) views in the column
+
+the mean per-view log-likelihood ratio over a person's footprint (disc of
+``radius_m``), normalised by its largest possible value ``log(p_d / p_fa)``:
+1 when every view of every plane of the column sees foreground. Local maxima of
+``A`` at least ``nms_radius_m`` apart with ``A >= min_agreement`` on cells seen
+by at least ``min_cameras`` cameras are the feet positions, with confidence A.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from ..grid import GroundDetections, PlaneStack
+
+__all__ = ["PersonParams", "ground_detections_from_log_odds", "person_score_map"]
+
+
+@dataclass(frozen=True)
+class PersonParams:
+    """Multi-plane person model and peak extraction.
+
+    Attributes
+    ----------
+    min_height_m : float
+        Every person reaches at least this height [m]: all planes at or below
+        it must be occupied (the lowest plane is always required).
+    radius_m : float
+        Radius of a person's footprint [m] (score averaged over this disc).
+    nms_radius_m : float
+        Minimum distance between two detections [m].
+    min_agreement : float
+        Smallest normalised agreement A in (0, 1] of a detection.
+    min_cameras : int
+        Cells on the ground plane seen by fewer cameras are not searched (one
+        view cannot place a person along its ray).
+    """
+
+    min_height_m: float = 1.0
+    radius_m: float = 0.2
+    nms_radius_m: float = 0.45
+    min_agreement: float = 0.8
+    min_cameras: int = 2
+
+    def __post_init__(self) -> None:
+        if not (self.radius_m > 0 and self.nms_radius_m > 0):
+            raise ValueError(f"PersonParams radii must be > 0, got {self.radius_m}, {self.nms_radius_m}")
+        if not 0.0 < self.min_agreement <= 1.0:
+            raise ValueError(f"PersonParams.min_agreement must be in (0, 1], got {self.min_agreement}")
+        if self.min_cameras < 1:
+            raise ValueError(f"PersonParams.min_cameras must be >= 1, got {self.min_cameras}")
+
+
+def _disc(radius_cells: float) -> np.ndarray:
+    r = max(int(np.floor(radius_cells)), 0)
+    y, x = np.mgrid[-r:r + 1, -r:r + 1]
+    return (x * x + y * y) <= radius_cells * radius_cells + 1e-9
+
+
+def person_score_map(log_odds, views, stack: PlaneStack, max_log_ratio: float,
+                     params: PersonParams = PersonParams()):
+    """Ground-plane person agreement and top-plane index from per-plane log-odds.
+
+    Parameters
+    ----------
+    log_odds : ndarray, shape (L, ny, nx)
+        Per-plane occupancy log-odds (e.g. :meth:`CameraFusion.log_odds`).
+    views : ndarray, shape (L, ny, nx)
+        Number of cameras behind each cell's log-odds
+        (:meth:`CameraFusion.cameras_seeing`).
+    stack : PlaneStack
+    max_log_ratio : float
+        Largest per-view log-likelihood ratio, ``log(p_d / p_fa)``.
+    params : PersonParams
+
+    Returns
+    -------
+    agreement : ndarray, shape (ny, nx), float32
+        Normalised footprint agreement ``A`` (see module doc); -1 where not searched.
+    top_plane : ndarray, shape (ny, nx), int64
+        Arg-max plane index k* (the person's top occupied plane) per cell.
+    """
+    L = np.asarray(log_odds, dtype=np.float32)
+    N = np.asarray(views, dtype=np.float32)
+    if L.shape != stack.shape or N.shape != stack.shape:
+        raise ValueError(f"log_odds and views must have shape {stack.shape}, got {L.shape} and {N.shape}")
+    if not max_log_ratio > 0:
+        raise ValueError(f"max_log_ratio must be > 0, got {max_log_ratio}")
+    heights = np.asarray(stack.heights_m)
+    k_min = max(int(np.searchsorted(heights, params.min_height_m, side="right")) - 1, 0)
+    cum = np.cumsum(L, axis=0)[k_min:]
+    top = np.argmax(cum, axis=0)
+    col = np.take_along_axis(cum, top[None], axis=0)[0]
+    n_col = np.take_along_axis(np.cumsum(N, axis=0)[k_min:], top[None], axis=0)[0]
+    kernel = _disc(params.radius_m / stack.cell_size_m).astype(np.float32)
+    s = cv2.filter2D(col, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    n = cv2.filter2D(n_col, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        agreement = np.where((n > 0) & (N[0] >= params.min_cameras), s / (n * max_log_ratio), -1.0)
+    return agreement.astype(np.float32), top + k_min
+
+
+def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: float, max_log_ratio: float,
+                                    params: PersonParams = PersonParams(),
+                                    source: str = "cameras") -> GroundDetections:
+    """Feet positions: non-maximum suppression of :func:`person_score_map`.
+
+    Parameters
+    ----------
+    log_odds, views : ndarray, shape (L, ny, nx)
+        As in :func:`person_score_map`.
+    stack : PlaneStack
+    time_s : float
+    max_log_ratio : float
+        ``log(p_d / p_fa)`` of the fusion's sensor model.
+    params : PersonParams
+    source : str
+
+    Returns
+    -------
+    GroundDetections
+        ``xy_m`` at local maxima of the agreement (cell centres, world XY [m]),
+        ``confidence`` = agreement clipped to [0, 1], ``height_m`` = upper band
+        edge of the person's top occupied plane (the head lies between that
+        plane and the next one up).
+    """
+    score, top = person_score_map(log_odds, views, stack, max_log_ratio, params)
+    r_cells = params.nms_radius_m / stack.cell_size_m
+    peak = ndimage.maximum_filter(score, footprint=_disc(r_cells), mode="constant", cval=-np.inf)
+    iy, ix = np.nonzero((score >= peak) & (score >= params.min_agreement))
+    s = score[iy, ix]
+    order = np.argsort(-s, kind="stable")
+    iy, ix, s = iy[order], ix[order], s[order]
+    # Plateaus give several equal maxima: keep the first of any pair closer than the NMS radius.
+    keep = np.ones(len(s), dtype=bool)
+    for i in range(len(s)):
+        if keep[i]:
+            d2 = (iy[i + 1:] - iy[i]) ** 2 + (ix[i + 1:] - ix[i]) ** 2
+            keep[i + 1:] &= d2 > r_cells * r_cells
+    iy, ix, s = iy[keep], ix[keep], s[keep]
+    edges = np.asarray(stack.band_edges_m)
+    return GroundDetections(
+        float(time_s),
+        stack.xy_from_index(iy, ix).reshape(-1, 2),
+        np.clip(s, 0.0, 1.0),
+        edges[top[iy, ix] + 1],
+        source,
+    )

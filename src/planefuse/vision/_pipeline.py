@@ -1,0 +1,170 @@
+"""Cameras end to end: frames -> foreground -> per-plane evidence -> people on the ground."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Iterable, Iterator, Sequence
+
+import numpy as np
+
+from ..geometry import H_plane_image_calibrated, PinholeCamera
+from ..grid import Evidence, GroundDetections, PlaneStack
+from ..registration import ImagePlaneLookup
+from ._foreground import BackgroundSubtractor, ForegroundParams
+from ._fusion import CameraFusion, FusionParams, max_log_ratio
+from ._persons import PersonParams, ground_detections_from_log_odds
+
+__all__ = ["CameraParams", "CameraReport", "camera_detections", "lookups_from_cameras"]
+
+
+def lookups_from_cameras(cameras: Sequence[PinholeCamera], stack: PlaneStack,
+                         route: str = "camera") -> list[ImagePlaneLookup]:
+    """One image -> plane-stack lookup per calibrated camera.
+
+    Parameters
+    ----------
+    cameras : sequence of PinholeCamera
+    stack : PlaneStack
+    route : {"camera", "projection", "imu"}
+        ``"camera"``: project every cell centre through the full camera model
+        (lens distortion included; for raw frames). ``"projection"`` / ``"imu"``:
+        per-plane homographies from the projection matrix (Khan & Shah) or from
+        the IMU attitude (seed eq. 1); these ignore lens distortion, so frames
+        must be undistorted first. Planes at or above a camera raise
+        ``ValueError``.
+
+    Returns
+    -------
+    list of ImagePlaneLookup
+    """
+    if route == "camera":
+        return [ImagePlaneLookup.from_camera(cam, stack) for cam in cameras]
+    if route not in ("projection", "imu"):
+        raise ValueError(f"route must be 'camera', 'projection' or 'imu', got {route!r}")
+    out = []
+    for cam in cameras:
+        H_image_plane = np.stack([np.linalg.inv(H_plane_image_calibrated(cam, h, route=route))
+                                  for h in stack.heights_m])
+        out.append(ImagePlaneLookup.from_homographies(H_image_plane, cam.intrinsics.width_px,
+                                                      cam.intrinsics.height_px, stack))
+    return out
+
+
+@dataclass(frozen=True)
+class CameraParams:
+    """Everything the camera pipeline needs besides geometry.
+
+    Attributes
+    ----------
+    foreground : ForegroundParams or None
+        Background subtraction applied to every frame; ``None`` when the frames
+        already are foreground likelihoods (masks, rendered boxes).
+    fusion : FusionParams
+        Multi-view sensor model.
+    person : PersonParams
+        Multi-plane person model and peak extraction.
+    """
+
+    foreground: ForegroundParams | None = field(default_factory=ForegroundParams)
+    fusion: FusionParams = field(default_factory=FusionParams)
+    person: PersonParams = field(default_factory=PersonParams)
+
+
+@dataclass
+class CameraReport:
+    """What happened to the inputs of :func:`camera_detections` (filled while iterating).
+
+    Attributes
+    ----------
+    instants : int
+        Instants processed.
+    missing_frames : dict
+        Camera name -> list of ``time_s`` at which it had no frame (the other
+        cameras were fused without it).
+    blind_cameras : list of str
+        Cameras that see no cell of the stack.
+    """
+
+    instants: int = 0
+    missing_frames: dict[str, list[float]] = field(default_factory=dict)
+    blind_cameras: list[str] = field(default_factory=list)
+
+    @property
+    def n_missing(self) -> int:
+        """Total number of missing frames over all cameras."""
+        return sum(len(v) for v in self.missing_frames.values())
+
+
+def camera_detections(
+    frames: Iterable[tuple[float, Sequence[np.ndarray | None]]],
+    lookups: Sequence[ImagePlaneLookup],
+    stack: PlaneStack,
+    params: CameraParams = CameraParams(),
+    *,
+    names: Sequence[str] | None = None,
+    report: CameraReport | None = None,
+) -> Iterator[tuple[Evidence, GroundDetections]]:
+    """Run the camera pipeline over a synchronised recording.
+
+    Parameters
+    ----------
+    frames : iterable of (time_s, images)
+        ``images`` holds one entry per camera (same order as ``lookups``): a
+        frame (uint8 grey/BGR) when ``params.foreground`` is set, otherwise a
+        foreground likelihood (float in [0, 1] or uint8 0..255); ``None`` marks
+        a missing frame (warned, recorded in ``report``, the other cameras still
+        fuse that instant).
+    lookups : sequence of ImagePlaneLookup
+        One per camera (see :func:`lookups_from_cameras`).
+    stack : PlaneStack
+    params : CameraParams
+    names : sequence of str, optional
+        Camera names (``cam0``...).
+    report : CameraReport, optional
+        Filled with counts of missing frames and blind cameras.
+
+    Yields
+    ------
+    (Evidence, GroundDetections)
+        Per-plane fused log-odds ``(L, ny, nx)`` (sensor ``"cameras"``) and the
+        people found on the ground, both stamped ``time_s``.
+
+    Raises
+    ------
+    ValueError
+        A frame whose size differs from its camera's calibration, or an instant
+        with the wrong number of images.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fusion = CameraFusion(lookups, stack, params.fusion, names)
+    for w in caught:
+        warnings.warn(w.message, stacklevel=2)
+    if report is not None:
+        report.blind_cameras = list(fusion.blind_cameras)
+    subtractors = None
+    if params.foreground is not None:
+        subtractors = [BackgroundSubtractor(lk.width_px, lk.height_px, params.foreground, name)
+                       for lk, name in zip(lookups, fusion.names)]
+    for time_s, images in frames:
+        images = list(images)
+        if len(images) != fusion.n_cameras:
+            raise ValueError(f"instant t={time_s}: expected {fusion.n_cameras} images (None for missing), "
+                             f"got {len(images)}")
+        fgs: list[np.ndarray | None] = []
+        for c, img in enumerate(images):
+            if img is None:
+                warnings.warn(f"{fusion.names[c]}: no frame at t={time_s} s; fusing the other cameras",
+                              stacklevel=2)
+                if report is not None:
+                    report.missing_frames.setdefault(fusion.names[c], []).append(float(time_s))
+                fgs.append(None)
+            else:
+                fgs.append(img if subtractors is None else subtractors[c].apply(img))
+        evidence = fusion.evidence(fgs, time_s)
+        detections = ground_detections_from_log_odds(evidence.log_odds, fusion.cameras_seeing(fusion.active), stack,
+                                                     time_s, max_log_ratio(params.fusion), params.person)
+        if report is not None:
+            report.instants += 1
+        yield evidence, detections

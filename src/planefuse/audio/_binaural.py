@@ -39,30 +39,37 @@ def _unbias(frame_len: int, max_lag: int) -> np.ndarray:
     return (frame_len / (frame_len - np.abs(lags))).astype(np.float32)
 
 
-def _frame_xcorr_fft(env: np.ndarray, frame_len: int, hop: int, max_lag: int):
-    """Mean-removed cross-correlation (F, B, 2L+1) and energies (F, B, 2) of cochlear outputs env (B, 2, n).
-
-    Each frame of each band is transformed once (zero-padded so that lags up to
-    ``max_lag`` do not wrap) and the correlation read from the inverse transform of
-    ``conj(X_L) X_R``: the correlation of the frame with itself shifted, one FFT pair per band and frame.
-    """
-    n_bands, _, n = env.shape
+def _frames(env: np.ndarray, frame_len: int, hop: int) -> np.ndarray:
+    """Mean-removed frames (B, 2, F, N) of cochlear outputs env (B, 2, n)."""
+    n = env.shape[-1]
     n_frames = max(0, (n - frame_len) // hop + 1)
+    if hop == frame_len:
+        fr = env[..., : n_frames * frame_len].reshape(env.shape[:2] + (n_frames, frame_len))
+    else:
+        fr = env[..., np.arange(n_frames)[:, None] * hop + np.arange(frame_len)]
+    return fr - fr.mean(axis=-1, keepdims=True)
+
+
+def _frame_xcorr_fft(frames: np.ndarray, candidates: np.ndarray, max_lag: int) -> np.ndarray:
+    """Cross-correlation (F, B, 2L+1) of the band-frames in ``candidates`` (F, B); 0 elsewhere.
+
+    Each candidate band-frame is transformed once (zero-padded so that lags up to
+    ``max_lag`` do not wrap) and the correlation read from the inverse transform of
+    ``conj(X_L) X_R``; band-frames that the energy gates already rejected are skipped.
+    """
+    n_bands, _, n_frames, frame_len = frames.shape
+    cc = np.zeros((n_frames, n_bands, 2 * max_lag + 1), dtype=np.float32)
+    fi, bi = np.nonzero(candidates)
+    if fi.size == 0:
+        return cc
     n_fft = sfft.next_fast_len(frame_len + max_lag + 1, real=True)
-    cc = np.empty((n_frames, n_bands, 2 * max_lag + 1), dtype=np.float32)
-    en = np.empty((n_frames, n_bands, 2), dtype=np.float32)
-    idx = np.arange(frame_len)
-    step = max(1, 2**18 // (n_bands * frame_len))
-    for s in range(0, n_frames, step):
-        starts = np.arange(s, min(n_frames, s + step)) * hop
-        fr = env[:, :, starts[:, None] + idx]  # (B, 2, f, N)
-        fr = fr - fr.mean(axis=-1, keepdims=True)
-        en[s : s + len(starts)] = np.einsum("befn,befn->fbe", fr, fr)
-        X = sfft.rfft(fr, n_fft, axis=-1)
-        c = sfft.irfft(np.conj(X[:, 0]) * X[:, 1], n_fft, axis=-1)  # (B, f, n_fft), lag l at index l mod n_fft
-        cc[s : s + len(starts)] = np.concatenate([c[..., n_fft - max_lag :], c[..., : max_lag + 1]], -1).transpose(
-            1, 0, 2)
-    return cc * _unbias(frame_len, max_lag), en
+    step = 4096
+    for s in range(0, fi.size, step):
+        f, b = fi[s : s + step], bi[s : s + step]
+        X = sfft.rfft(frames[b, :, f], n_fft, axis=-1)  # (k, 2, K)
+        c = sfft.irfft(np.conj(X[:, 0]) * X[:, 1], n_fft, axis=-1)
+        cc[f, b] = np.concatenate([c[:, n_fft - max_lag :], c[:, : max_lag + 1]], axis=-1)
+    return cc * _unbias(frame_len, max_lag)
 
 
 def _frame_xcorr_fd(x, fb: GammatoneFilterbank, frame_len: int, hop: int, max_lag: int):
@@ -123,11 +130,12 @@ class BinauralCues:
     time_s : ndarray, shape (F,)
         Centre time of each frame [s] from the start of the signal.
     tau_s : ndarray, shape (F, B)
-        ITD [s], > 0 when the left ear leads (NaN where the peak was on the lag border).
+        ITD [s], > 0 when the left ear leads (NaN where the energy gates failed or the peak was
+        on the lag border).
     ild_db : ndarray, shape (F, B)
         ILD ``10 log10(E_L/E_R)`` [dB] (NaN where an ear is silent).
     coherence : ndarray, shape (F, B)
-        Peak of the normalised interaural cross-correlation, in [-1, 1].
+        Peak of the normalised interaural cross-correlation, in [-1, 1] (0 where the energy gates failed).
     level_db : ndarray, shape (F, B)
         Band RMS level [dB], mean of both ears.
     active : ndarray, shape (F, B), bool
@@ -204,34 +212,22 @@ def binaural_cues(
         raise ValueError(f"frame_s={frame_s} s / hop_s={hop_s} s are too short at {fs_hz} Hz")
     max_lag = int(np.ceil(max_itd_s * fs_hz)) + 1
     if front_end == "time":
-        cc, en = _frame_xcorr_fft(fb.process(x), frame_len, hop, max_lag)
+        frames = _frames(fb.process(x), frame_len, hop)
+        en = np.einsum("befn,befn->fbe", frames, frames)
     elif front_end == "fft":
         cc, en = _frame_xcorr_fd(x, fb, frame_len, hop, max_lag)
     else:
         raise ValueError(f"front_end must be 'time' or 'fft', got {front_end!r}")
-    n_frames, n_bands = cc.shape[:2]
+    n_frames, n_bands = en.shape[:2]
     t = (np.arange(n_frames) * hop + frame_len / 2) / fs_hz
 
-    norm = np.sqrt(np.maximum(en[..., 0] * en[..., 1], 1e-30))
-    j = np.argmax(cc, axis=-1)
-    peak = np.take_along_axis(cc, j[..., None], -1)[..., 0]
-    coherence = peak / norm
-    inner = (j > 0) & (j < cc.shape[-1] - 1)
-    jc = np.clip(j, 1, cc.shape[-1] - 2)
-    ym = np.take_along_axis(cc, (jc - 1)[..., None], -1)[..., 0].astype(float)
-    y0 = np.take_along_axis(cc, jc[..., None], -1)[..., 0].astype(float)
-    yp = np.take_along_axis(cc, (jc + 1)[..., None], -1)[..., 0].astype(float)
-    den = ym - 2 * y0 + yp
-    delta = np.where(den < 0, 0.5 * (ym - yp) / np.where(den < 0, den, -1.0), 0.0)
-    tau = np.where(inner, (jc - max_lag + np.clip(delta, -0.5, 0.5)) / fs_hz, np.nan)
-
+    # energy gates first: the correlation is only computed where they pass
     with np.errstate(divide="ignore", invalid="ignore"):
         ild = 10 * np.log10(en[..., 0] / en[..., 1])
         energy = en.sum(-1).astype(float)
         level = 10 * np.log10(energy / (2 * frame_len) + 1e-30)
     ild = np.where(np.isfinite(ild), ild, np.nan)
-
-    active = inner & (coherence >= coherence_min) & (level > silence_dbfs)
+    active = level > silence_dbfs
     if n_frames:
         active &= level > level.max() - dynamic_range_db
         floor = np.percentile(energy, 10, axis=0)
@@ -239,6 +235,22 @@ def binaural_cues(
         if onset_db is not None:
             prev = np.vstack([energy[:1], energy[:-1]])
             active &= energy >= prev * 10 ** (-onset_db / 10)
+    if front_end == "time":
+        cc = _frame_xcorr_fft(frames, active, max_lag)
+
+    norm = np.sqrt(np.maximum(en[..., 0] * en[..., 1], 1e-30))
+    j = np.argmax(cc, axis=-1)
+    peak = np.take_along_axis(cc, j[..., None], -1)[..., 0]
+    coherence = np.where(active, peak / norm, 0.0)
+    inner = (j > 0) & (j < cc.shape[-1] - 1)
+    jc = np.clip(j, 1, cc.shape[-1] - 2)
+    ym = np.take_along_axis(cc, (jc - 1)[..., None], -1)[..., 0].astype(float)
+    y0 = np.take_along_axis(cc, jc[..., None], -1)[..., 0].astype(float)
+    yp = np.take_along_axis(cc, (jc + 1)[..., None], -1)[..., 0].astype(float)
+    den = ym - 2 * y0 + yp
+    delta = np.where(den < 0, 0.5 * (ym - yp) / np.where(den < 0, den, -1.0), 0.0)
+    tau = np.where(inner & active, (jc - max_lag + np.clip(delta, -0.5, 0.5)) / fs_hz, np.nan)
+    active &= inner & (coherence >= coherence_min)
     clipped = clipped_samples(x)
     n_clipped = 0
     if clipped.any() and n_frames:

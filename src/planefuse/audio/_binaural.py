@@ -3,19 +3,22 @@
 For band b and frame f (``frame_s`` long, every ``hop_s``) the normalised
 interaural cross-correlation of the two cochlear outputs is
 
-    c_bf(l) = sum_k (x_L[k] - m_L)(x_R[k + l] - m_R) / sqrt(E_L E_R),   |l| <= max lag,
+    c_bf(l) = N / (N - |l|) sum_k (x_L[k] - m_L)(x_R[k + l] - m_R) / sqrt(E_L E_R),   |l| <= max lag,
+
+(sums over the N samples of the frame; the factor undoes the shrinking overlap at large lags)
 
 so that its peak lag is the ITD ``tau`` (positive when the left ear leads). The
 peak is refined to sub-sample precision by a parabola through the three samples
 around it. The ILD is ``10 log10(E_L / E_R)`` [dB].
 
 A band-frame gives evidence only if it is *active*: not silent (RMS above
-``silence_dbfs`` and within ``dynamic_range_db`` of the loudest band-frame), above the band's noise floor (10th percentile of its frame
-energies) by ``snr_gate_db``, with a rising or sustained level (``onset_db``:
+``silence_dbfs`` and within ``dynamic_range_db`` of the loudest band-frame),
+above the band's noise floor (10th percentile of its frame energies) by ``snr_gate_db``, with a rising or sustained level (``onset_db``:
 its energy is no more than ``onset_db`` below the previous frame's, which drops
 reverberant tails), coherent (correlation peak >= ``coherence_min``), with its
 peak inside the lag range (not on its border), and in a frame without clipped
-samples. Inactive band-frames are counted, never silently dropped.
+samples. Nothing is dropped silently: ``BinauralCues.active`` marks every band-frame
+and ``n_clipped_frames`` counts the frames lost to clipping.
 """
 
 from __future__ import annotations

@@ -73,10 +73,11 @@ def test_hair_cell_is_half_wave_rectified_and_smooth(rng):
 
 
 # -- binaural unit ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("front_end", ["time", "fft"])
 @pytest.mark.parametrize("lead_s", [0.0, 137e-6, -402.5e-6, 610e-6])
-def test_itd_with_sub_sample_precision_and_sign(rng, lead_s):
+def test_itd_with_sub_sample_precision_and_sign(rng, lead_s, front_end):
     x = _delayed_pair(rng.standard_normal(8000), lead_s)
-    cues = binaural_cues(x, FS, onset_db=None)
+    cues = binaural_cues(x, FS, onset_db=None, front_end=front_end)
     tau = cues.tau_s[cues.active]
     assert tau.size > 100
     assert np.median(tau) == pytest.approx(lead_s, abs=8e-6)  # an eighth of a sample
@@ -125,6 +126,8 @@ def test_bad_inputs(model):
         localize(x, FS, model)
     with pytest.raises(ValueError, match="calibrated at 16000"):
         localize(np.zeros((1000, 2)), 44100.0, model)
+    with pytest.raises(ValueError, match="front_end"):
+        binaural_cues(np.zeros((1000, 2)), FS, front_end="wavelet")
 
 
 # -- sensor model ----------------------------------------------------------------------------------
@@ -243,3 +246,28 @@ def test_evidence_rejects_bad_saliency():
         evidence_from_saliency(np.ones(5), grid, np.eye(4), stack, 0.0)
     with pytest.raises(ValueError, match="lateral"):
         evidence_from_saliency(np.ones(181), np.linspace(0, 4, 181), np.eye(4), stack, 0.0)
+
+
+# -- command line ----------------------------------------------------------------------------------
+def test_cli_calibrate_and_localize(tmp_path):
+    import soundfile as sf
+    from typer.testing import CliRunner
+
+    from planefuse.cli import app
+
+    runner = CliRunner()
+    out = tmp_path / "model.npz"
+    r = runner.invoke(app, ["audio", "calibrate", "--out", str(out), "--step-deg", "30", "--bands", "16"])
+    assert r.exit_code == 0, r.output
+    m = BinauralSensorModel.load(out)
+    assert m.filterbank.n_bands == 16 and "spherical head" in m.source
+    x = sweep_recordings(speech_like_signal(1.0, FS, seed=8), [np.deg2rad(-30.0)], SweepScene(), SphericalHead(), FS)[0]
+    wav = tmp_path / "rec.wav"
+    sf.write(wav, x / np.abs(x).max() * 0.5, int(FS), subtype="FLOAT")
+    r = runner.invoke(app, ["audio", "localize", str(wav), "--model", str(out)])
+    assert r.exit_code == 0, r.output
+    az = float(r.output.split("azimuth")[1].split("deg")[0])
+    assert az == pytest.approx(-30.0, abs=6.0)
+    sf.write(tmp_path / "mono.wav", x[:, 0], int(FS))
+    r = runner.invoke(app, ["audio", "localize", str(tmp_path / "mono.wav")])
+    assert r.exit_code != 0 and "mono" in str(r.exception)

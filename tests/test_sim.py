@@ -191,6 +191,15 @@ def test_scene_file_errors_name_file_line_and_field(tmp_path):
     p.write_text("n_people: 2\nspeakers:\n  - {person_id: 5, intervals_s: [[0, 1]]}\n")
     with pytest.raises(ValueError, match=r"speakers\[0\]\.person_id = 5 but there are 2 people"):
         load_scene_config(p)
+    p.write_text("room_size_m: [6, 6]\nlaser: {tilt_min_deg: 20}\n")
+    with pytest.raises(ValueError, match=r"scene\.yaml:2: field laser: .*tilt_min_deg 20"):
+        load_scene_config(p)
+    p.write_text("room_size_m: [6, 8]\n")  # default head and laser follow the room
+    cfg = load_scene_config(p)
+    assert cfg.head.position_m == (3.0, 0.3, 1.6) and cfg.laser.position_m == (0.15, 4.0, 1.0)
+    p.write_text("room_size_m: [4, 6]\nhead: {position_m: [5, 0.3, 1.6]}\n")
+    with pytest.raises(ValueError, match=r"head\.position_m \(5\.0, 0\.3, 1\.6\) is outside the room"):
+        load_scene_config(p)
     p.write_text("duration_s: -1\n")
     with pytest.raises(ValueError, match=r"scene\.yaml:1: field duration_s"):
         load_scene_config(p)

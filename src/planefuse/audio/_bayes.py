@@ -71,6 +71,8 @@ class BinauralSensorModel:
         ``eps`` of the outlier mixture.
     source : str
         What it was calibrated from.
+    front_end : str
+        ``front_end`` of :func:`binaural_cues` used for calibration and measurement.
     """
 
     fs_hz: float
@@ -82,7 +84,11 @@ class BinauralSensorModel:
     max_itd_s: float = 1.0e-3
     outlier_weight: float = 0.1
     source: str = ""
+    front_end: str = "time"
     _period_s: np.ndarray = field(init=False, repr=False, compare=False)
+    _mu32: np.ndarray = field(init=False, repr=False, compare=False)
+    _inv_sigma32: np.ndarray = field(init=False, repr=False, compare=False)
+    _norm32: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         az = np.asarray(self.azimuth_rad, dtype=float).reshape(-1)
@@ -103,6 +109,13 @@ class BinauralSensorModel:
         object.__setattr__(self, "mu_s", mu)
         object.__setattr__(self, "sigma_s", np.maximum(sg, _SIGMA_MIN_S))
         object.__setattr__(self, "_period_s", 1.0 / self.filterbank.center_freqs_hz)
+        # float32 copies for the hot path: (1 - eps) N(0; 0, sigma) / n_images, 1 / sigma
+        sg = self.sigma_s
+        n_images = np.maximum(1.0, 2 * self.max_itd_s / self._period_s)[:, None]
+        norm = (1 - self.outlier_weight) / (np.sqrt(2 * np.pi) * sg * n_images)
+        object.__setattr__(self, "_mu32", self.mu_s.astype(np.float32))
+        object.__setattr__(self, "_inv_sigma32", (1.0 / sg).astype(np.float32))
+        object.__setattr__(self, "_norm32", norm.astype(np.float32))
 
     # -- the sensor model --------------------------------------------------------
     def log_likelihood_ratio(self, tau_s: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -127,15 +140,15 @@ class BinauralSensorModel:
         if fi.size == 0:
             return out
         # wrapped residual to the nearest image of the band period
-        r = tau_s[fi, bi][:, None] - self.mu_s[bi]
-        r -= np.round(r / P[bi]) * P[bi]
-        s = self.sigma_s[bi]
-        g = np.exp(-0.5 * (r / s) ** 2) / (np.sqrt(2 * np.pi) * s)
+        Pb = P[bi].astype(np.float32)
+        r = tau_s[fi, bi].astype(np.float32)[:, None] - self._mu32[bi]
+        r -= np.round(r / Pb) * Pb
+        z = r * self._inv_sigma32[bi]
         # the wrapped normal repeats once per period inside the lag range: spread the mass over them
-        n_images = np.maximum(1.0, 2 * self.max_itd_s / P[bi])
-        like = (1 - self.outlier_weight) * g / n_images + self.outlier_weight * np.exp(log_u)
-        llr = np.log(like) - log_u
-        np.add.at(out, fi, llr)
+        g = np.exp(-0.5 * z * z) * self._norm32[bi]
+        llr = np.log1p(g * np.float32(np.exp(-log_u) / self.outlier_weight)) + np.float32(np.log(self.outlier_weight))
+        starts = np.flatnonzero(np.r_[True, fi[1:] != fi[:-1]])
+        out[fi[starts]] = np.add.reduceat(llr, starts, axis=0)
         return out
 
     # -- persistence -------------------------------------------------------------
@@ -145,7 +158,7 @@ class BinauralSensorModel:
         meta = dict(fs_hz=self.fs_hz, n_bands=self.filterbank.n_bands, f_min_hz=self.filterbank.f_min_hz,
                     f_max_hz=self.filterbank.f_max_hz, envelope_cutoff_hz=self.filterbank.envelope_cutoff_hz,
                     frame_s=self.frame_s, max_itd_s=self.max_itd_s, outlier_weight=self.outlier_weight,
-                    source=self.source, format="planefuse.binaural_sensor_model/1")
+                    source=self.source, front_end=self.front_end, format="planefuse.binaural_sensor_model/1")
         np.savez(path, azimuth_rad=self.azimuth_rad, mu_s=self.mu_s, sigma_s=self.sigma_s,
                  meta=np.array(json.dumps(meta)))
         return path
@@ -165,14 +178,16 @@ class BinauralSensorModel:
         fb = GammatoneFilterbank(meta["fs_hz"], meta["n_bands"], meta["f_min_hz"], meta["f_max_hz"],
                                  meta["envelope_cutoff_hz"])
         return cls(meta["fs_hz"], fb, frame_s=meta["frame_s"], max_itd_s=meta["max_itd_s"],
-                   outlier_weight=meta["outlier_weight"], source=meta["source"], **arrays)
+                   outlier_weight=meta["outlier_weight"], source=meta["source"],
+                   front_end=meta.get("front_end", "time"), **arrays)
 
     def cues(self, signal, fs_hz: float, **gating) -> BinauralCues:
         """Binaural cues of a two-channel signal with this model's front end (checks the sampling rate)."""
         if fs_hz != self.fs_hz:
             raise ValueError(f"signal is at {fs_hz} Hz but the sensor model was calibrated at {self.fs_hz} Hz; "
                              "resample it (planefuse.audio.read_audio(path, fs_hz)) or recalibrate")
-        return binaural_cues(signal, fs_hz, self.filterbank, frame_s=self.frame_s, max_itd_s=self.max_itd_s, **gating)
+        return binaural_cues(signal, fs_hz, self.filterbank, frame_s=self.frame_s, max_itd_s=self.max_itd_s,
+                             front_end=self.front_end, **gating)
 
 
 def calibrate_sensor_model(
@@ -184,6 +199,7 @@ def calibrate_sensor_model(
     frame_s: float = 0.02,
     max_itd_s: float = 1.0e-3,
     source: str = "calibration recordings",
+    front_end: str = "time",
 ) -> BinauralSensorModel:
     """Fit ``P(tau | S_theta = 1, theta)`` from recordings of one source at known azimuths.
 
@@ -209,6 +225,8 @@ def calibrate_sensor_model(
         Binaural unit settings [s].
     source : str
         Description stored in the model.
+    front_end : str
+        Front end of :func:`binaural_cues` (``"time"`` or ``"fft"``), kept in the model.
     """
     fb = GammatoneFilterbank(fs_hz=fs_hz) if filterbank is None else filterbank
     az = np.asarray(azimuths_rad, dtype=float).reshape(-1)
@@ -222,7 +240,7 @@ def calibrate_sensor_model(
     phase = np.zeros((fb.n_bands, az.size), dtype=complex)
     for k, rec in enumerate(recordings):
         x = check_binaural_signal(rec, f"recordings[{k}]")
-        cues = binaural_cues(x, fs_hz, fb, frame_s=frame_s, max_itd_s=max_itd_s)
+        cues = binaural_cues(x, fs_hz, fb, frame_s=frame_s, max_itd_s=max_itd_s, front_end=front_end)
         for b in range(fb.n_bands):
             t = cues.tau_s[cues.active[:, b], b]
             phase[b, k] = np.mean(np.exp(2j * np.pi * t / period[b])) if t.size >= 3 else 0.0
@@ -239,7 +257,8 @@ def calibrate_sensor_model(
         mu[b] = np.interp(grid, lat_o[ok], ang) * period[b] / (2 * np.pi)
         sg[b] = np.interp(grid, lat_o[ok], spread) * period[b] / (2 * np.pi)
     mu = (mu + period[:, None] / 2) % period[:, None] - period[:, None] / 2
-    return BinauralSensorModel(fs_hz, fb, grid, mu, sg, frame_s=frame_s, max_itd_s=max_itd_s, source=source)
+    return BinauralSensorModel(fs_hz, fb, grid, mu, sg, frame_s=frame_s, max_itd_s=max_itd_s, source=source,
+                               front_end=front_end)
 
 
 @lru_cache(maxsize=4)

@@ -3,19 +3,22 @@
 For band b and frame f (``frame_s`` long, every ``hop_s``) the normalised
 interaural cross-correlation of the two cochlear outputs is
 
-    c_bf(l) = sum_k (x_L[k] - m_L)(x_R[k + l] - m_R) / sqrt(E_L E_R),   |l| <= max lag,
+    c_bf(l) = N / (N - |l|) sum_k (x_L[k] - m_L)(x_R[k + l] - m_R) / sqrt(E_L E_R),   |l| <= max lag,
+
+(sums over the N samples of the frame; the factor undoes the shrinking overlap at large lags)
 
 so that its peak lag is the ITD ``tau`` (positive when the left ear leads). The
 peak is refined to sub-sample precision by a parabola through the three samples
 around it. The ILD is ``10 log10(E_L / E_R)`` [dB].
 
 A band-frame gives evidence only if it is *active*: not silent (RMS above
-``silence_dbfs`` and within ``dynamic_range_db`` of the loudest band-frame), above the band's noise floor (10th percentile of its frame
-energies) by ``snr_gate_db``, with a rising or sustained level (``onset_db``:
+``silence_dbfs`` and within ``dynamic_range_db`` of the loudest band-frame),
+above the band's noise floor (10th percentile of its frame energies) by ``snr_gate_db``, with a rising or sustained level (``onset_db``:
 its energy is no more than ``onset_db`` below the previous frame's, which drops
 reverberant tails), coherent (correlation peak >= ``coherence_min``), with its
 peak inside the lag range (not on its border), and in a frame without clipped
-samples. Inactive band-frames are counted, never silently dropped.
+samples. Nothing is dropped silently: ``BinauralCues.active`` marks every band-frame
+and ``n_clipped_frames`` counts the frames lost to clipping.
 """
 
 from __future__ import annotations
@@ -23,48 +26,82 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+import scipy.fft as sfft
 
 from ._cochlea import GammatoneFilterbank, check_binaural_signal
 
 __all__ = ["BinauralCues", "binaural_cues", "clipped_samples"]
 
 
-@njit(cache=True, fastmath=True)
-def _frame_xcorr(env, frame_len, hop, max_lag):  # pragma: no cover - compiled
-    """Mean-removed cross-correlation (F, B, 2L+1) and energies (F, B, 2) of env (B, 2, n) float32."""
-    n_bands, _, n = env.shape
+def _unbias(frame_len: int, max_lag: int) -> np.ndarray:
+    """Weights N / (N - |l|) that undo the triangular taper of a correlation within one frame.
+
+    Without them the peak of a within-frame correlation is pulled towards lag 0.
+    """
+    lags = np.arange(-max_lag, max_lag + 1)
+    return (frame_len / (frame_len - np.abs(lags))).astype(np.float32)
+
+
+def _frames(env: np.ndarray, frame_len: int, hop: int) -> np.ndarray:
+    """Mean-removed frames (B, 2, F, N) of cochlear outputs env (B, 2, n)."""
+    n = env.shape[-1]
     n_frames = max(0, (n - frame_len) // hop + 1)
-    n_lags = 2 * max_lag + 1
-    cc = np.zeros((n_frames, n_bands, n_lags), dtype=np.float32)
-    en = np.zeros((n_frames, n_bands, 2), dtype=np.float32)
-    for b in range(n_bands):
-        xl = env[b, 0]
-        xr = env[b, 1]
-        for f in range(n_frames):
-            s = f * hop
-            ml = np.float32(0.0)
-            mr = np.float32(0.0)
-            for k in range(s, s + frame_len):
-                ml += xl[k]
-                mr += xr[k]
-            ml /= frame_len
-            mr /= frame_len
-            el = np.float32(0.0)
-            er = np.float32(0.0)
-            for k in range(s, s + frame_len):
-                el += (xl[k] - ml) ** 2
-                er += (xr[k] - mr) ** 2
-            en[f, b, 0] = el
-            en[f, b, 1] = er
-            for j in range(n_lags):
-                lag = j - max_lag
-                lo = max(s, -lag)
-                hi = min(s + frame_len, n - lag)
-                acc = np.float32(0.0)
-                for k in range(lo, hi):
-                    acc += xl[k] * xr[k + lag]
-                cc[f, b, j] = acc - (hi - lo) * ml * mr
+    if hop == frame_len:
+        fr = env[..., : n_frames * frame_len].reshape(env.shape[:2] + (n_frames, frame_len))
+    else:
+        fr = env[..., np.arange(n_frames)[:, None] * hop + np.arange(frame_len)]
+    return fr - fr.mean(axis=-1, keepdims=True)
+
+
+def _frame_xcorr_fft(frames: np.ndarray, candidates: np.ndarray, max_lag: int) -> np.ndarray:
+    """Cross-correlation (F, B, 2L+1) of the band-frames in ``candidates`` (F, B); 0 elsewhere.
+
+    Each candidate band-frame is transformed once (zero-padded so that lags up to
+    ``max_lag`` do not wrap) and the correlation read from the inverse transform of
+    ``conj(X_L) X_R``; band-frames that the energy gates already rejected are skipped.
+    """
+    n_bands, _, n_frames, frame_len = frames.shape
+    cc = np.zeros((n_frames, n_bands, 2 * max_lag + 1), dtype=np.float32)
+    fi, bi = np.nonzero(candidates)
+    if fi.size == 0:
+        return cc
+    n_fft = sfft.next_fast_len(frame_len + max_lag + 1, real=True)
+    step = 4096
+    for s in range(0, fi.size, step):
+        f, b = fi[s : s + step], bi[s : s + step]
+        X = sfft.rfft(frames[b, :, f], n_fft, axis=-1)  # (k, 2, K)
+        c = sfft.irfft(np.conj(X[:, 0]) * X[:, 1], n_fft, axis=-1)
+        cc[f, b] = np.concatenate([c[:, n_fft - max_lag :], c[:, : max_lag + 1]], axis=-1)
+    return cc * _unbias(frame_len, max_lag)
+
+
+def _frame_xcorr_fd(x, fb: GammatoneFilterbank, frame_len: int, hop: int, max_lag: int):
+    """Band cross-correlations (F, B, 2L+1) and energies (F, B, 2) computed in the frequency domain.
+
+    The cross-correlation of ``h_b * x_L`` and ``h_b * x_R`` is the inverse transform
+    of ``|H_b|^2 conj(X_L) X_R``: each frame is transformed once and each band costs
+    one short inverse FFT (the band-pass acts within the frame only).
+    """
+    n = len(x)
+    n_frames = max(0, (n - frame_len) // hop + 1)
+    n_fft = sfft.next_fast_len(frame_len + max_lag + 1, real=True)
+    idx = np.arange(n_frames)[:, None] * hop + np.arange(frame_len)
+    fr = x[idx].astype(np.float32)  # (F, N, 2)
+    fr -= fr.mean(axis=1, keepdims=True)
+    X = sfft.rfft(fr, n_fft, axis=1)  # (F, K, 2)
+    f = np.fft.rfftfreq(n_fft, 1.0 / fb.fs_hz)
+    G = (np.abs(fb.frequency_response(f)) ** 2).astype(np.float32)  # (B, K)
+    w = np.full(f.size, 2.0 / n_fft, dtype=np.float32)  # Parseval weights of a one-sided spectrum
+    w[0] = 1.0 / n_fft
+    if n_fft % 2 == 0:
+        w[-1] = 1.0 / n_fft
+    en = np.stack([(np.abs(X[:, :, e]) ** 2 * w) @ G.T for e in range(2)], axis=-1)  # (F, B, 2)
+    cross = np.conj(X[:, :, 0]) * X[:, :, 1]  # (F, K)
+    cc = np.empty((n_frames, fb.n_bands, 2 * max_lag + 1), dtype=np.float32)
+    step = max(1, 2**20 // (fb.n_bands * f.size))
+    for s in range(0, n_frames, step):
+        c = sfft.irfft(cross[s : s + step, None, :] * G[None], n_fft, axis=-1)
+        cc[s : s + step] = np.concatenate([c[..., n_fft - max_lag :], c[..., : max_lag + 1]], axis=-1)
     return cc, en
 
 
@@ -96,11 +133,12 @@ class BinauralCues:
     time_s : ndarray, shape (F,)
         Centre time of each frame [s] from the start of the signal.
     tau_s : ndarray, shape (F, B)
-        ITD [s], > 0 when the left ear leads (NaN where the peak was on the lag border).
+        ITD [s], > 0 when the left ear leads (NaN where the energy gates failed or the peak was
+        on the lag border).
     ild_db : ndarray, shape (F, B)
         ILD ``10 log10(E_L/E_R)`` [dB] (NaN where an ear is silent).
     coherence : ndarray, shape (F, B)
-        Peak of the normalised interaural cross-correlation, in [-1, 1].
+        Peak of the normalised interaural cross-correlation, in [-1, 1] (0 where the energy gates failed).
     level_db : ndarray, shape (F, B)
         Band RMS level [dB], mean of both ears.
     active : ndarray, shape (F, B), bool
@@ -133,6 +171,7 @@ def binaural_cues(
     snr_gate_db: float = 6.0,
     onset_db: float | None = 3.0,
     coherence_min: float = 0.5,
+    front_end: str = "time",
 ) -> BinauralCues:
     """ITD, ILD and activity of every band and frame of a two-channel signal.
 
@@ -159,6 +198,12 @@ def binaural_cues(
         is a reverberant tail and gives no evidence [dB]; None disables the test.
     coherence_min : float
         Smallest normalised correlation peak accepted.
+    front_end : {"time", "fft"}
+        ``"time"``: the gammatone filterbank runs continuously over the signal (with the
+        hair cell if configured), then each frame is correlated. ``"fft"``: each frame is
+        transformed once and every band's correlation is ``irfft(|H_b|^2 conj(X_L) X_R)``
+        (same gammatone responses, no hair cell, band-limited within the frame only:
+        faster, less accurate in reverberation; see docs/audio.md).
     """
     x = check_binaural_signal(signal)
     fb = GammatoneFilterbank(fs_hz=fs_hz) if filterbank is None else filterbank
@@ -169,31 +214,23 @@ def binaural_cues(
     if frame_len < 8 or hop < 1:
         raise ValueError(f"frame_s={frame_s} s / hop_s={hop_s} s are too short at {fs_hz} Hz")
     max_lag = int(np.ceil(max_itd_s * fs_hz)) + 1
-    env = fb.process(x)
-    cc, en = _frame_xcorr(env, frame_len, hop, max_lag)
-    n_frames, n_bands = cc.shape[:2]
+    if front_end == "time":
+        frames = _frames(fb.process(x), frame_len, hop)
+        en = np.einsum("befn,befn->fbe", frames, frames)
+    elif front_end == "fft":
+        cc, en = _frame_xcorr_fd(x, fb, frame_len, hop, max_lag)
+    else:
+        raise ValueError(f"front_end must be 'time' or 'fft', got {front_end!r}")
+    n_frames, n_bands = en.shape[:2]
     t = (np.arange(n_frames) * hop + frame_len / 2) / fs_hz
 
-    norm = np.sqrt(np.maximum(en[..., 0] * en[..., 1], 1e-30))
-    j = np.argmax(cc, axis=-1)
-    peak = np.take_along_axis(cc, j[..., None], -1)[..., 0]
-    coherence = peak / norm
-    inner = (j > 0) & (j < cc.shape[-1] - 1)
-    jc = np.clip(j, 1, cc.shape[-1] - 2)
-    ym = np.take_along_axis(cc, (jc - 1)[..., None], -1)[..., 0].astype(float)
-    y0 = np.take_along_axis(cc, jc[..., None], -1)[..., 0].astype(float)
-    yp = np.take_along_axis(cc, (jc + 1)[..., None], -1)[..., 0].astype(float)
-    den = ym - 2 * y0 + yp
-    delta = np.where(den < 0, 0.5 * (ym - yp) / np.where(den < 0, den, -1.0), 0.0)
-    tau = np.where(inner, (jc - max_lag + np.clip(delta, -0.5, 0.5)) / fs_hz, np.nan)
-
+    # energy gates first: the correlation is only computed where they pass
     with np.errstate(divide="ignore", invalid="ignore"):
         ild = 10 * np.log10(en[..., 0] / en[..., 1])
         energy = en.sum(-1).astype(float)
         level = 10 * np.log10(energy / (2 * frame_len) + 1e-30)
     ild = np.where(np.isfinite(ild), ild, np.nan)
-
-    active = inner & (coherence >= coherence_min) & (level > silence_dbfs)
+    active = level > silence_dbfs
     if n_frames:
         active &= level > level.max() - dynamic_range_db
         floor = np.percentile(energy, 10, axis=0)
@@ -201,6 +238,22 @@ def binaural_cues(
         if onset_db is not None:
             prev = np.vstack([energy[:1], energy[:-1]])
             active &= energy >= prev * 10 ** (-onset_db / 10)
+    if front_end == "time":
+        cc = _frame_xcorr_fft(frames, active, max_lag)
+
+    norm = np.sqrt(np.maximum(en[..., 0] * en[..., 1], 1e-30))
+    j = np.argmax(cc, axis=-1)
+    peak = np.take_along_axis(cc, j[..., None], -1)[..., 0]
+    coherence = np.where(active, peak / norm, 0.0)
+    inner = (j > 0) & (j < cc.shape[-1] - 1)
+    jc = np.clip(j, 1, cc.shape[-1] - 2)
+    ym = np.take_along_axis(cc, (jc - 1)[..., None], -1)[..., 0].astype(float)
+    y0 = np.take_along_axis(cc, jc[..., None], -1)[..., 0].astype(float)
+    yp = np.take_along_axis(cc, (jc + 1)[..., None], -1)[..., 0].astype(float)
+    den = ym - 2 * y0 + yp
+    delta = np.where(den < 0, 0.5 * (ym - yp) / np.where(den < 0, den, -1.0), 0.0)
+    tau = np.where(inner & active, (jc - max_lag + np.clip(delta, -0.5, 0.5)) / fs_hz, np.nan)
+    active &= inner & (coherence >= coherence_min)
     clipped = clipped_samples(x)
     n_clipped = 0
     if clipped.any() and n_frames:

@@ -1,11 +1,11 @@
 """Monaural cochlear unit: a gammatone filterbank on ERB-spaced centre frequencies per ear.
 
 Each band is scipy's 4th-order IIR gammatone (``scipy.signal.gammatone(f, "iir")``,
-Slaney's design), run as second-order sections; the inner hair cell is modelled by
+Slaney's design), run as four second-order sections; the inner hair cell is modelled by
 half-wave rectification followed by a one-pole low-pass (``envelope_cutoff_hz``),
 which keeps the fine structure of low bands and the envelope of high ones, as the
-auditory nerve does. The filtering runs in one numba kernel over all bands and
-both ears at once (the recursions of the 2 x B channels vectorise).
+auditory nerve does. The filtering runs in one numba kernel, channel by channel
+with the filter state in registers.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy.signal import gammatone, tf2sos
+from scipy.signal import gammatone, sosfreqz, tf2sos
 
 __all__ = ["GammatoneFilterbank", "erb_space_hz", "check_binaural_signal"]
 
@@ -46,39 +46,47 @@ def check_binaural_signal(signal, name: str = "signal") -> np.ndarray:
 
 
 @njit(cache=True, fastmath=True)
-def _sos_hwr_lowpass(x, ear, coef, lp_a, hair_cell):  # pragma: no cover - compiled
-    """Filter channels c (input ear[c] of x (n, E)) through SOS coef (6 S, C); optional HWR + low-pass.
+def _gammatone_hair_cell(x, ear, sos, lp_a, hair_cell):  # pragma: no cover - compiled
+    """Run channel c (band c // E on input column ear[c] of x (n, E)) through its 4 biquads sos (C, 4, 6).
 
-    The channel loop is innermost and the state float32 so that all channels run in SIMD lanes.
-    Returns (n, C) float32.
+    One channel at a time with the eight state variables in registers (the
+    recursion is serial in time); optional HWR + one-pole low-pass. Returns (C, n) float32.
     """
     n = x.shape[0]
-    n_sec, n_ch = coef.shape[0] // 6, coef.shape[1]
-    out = np.empty((n, n_ch), dtype=np.float32)
-    z = np.zeros((2 * n_sec, n_ch), dtype=np.float32)
-    v = np.zeros(n_ch, dtype=np.float32)
-    lp = np.zeros(n_ch, dtype=np.float32)
-    for t in range(n):
-        for c in range(n_ch):
-            v[c] = x[t, ear[c]]
-        for s in range(n_sec):
-            b0, b1, b2 = coef[6 * s], coef[6 * s + 1], coef[6 * s + 2]
-            a1, a2 = coef[6 * s + 4], coef[6 * s + 5]
-            za, zb = z[2 * s], z[2 * s + 1]
-            for c in range(n_ch):
-                vc = v[c]
-                y = b0[c] * vc + za[c]
-                za[c] = b1[c] * vc - a1[c] * y + zb[c]
-                zb[c] = b2[c] * vc - a2[c] * y
-                v[c] = y
-        o = out[t]
-        if hair_cell:
-            for c in range(n_ch):
-                lp[c] += lp_a[c] * (max(v[c], np.float32(0.0)) - lp[c])
-                o[c] = lp[c]
-        else:
-            for c in range(n_ch):
-                o[c] = v[c]
+    n_ch = sos.shape[0]
+    out = np.empty((n_ch, n), dtype=np.float32)
+    zero = np.float32(0.0)
+    for c in range(n_ch):
+        xe = x[:, ear[c]]
+        s = sos[c]
+        b00, b01, b02, a01, a02 = s[0, 0], s[0, 1], s[0, 2], s[0, 4], s[0, 5]
+        b10, b11, b12, a11, a12 = s[1, 0], s[1, 1], s[1, 2], s[1, 4], s[1, 5]
+        b20, b21, b22, a21, a22 = s[2, 0], s[2, 1], s[2, 2], s[2, 4], s[2, 5]
+        b30, b31, b32, a31, a32 = s[3, 0], s[3, 1], s[3, 2], s[3, 4], s[3, 5]
+        z00 = z01 = z10 = z11 = z20 = z21 = z30 = z31 = lp = zero
+        a = lp_a[c]
+        o = out[c]
+        for t in range(n):
+            v = xe[t]
+            y = b00 * v + z00
+            z00 = b01 * v - a01 * y + z01
+            z01 = b02 * v - a02 * y
+            v = y
+            y = b10 * v + z10
+            z10 = b11 * v - a11 * y + z11
+            z11 = b12 * v - a12 * y
+            v = y
+            y = b20 * v + z20
+            z20 = b21 * v - a21 * y + z21
+            z21 = b22 * v - a22 * y
+            v = y
+            y = b30 * v + z30
+            z30 = b31 * v - a31 * y + z31
+            z31 = b32 * v - a32 * y
+            if hair_cell:
+                lp += a * (max(y, zero) - lp)
+                y = lp
+            o[t] = y
     return out
 
 
@@ -112,6 +120,8 @@ class GammatoneFilterbank:
         if self.f_max_hz >= self.fs_hz / 2:
             raise ValueError(f"f_max_hz={self.f_max_hz} must be below Nyquist ({self.fs_hz / 2} Hz)")
         sos = np.stack([tf2sos(*gammatone(f, "iir", fs=self.fs_hz)) for f in self.center_freqs_hz])
+        if sos.shape[1] != 4:  # scipy's IIR gammatone is 4th order (8 poles): four biquads
+            raise ValueError(f"expected 4 second-order sections per gammatone band, got {sos.shape[1]}")
         # unit gain at each centre frequency, so that band energies compare across bands
         for b, f in enumerate(self.center_freqs_hz):
             zinv = np.exp(-2j * np.pi * f / self.fs_hz)
@@ -124,6 +134,11 @@ class GammatoneFilterbank:
     def center_freqs_hz(self) -> np.ndarray:
         """Centre frequencies (B,) [Hz], ERB-spaced."""
         return erb_space_hz(self.f_min_hz, self.f_max_hz, self.n_bands)
+
+    def frequency_response(self, freqs_hz) -> np.ndarray:
+        """Complex response (B, K) of every band at ``freqs_hz`` (K,) [Hz] (unit gain at the centre)."""
+        f = np.asarray(freqs_hz, dtype=float)
+        return np.stack([sosfreqz(s, worN=f, fs=self.fs_hz)[1] for s in self._sos])
 
     def process(self, signal) -> np.ndarray:
         """Cochleagram of a multi-channel signal.
@@ -142,10 +157,10 @@ class GammatoneFilterbank:
         if x.ndim != 2:
             raise ValueError(f"signal must have shape (n, channels), got {x.shape}")
         n_ears = x.shape[1]
-        coef = np.repeat(self._sos.transpose(1, 2, 0), n_ears, axis=2)  # (S, 6, B*E)
-        coef = np.ascontiguousarray(coef.reshape(-1, coef.shape[-1]), dtype=np.float32)
+        sos = np.ascontiguousarray(np.repeat(self._sos, n_ears, axis=0), dtype=np.float32)  # (B*E, 4, 6)
         ear = np.tile(np.arange(n_ears), self.n_bands)
         cut = self.fs_hz if self.envelope_cutoff_hz is None else self.envelope_cutoff_hz
         a = np.full(self.n_bands * n_ears, 1.0 - np.exp(-2 * np.pi * cut / self.fs_hz), dtype=np.float32)
-        out = _sos_hwr_lowpass(np.ascontiguousarray(x, dtype=np.float32), ear, coef, a, self.envelope_cutoff_hz is not None)
-        return np.ascontiguousarray(out.T).reshape(self.n_bands, n_ears, -1)
+        out = _gammatone_hair_cell(np.ascontiguousarray(x, dtype=np.float32), ear, sos, a,
+                                   self.envelope_cutoff_hz is not None)
+        return out.reshape(self.n_bands, n_ears, -1)

@@ -95,19 +95,20 @@ def evaluate(
     rt60_s: float = typer.Option(0.3, help="Reverberation time of the 6 x 5 x 3 m room [s]."),
     snr_db: float = typer.Option(20.0, help="Sensor SNR [dB]."),
     fs_hz: float = typer.Option(16000.0, help="Sampling rate [Hz]."),
+    front_end: str = typer.Option("time", help="Binaural front end: 'time' or 'fft'."),
 ) -> None:
     """Azimuth MAE over a sweep: planefuse's Bayesian estimator vs pyroomacoustics SRP-PHAT, MUSIC, GCC-PHAT."""
     from ..audio import HEAD_RADIUS_M, ShoeBoxRoom, read_audio, speech_like_signal
     from ..audio._evaluate import SweepScene, calibrate_from_simulation, evaluate_sweep, sweep_recordings
 
     h = _head(head, fs_hz)
-    model = calibrate_from_simulation(h, speech_like_signal(1.5, fs_hz, seed=12345), fs_hz)
+    model = calibrate_from_simulation(h, speech_like_signal(1.5, fs_hz, seed=12345), fs_hz, front_end=front_end)
     n = int(round(duration_s * fs_hz))
     sig = read_audio(speech, fs_hz)[0][:n, 0] if speech else speech_like_signal(duration_s, fs_hz, seed=777)
     az = np.deg2rad(np.arange(-90.0, 90.0 + 1e-9, step_deg))
     scene = SweepScene(room=ShoeBoxRoom(dims_m=(6.0, 5.0, 3.0), rt60_s=rt60_s), snr_db=snr_db)
     errs = evaluate_sweep(sweep_recordings(sig, az, scene, h, fs_hz), az, model, 2 * HEAD_RADIUS_M)
-    table = Table(title=f"{h.name}: {az.size} azimuths, RT60 {rt60_s} s, SNR {snr_db} dB, "
+    table = Table(title=f"{h.name}, front end {front_end!r}: {az.size} azimuths, RT60 {rt60_s} s, SNR {snr_db} dB, "
                   f"{speech.name if speech else 'speech-like'}")
     table.add_column("method")
     table.add_column("MAE [deg]", justify="right")

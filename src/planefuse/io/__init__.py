@@ -15,7 +15,7 @@ from ._manifest import (
     RecordingManifest,
     load_manifest,
 )
-from ._recording import Recording, read_recording, write_recording
+from ._recording import Event, Recording, read_recording, write_recording
 from ._streams import (
     IMU_COLUMNS,
     AudioStream,
@@ -46,6 +46,7 @@ __all__ = [
     "LaserEntry",
     "RecordingManifest",
     "load_manifest",
+    "Event",
     "Recording",
     "read_recording",
     "write_recording",

@@ -46,12 +46,21 @@ class PeopleTruth:
         """Index of the ground-truth sample nearest to ``time_s``."""
         return int(np.argmin(np.abs(self.times_s - time_s)))
 
+    def xy_at(self, times_s) -> np.ndarray:
+        """Positions (T, P, 2) [m] linearly interpolated at ``times_s`` (T,), clamped to the sampled span;
+        NaN where a person is absent at either neighbouring sample."""
+        t = np.atleast_1d(np.asarray(times_s, dtype=float))
+        if len(self.times_s) == 1:
+            return np.broadcast_to(self.xy_m[0], (len(t),) + self.xy_m.shape[1:]).copy()
+        k = np.clip(np.searchsorted(self.times_s, t, side="right") - 1, 0, len(self.times_s) - 2)
+        w = np.clip((t - self.times_s[k]) / (self.times_s[k + 1] - self.times_s[k]), 0.0, 1.0)[:, None, None]
+        return self.xy_m[k] * (1 - w) + self.xy_m[k + 1] * w
+
     def detections_at(self, time_s: float) -> GroundDetections:
-        """Ground truth at the nearest sample as :class:`~planefuse.grid.GroundDetections` (confidence 1)."""
-        k = self.index_at(time_s)
-        ok = np.isfinite(self.xy_m[k]).all(axis=1)
-        return GroundDetections(float(self.times_s[k]), self.xy_m[k][ok], np.ones(int(ok.sum())),
-                                self.height_m[ok], source="groundtruth")
+        """Ground truth at ``time_s`` (interpolated) as :class:`~planefuse.grid.GroundDetections` (confidence 1)."""
+        xy = self.xy_at([time_s])[0]
+        ok = np.isfinite(xy).all(axis=1)
+        return GroundDetections(float(time_s), xy[ok], np.ones(int(ok.sum())), self.height_m[ok], source="groundtruth")
 
     def rows(self) -> np.ndarray:
         T, P = self.xy_m.shape[:2]

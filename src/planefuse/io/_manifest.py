@@ -59,6 +59,7 @@ class CameraEntry(_Entry):
     rate_hz: float = Field(gt=0)
     n_frames: int = Field(ge=0)
     times_file: str = Field(description="CSV: time_s,image_file[,mask_file] relative to the recording")
+    background_file: str | None = Field(None, description="image of the empty scene (optional)")
 
     @field_validator("K")
     @classmethod

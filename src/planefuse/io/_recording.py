@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import heapq
 from collections import deque
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,10 +26,10 @@ from ._manifest import (
     RecordingManifest,
     load_manifest,
 )
-from ._streams import IMU_COLUMNS, AudioStream, CameraStream, ImuStream, LaserStream, write_laser_npz
+from ._streams import IMU_COLUMNS, AudioStream, CameraStream, ImuData, ImuStream, LaserStream, write_laser_npz
 from ._timestamps import write_csv
 
-__all__ = ["Recording", "read_recording", "write_recording"]
+__all__ = ["Event", "Recording", "read_recording", "write_recording"]
 
 _PNG = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE]
 _IMAGE_PARAMS = {"png": _PNG, "jpg": [cv2.IMWRITE_JPEG_QUALITY, 95]}
@@ -98,10 +100,69 @@ class Recording:
         """Binaural head ``name`` (or the only one)."""
         return _get(self.audio, name, "binaural head")
 
+    def events(self, kinds=("camera", "imu", "laser", "binaural"), audio_block_s: float = 0.04) -> Iterator[Event]:
+        """All measurements of the chosen sensor kinds merged in time order (lazily, stream by stream).
+
+        Yields :class:`Event` ``(time_s, kind, name, data)`` with ``data`` a :class:`CameraFrame`, an
+        :class:`ImuData` of one sample, a :class:`LaserScans` of one scan, or an audio block
+        ``(n, 2)`` float32 of ``audio_block_s`` starting at ``time_s``. Ties keep the order of ``kinds``.
+        """
+        known = {"camera", "imu", "laser", "binaural"}
+        if not set(kinds) <= known:
+            raise ValueError(f"kinds must be among {sorted(known)}, got {list(kinds)}")
+        gens = []
+        for rank, kind in enumerate(kinds):
+            if kind == "camera":
+                gens += [_camera_events(cs, rank) for cs in self.camera_streams.values()]
+            elif kind == "imu":
+                gens += [_imu_events(s, rank) for s in self.imus.values()]
+            elif kind == "laser":
+                gens += [_laser_events(s, rank) for s in self.lasers.values()]
+            else:
+                gens += [_audio_events(s, rank, audio_block_s) for s in self.audio.values()]
+        for _, _, ev in heapq.merge(*gens, key=lambda x: (x[0], x[1])):
+            yield ev
+
     def write(self, out_dir: str | Path, *, overwrite: bool = False, masks: bool = True,
               image_format: str = "png") -> RecordingManifest:
         """Write every stream, the ground truth and ``scene.yaml`` to ``out_dir``; see :func:`write_recording`."""
         return write_recording(self, out_dir, overwrite=overwrite, masks=masks, image_format=image_format)
+
+
+@dataclass(frozen=True)
+class Event:
+    """One measurement in a time-ordered merge of streams (see :meth:`Recording.events`)."""
+
+    time_s: float
+    kind: str
+    name: str
+    data: object
+
+
+def _camera_events(cs: CameraStream, rank: int):
+    for fr in cs:
+        yield fr.time_s, rank, Event(fr.time_s, "camera", cs.name, fr)
+
+
+def _imu_events(s: ImuStream, rank: int):
+    for c in s.chunks():
+        for i in range(len(c)):
+            t = float(c.times_s[i])
+            yield t, rank, Event(t, "imu", s.name, ImuData(c.times_s[i : i + 1], c.gyro_rad_s[i : i + 1],
+                                                          c.accel_m_s2[i : i + 1]))
+
+
+def _laser_events(s: LaserStream, rank: int):
+    for c in s.chunks():
+        for i in range(len(c)):
+            t = float(c.times_s[i])
+            yield t, rank, Event(t, "laser", s.name, c.slice(i, i + 1))
+
+
+def _audio_events(s: AudioStream, rank: int, block_s: float):
+    n = max(1, int(round(block_s * s.fs_hz)))
+    for t, block in s.blocks(n):
+        yield t, rank, Event(t, "binaural", s.name, block)
 
 
 def _get(d: dict, name: str | None, what: str):
@@ -219,12 +280,18 @@ def _write_camera(root: Path, name: str, cs: CameraStream, masks: bool, image_fo
         rows.append(",".join(row))
     while pending:
         _wait(*pending.popleft())
+    bg_rel = None
+    if cs.has_background:
+        bg_rel = f"cameras/{name}/background.png"
+        if not cv2.imwrite(str(root / bg_rel), cs.background(), _PNG):
+            raise ValueError(f"{root / bg_rel}: could not write the image")
     header = "time_s,image_file,mask_file" if masks else "time_s,image_file"
     (base / "times.csv").write_text(header + "\n" + "".join(r + "\n" for r in rows))
     cam = cs.camera
     return CameraEntry(type="camera", name=name, width_px=cam.intrinsics.width_px, height_px=cam.intrinsics.height_px,
                        K=_matrix(cam.K), dist=cam.intrinsics.dist.tolist(), T_world_cam=_matrix(cam.T_world_cam),
-                       rate_hz=cs.rate_hz, n_frames=len(rows), times_file=f"cameras/{name}/times.csv")
+                       rate_hz=cs.rate_hz, n_frames=len(rows), times_file=f"cameras/{name}/times.csv",
+                       background_file=bg_rel)
 
 
 def read_recording(path: str | Path) -> Recording:

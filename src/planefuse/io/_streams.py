@@ -69,10 +69,15 @@ class CameraStream:
     has_masks : bool
     rate_hz : float
         Nominal frame rate.
+    gaps : list of Gap, optional
+        Gaps found in the time stamps.
+    get_background : callable ``() -> image``, optional
+        An image of the empty scene (a "background plate"), if the recording has one.
     """
 
     def __init__(self, camera: PinholeCamera, times_s, get: Callable[[int], tuple], has_masks: bool,
-                 rate_hz: float, gaps: list[Gap] | None = None) -> None:
+                 rate_hz: float, gaps: list[Gap] | None = None,
+                 get_background: Callable[[], np.ndarray] | None = None) -> None:
         self.camera = camera
         self.times_s = np.asarray(times_s, dtype=float)
         self._get = get
@@ -80,6 +85,17 @@ class CameraStream:
         self.rate_hz = float(rate_hz)
         self.gaps = gaps or []
         self._cache: tuple[int, tuple] | None = None
+        self._get_background = get_background
+
+    @property
+    def has_background(self) -> bool:
+        return self._get_background is not None
+
+    def background(self) -> np.ndarray:
+        """Image (H, W, 3) uint8 BGR of the empty scene (no people), e.g. to initialise background subtraction."""
+        if self._get_background is None:
+            raise ValueError(f"{self.name}: this stream has no background image")
+        return self._get_background()
 
     @property
     def name(self) -> str:
@@ -118,7 +134,6 @@ class CameraStream:
         if not path.is_file():
             raise ValueError(f"{path}: file not found (missing stream of camera {entry.name!r})")
         times, images, masks = [], [], []
-        checker = TimeChecker(str(path), entry.rate_hz)
         with open(path, newline="") as fh:
             reader = csv.reader(fh)
             header = next(reader, None)
@@ -129,13 +144,13 @@ class CameraStream:
                 if len(row) != len(header):
                     raise ValueError(f"{path}:{line}: expected {len(header)} fields, got {len(row)} (truncated?)")
                 try:
-                    t = float(row[0])
+                    times.append(float(row[0]))
                 except ValueError:
                     raise ValueError(f"{path}:{line}: time_s {row[0]!r} is not a number") from None
-                checker.check(np.array([t]), [f"line {line}"])
-                times.append(t)
                 images.append(row[1])
                 masks.append(row[2] if len(row) > 2 else None)
+        checker = TimeChecker(str(path), entry.rate_hz)
+        checker.check(np.array(times), first_line=2)  # one row per line after the header
         if len(times) != entry.n_frames:
             raise ValueError(f"{path}: manifest says n_frames = {entry.n_frames}, file lists {len(times)} (truncated?)")
         has_masks = len(header) > 2
@@ -146,7 +161,16 @@ class CameraStream:
             mask = _read_png(base / masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
             return img, mask
 
-        return cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps)
+        bg = None
+        if entry.background_file is not None:
+            bg_path = root / entry.background_file
+            if not bg_path.is_file():
+                raise ValueError(f"{bg_path}: file not found (background of camera {entry.name!r})")
+
+            def bg() -> np.ndarray:
+                return _read_png(bg_path, cv2.IMREAD_COLOR)
+
+        return cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps, bg)
 
 
 def _read_png(path: Path, flags: int) -> np.ndarray:
@@ -200,7 +224,7 @@ class ImuStream:
         checker = TimeChecker(str(self.path), self.rate_hz)
         n = 0
         for rows, line in read_csv_chunks(self.path, IMU_COLUMNS, max_rows):
-            checker.check(rows[:, 0], [f"line {line + k}" for k in range(len(rows))])
+            checker.check(rows[:, 0], line)
             n += len(rows)
             yield ImuData(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
         self.gaps = checker.gaps

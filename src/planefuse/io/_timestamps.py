@@ -41,12 +41,13 @@ class TimeChecker:
     _last: float = -np.inf
     _warned: bool = False
 
-    def check(self, times_s: np.ndarray, where: list[str] | None = None) -> None:
-        """Check the next chunk; ``where[i]`` names sample ``i`` in errors (e.g. ``"line 12"``)."""
+    def check(self, times_s: np.ndarray, first_line: int | None = None) -> None:
+        """Check the next chunk. Errors name sample ``i`` as ``line first_line + i`` of a text file, or as
+        ``time_s[i]`` (the array field) when ``first_line`` is None."""
         t = np.asarray(times_s, dtype=float)
 
         def at(i: int) -> str:
-            return where[i] if where is not None else f"time_s[{i}]"
+            return f"line {first_line + i}" if first_line is not None else f"time_s[{i}]"
 
         bad = np.nonzero(~np.isfinite(t))[0]
         if bad.size:

@@ -29,7 +29,7 @@ from ._imu import R_cam_imu, T_cam_imu, simulate_static_imu
 from ._render import CameraRenderer, body_surface_points, render_background
 from ._scene import Body, PeopleState, Scene, sample_points_in_bodies
 from ._sensors import audio_stream, laser_stream, tilting_unit_from_model, tilting_unit_from_spec
-from ._simulate import groundtruth_of, sample_times, simulate
+from ._simulate import SimulatedRecording, groundtruth_of, sample_times, simulate
 
 __all__ = [
     "CameraSpec",
@@ -57,6 +57,7 @@ __all__ = [
     "PeopleState",
     "Scene",
     "sample_points_in_bodies",
+    "SimulatedRecording",
     "groundtruth_of",
     "sample_times",
     "simulate",

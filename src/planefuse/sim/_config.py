@@ -79,7 +79,7 @@ class LaserSpec(_Model):
     """A 2-D laser range finder on a nodding (tilting) unit: a 3-D scanner (seed ref. [7])."""
 
     name: str = "laser0"
-    position_m: Vec3 = (0.15, 5.0, 1.0)
+    position_m: Vec3 | None = Field(None, description="None = 0.15 m from the x_min wall, mid-way, 1.0 m up")
     yaw_deg: float = 0.0
     rate_hz: PositiveFloat = 40.0
     fov_deg: float = Field(270.0, gt=0, le=360)
@@ -91,18 +91,32 @@ class LaserSpec(_Model):
     tilt_max_deg: float = 15.0
     tilt_period_s: PositiveFloat = 2.0
 
+    @model_validator(mode="after")
+    def _check(self) -> LaserSpec:
+        if self.tilt_min_deg > self.tilt_max_deg:
+            raise ValueError(f"tilt_min_deg {self.tilt_min_deg} must not exceed tilt_max_deg {self.tilt_max_deg}")
+        if self.range_min_m >= self.max_range_m:
+            raise ValueError(f"range_min_m {self.range_min_m} must be below max_range_m {self.max_range_m}")
+        return self
+
     def T_world_base(self) -> np.ndarray:
         """Pose (4, 4) of the (untilted) laser base in the world: x forward, z up."""
-        c, s = np.cos(np.radians(self.yaw_deg)), np.sin(np.radians(self.yaw_deg))
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return transform_from_rotation_translation(R, self.position_m)
+        return _T_world_yaw(self.position_m, self.yaw_deg, "laser")
+
+
+def _T_world_yaw(position_m, yaw_deg: float, what: str) -> np.ndarray:
+    if position_m is None:
+        raise ValueError(f"{what}.position_m is not set (it is filled in by SceneConfig)")
+    c, s = np.cos(np.radians(yaw_deg)), np.sin(np.radians(yaw_deg))
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return transform_from_rotation_translation(R, position_m)
 
 
 class HeadSpec(_Model):
     """A binaural head (two ears). Head frame: x forward (nose), y left, z up; azimuth = atan2(y, x)."""
 
     name: str = "head"
-    position_m: Vec3 = (5.0, 0.3, 1.6)
+    position_m: Vec3 | None = Field(None, description="None = 0.3 m from the y_min wall, mid-way, 1.6 m up")
     yaw_deg: float = Field(90.0, description="direction of the nose, counter-clockwise from world +x")
     fs_hz: int = Field(16000, gt=0)
     head_radius_m: PositiveFloat = 0.0875
@@ -111,9 +125,7 @@ class HeadSpec(_Model):
 
     def T_world_head(self) -> np.ndarray:
         """Pose (4, 4) of the head frame in the world."""
-        c, s = np.cos(np.radians(self.yaw_deg)), np.sin(np.radians(self.yaw_deg))
-        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-        return transform_from_rotation_translation(R, self.position_m)
+        return _T_world_yaw(self.position_m, self.yaw_deg, "head")
 
 
 class SpeakerSpec(_Model):
@@ -191,6 +203,17 @@ class SceneConfig(_Model):
                 raise ValueError(f"speakers[{i}].person_id = {s.person_id} but there are {self.n_people} people")
             if s.intervals_s and s.intervals_s[-1][1] > self.duration_s + 1e-9:
                 raise ValueError(f"speakers[{i}].intervals_s ends after duration_s = {self.duration_s}")
+        x0, x1, y0, y1 = self.room_xy_m
+        if self.head is not None and self.head.position_m is None:
+            object.__setattr__(self, "head", self.head.model_copy(update={"position_m": ((x0 + x1) / 2, y0 + 0.3, 1.6)}))
+        if self.laser is not None and self.laser.position_m is None:
+            object.__setattr__(self, "laser", self.laser.model_copy(update={"position_m": (x0 + 0.15, (y0 + y1) / 2, 1.0)}))
+        for what, spec in (("head", self.head), ("laser", self.laser)):
+            if spec is not None:
+                x, y, z = spec.position_m
+                if not (x0 < x < x1 and y0 < y < y1 and 0 < z < self.wall_height_m):
+                    raise ValueError(f"{what}.position_m {spec.position_m} is outside the room {self.room_xy_m} "
+                                     f"x (0, {self.wall_height_m}) m")
         lo, hi = self.people.height_range_m
         if not 0.5 < lo <= hi < self.wall_height_m:
             raise ValueError(f"people.height_range_m must satisfy 0.5 < min <= max < wall_height_m, got {lo, hi}")

@@ -196,6 +196,10 @@ class Scene:
         self._track = _walk(config, self.bodies, rng)
         self.person_ids = np.arange(len(self.bodies))
         self.height_m = np.array([b.height_m for b in self.bodies])
+        # Static shape columns, gathered once for bodies_at (called per frame and per laser scan).
+        self._shape = {f: np.array([getattr(b, f) for b in self.bodies], dtype=float) for f in (
+            "leg_spacing_m", "leg_radius_m", "hip_height_m", "torso_radius_m", "torso_top_m", "head_center_z_m",
+            "head_radius_m")}
 
     @property
     def n_people(self) -> int:
@@ -241,23 +245,20 @@ class Scene:
         left = np.stack([-np.sin(hd), np.cos(hd)], axis=1)
         # Legs swing apart along the heading while walking, together while standing.
         swing = 0.2 * np.clip(st.speed_m_s[0] / 1.2, 0.0, 1.0) * np.sin(st.gait_phase_rad[0])
-        b = self.bodies
-        spacing = np.array([x.leg_spacing_m for x in b])
+        sh = self._shape
         cyl = np.zeros((P, 3, 5))
         for j, side in enumerate((1.0, -1.0)):
-            c = xy + left * (side * spacing / 2)[:, None] + fwd * (side * swing)[:, None]
-            cyl[:, j, :2] = c
-            cyl[:, j, 2] = [x.leg_radius_m for x in b]
-            cyl[:, j, 3] = 0.0
-            cyl[:, j, 4] = [x.hip_height_m for x in b]
+            cyl[:, j, :2] = xy + left * (side * sh["leg_spacing_m"] / 2)[:, None] + fwd * (side * swing)[:, None]
+            cyl[:, j, 2] = sh["leg_radius_m"]
+            cyl[:, j, 4] = sh["hip_height_m"]
         cyl[:, 2, :2] = xy
-        cyl[:, 2, 2] = [x.torso_radius_m for x in b]
-        cyl[:, 2, 3] = [x.hip_height_m for x in b]
-        cyl[:, 2, 4] = [x.torso_top_m for x in b]
+        cyl[:, 2, 2] = sh["torso_radius_m"]
+        cyl[:, 2, 3] = sh["hip_height_m"]
+        cyl[:, 2, 4] = sh["torso_top_m"]
         sph = np.zeros((P, 4))
         sph[:, :2] = xy
-        sph[:, 2] = [x.head_center_z_m for x in b]
-        sph[:, 3] = [x.head_radius_m for x in b]
+        sph[:, 2] = sh["head_center_z_m"]
+        sph[:, 3] = sh["head_radius_m"]
         ids = np.arange(P)
         return cyl.reshape(-1, 5), np.repeat(ids, 3), sph, ids.copy()
 
@@ -278,7 +279,7 @@ class Scene:
     def mouth_positions_at(self, times_s) -> np.ndarray:
         """Sound-source positions (T, P, 3) [m]: the centre of each person's head sphere."""
         st = self.people_at(times_s)
-        z = np.array([b.head_center_z_m for b in self.bodies])
+        z = self._shape["head_center_z_m"]
         return np.concatenate([st.xy_m, np.broadcast_to(z, st.xy_m.shape[:2])[..., None]], axis=-1)
 
     def azimuth_in_head_at(self, times_s) -> tuple[np.ndarray, np.ndarray]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..io import CameraStream, GroundTruth, ImuStream, PeopleTruth, Recording, SoundTruth
@@ -11,7 +13,15 @@ from ._render import CameraRenderer, make_noise_bank
 from ._scene import Scene
 from ._sensors import audio_stream, laser_stream
 
-__all__ = ["simulate", "sample_times"]
+__all__ = ["SimulatedRecording", "simulate", "sample_times", "groundtruth_of"]
+
+
+@dataclass
+class SimulatedRecording(Recording):
+    """A :class:`~planefuse.io.Recording` with the :class:`Scene` and :class:`SceneConfig` behind it."""
+
+    scene: Scene | None = None
+    config: SceneConfig | None = None
 
 
 def sample_times(duration_s: float, rate_hz: float, offset_s: float = 0.0) -> np.ndarray:
@@ -20,7 +30,7 @@ def sample_times(duration_s: float, rate_hz: float, offset_s: float = 0.0) -> np
     return offset_s + np.arange(max(n, 0)) / rate_hz
 
 
-def simulate(config: SceneConfig | None = None) -> Recording:
+def simulate(config: SceneConfig | None = None) -> SimulatedRecording:
     """Simulate a scene: people walking in a room, seen by cameras with IMUs, a nodding laser scanner
     and heard by a binaural head.
 
@@ -34,19 +44,21 @@ def simulate(config: SceneConfig | None = None) -> Recording:
 
     Returns
     -------
-    Recording
-        With ``.scene`` (the :class:`Scene`, for geometry queries such as ``bodies_at``) and ``.config``
-        attached; ``rec.write(dir)`` stores it.
+    SimulatedRecording
+        A :class:`~planefuse.io.Recording` with ``.scene`` (the :class:`Scene`, for geometry queries such
+        as ``bodies_at``) and ``.config``; ``rec.write(dir)`` stores it.
     """
     cfg = config if config is not None else default_scene_config()
     scene = Scene(cfg)
-    rec = Recording(
+    rec = SimulatedRecording(
         duration_s=float(cfg.duration_s),
         planes_heights_m=list(cfg.planes_heights_m),
         room_xy_m=cfg.room_xy_m,
         wall_height_m=float(cfg.wall_height_m),
         source=f"planefuse simulate (seed {cfg.seed})",
         provenance=cfg.model_dump(mode="json"),
+        scene=scene,
+        config=cfg,
     )
     banks: dict[tuple[int, int], np.ndarray] = {}
     for i, spec in enumerate(cfg.cameras):
@@ -57,7 +69,8 @@ def simulate(config: SceneConfig | None = None) -> Recording:
         renderer = CameraRenderer(cam, scene, cfg.render, cfg.seed, i, banks[key])
         times = sample_times(cfg.duration_s, spec.rate_hz, spec.time_offset_s)
         rec.camera_streams[spec.name] = CameraStream(
-            cam, times, lambda k, r=renderer, t=times: r.render(float(t[k]), k), True, spec.rate_hz
+            cam, times, lambda k, r=renderer, t=times: r.render(float(t[k]), k), True, spec.rate_hz,
+            get_background=lambda r=renderer: r.background,
         )
         if cfg.imu is not None:
             T = T_cam_imu()
@@ -73,8 +86,6 @@ def simulate(config: SceneConfig | None = None) -> Recording:
     if cfg.head is not None:
         rec.audio[cfg.head.name] = audio_stream(scene, cfg.seed)
     rec.groundtruth = groundtruth_of(scene)
-    rec.scene = scene  # type: ignore[attr-defined]
-    rec.config = cfg  # type: ignore[attr-defined]
     return rec
 
 

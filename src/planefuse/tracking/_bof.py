@@ -52,9 +52,10 @@ With ``Lambda(c) = sum_i log P(Z_i|occ)/P(Z_i|free)`` (the sum of the sensors' l
     P(occ, v_k | Z) = P(occ, v_k) e^Lambda / (e^Lambda P(occ) + P(free)),
     P(free | Z)     = P(free) / (e^Lambda P(occ) + P(free)),
 
-(``Lambda`` is clipped to ``+-MAX_UPDATE_LOG_ODDS = 30`` per update so that, in float32, neither hypothesis
-of a cell underflows to exactly 0 and a later update can always revise it), which leaves the velocity distribution of the occupied mass unchanged (the sensors see no velocity);
-velocities are observed through the motion of the occupied mass over successive updates.
+``Lambda`` is clipped to ``+-MAX_UPDATE_LOG_ODDS = 30`` per update so that, in float32, neither hypothesis
+of a cell underflows to exactly 0 and a later update can always revise it. The update leaves the velocity
+distribution of the occupied mass unchanged (the sensors see no velocity); velocities are observed through
+the motion of the occupied mass over successive updates.
 """
 
 from __future__ import annotations
@@ -206,7 +207,8 @@ def bof_initial_state(stack: PlaneStack, params: BOFParams) -> BOFState:
 # numba kernels
 # --------------------------------------------------------------------------------------------------------------
 @numba.njit(cache=True, fastmath=True)
-def _predict_kernel(occ_v, free, oy, ox, ty, tx, bilinear, p_app, p_dis, prior, mix_src, mix_w, pad):  # pragma: no cover - numba
+def _predict_kernel(occ_v, free, oy, ox, ty, tx, bilinear, p_app, p_dis, prior, mix_src, mix_w,
+                    pad):  # pragma: no cover - numba
     L, K, ny, nx = occ_v.shape
     Hp = ny + 2 * pad
     Wp = nx + 2 * pad

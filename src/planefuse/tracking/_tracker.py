@@ -60,7 +60,7 @@ class TrackerParams:
         No track is started on a cluster closer than this [m] to a confirmed track.
     """
 
-    gate_m: float = 0.75
+    gate_m: float = 0.5
     confirm_hits: int = 3
     max_misses: int = 10
     max_coast_report: int = 2
@@ -203,7 +203,8 @@ class MultiPersonTracker:
             alive.append(tr)
         confirmed_xy = np.array([tr.xy for tr in alive if tr.confirmed]).reshape(-1, 2)
         for ci in np.flatnonzero(free):
-            if len(confirmed_xy) and np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1).min() < p.birth_exclusion_m:
+            near = np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1)
+            if near.size and near.min() < p.birth_exclusion_m:
                 continue  # a second mode of someone already tracked, not a new person
             alive.append(_Track(next(self._ids), clusters.xy_m[ci].copy(), clusters.velocity_mps[ci].copy(),
                                 float(clusters.height_m[ci]), float(clusters.confidence[ci]),

@@ -111,6 +111,8 @@ def _assert_outputs_consistent(out_dir: Path, stack: PlaneStack, n_steps: int) -
     np.testing.assert_array_equal(occ, np.stack([_occ(stack, k) for k in range(n_steps)]))
     np.testing.assert_allclose(t, 0.1 * np.arange(n_steps))
     tracks = read_table(out_dir / "tracks.csv")
+    raw_ids = [l.split(",")[2] for l in (out_dir / "tracks.csv").read_text().splitlines()[1:]]
+    assert all(i.isdigit() for i in raw_ids), "track ids must stay integers across a resume"
     np.testing.assert_array_equal(np.sort(tracks["step"]), np.repeat(np.arange(n_steps), 2))
     dets = read_table(out_dir / "detections.csv")
     np.testing.assert_array_equal(dets["step"], np.arange(n_steps))

@@ -20,7 +20,6 @@ from planefuse.config import example_yaml, load_config
 from planefuse.grid import GroundDetections, PlaneStack
 from planefuse.outputs import (
     OutputWriter,
-    atomic_write_bytes,
     atomic_write_json,
     mot_rows,
     progress_steps,

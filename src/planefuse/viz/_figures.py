@@ -190,9 +190,9 @@ def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spaci
     w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
     fig = Figure(figsize=(5.0, 5.0 * h / w + 0.3), layout="constrained")
     ax = fig.subplots()
-    if image is None:
-        image = np.full((h, w), 0.15)
-    ax.imshow(image, cmap="gray" if np.ndim(image) == 2 else None, extent=(-0.5, w - 0.5, h - 0.5, -0.5))
+    image = np.full((h, w), 235, np.uint8) if image is None else np.asarray(image)
+    scale = {"vmin": 0, "vmax": 255} if image.dtype == np.uint8 else {}
+    ax.imshow(image, cmap="gray" if image.ndim == 2 else None, extent=(-0.5, w - 0.5, h - 0.5, -0.5), **scale)
     cmap = matplotlib.colormaps["viridis"]
     for l in range(stack.n_planes):
         color = cmap(l / max(stack.n_planes - 1, 1))

@@ -157,7 +157,7 @@ def test_sigkill_mid_run_leaves_no_partial_file_and_resumes(job):
     cfg = load_config(cfg_path)
     out_dir, stack = cfg.outputs.out_dir, cfg.planes.to_stack()
     proc = start(10_000, 0.0)
-    state = _wait_state(out_dir, 3, proc)
+    _wait_state(out_dir, 2, proc)
     proc.kill()
     proc.communicate(timeout=30)
     state = json.loads((out_dir / "run_state.json").read_text())

@@ -20,7 +20,6 @@ from planefuse.config import example_yaml, load_config
 from planefuse.grid import GroundDetections, PlaneStack
 from planefuse.outputs import (
     OutputWriter,
-    atomic_write_bytes,
     atomic_write_json,
     mot_rows,
     progress_steps,
@@ -111,6 +110,8 @@ def _assert_outputs_consistent(out_dir: Path, stack: PlaneStack, n_steps: int) -
     np.testing.assert_array_equal(occ, np.stack([_occ(stack, k) for k in range(n_steps)]))
     np.testing.assert_allclose(t, 0.1 * np.arange(n_steps))
     tracks = read_table(out_dir / "tracks.csv")
+    raw_ids = [l.split(",")[2] for l in (out_dir / "tracks.csv").read_text().splitlines()[1:]]
+    assert all(i.isdigit() for i in raw_ids), "track ids must stay integers across a resume"
     np.testing.assert_array_equal(np.sort(tracks["step"]), np.repeat(np.arange(n_steps), 2))
     dets = read_table(out_dir / "detections.csv")
     np.testing.assert_array_equal(dets["step"], np.arange(n_steps))
@@ -156,7 +157,7 @@ def test_sigkill_mid_run_leaves_no_partial_file_and_resumes(job):
     cfg = load_config(cfg_path)
     out_dir, stack = cfg.outputs.out_dir, cfg.planes.to_stack()
     proc = start(10_000, 0.0)
-    state = _wait_state(out_dir, 3, proc)
+    _wait_state(out_dir, 2, proc)
     proc.kill()
     proc.communicate(timeout=30)
     state = json.loads((out_dir / "run_state.json").read_text())

@@ -125,6 +125,15 @@ class OutputWriter:
         YAML of the configuration, copied to ``config.yaml`` and the report.
     person_radius_m : float
         Footprint radius [m] used for the MOTChallenge boxes.
+    figures, report : bool
+        Whether :meth:`finish` writes ``figures/*.png`` and ``report.html``.
+    animation : {"gif", "mp4", "none"}
+        Animation :meth:`finish` writes.
+    figure_dpi : int
+        Resolution of the figures.
+    rerun : bool
+        Log occupancy, detections and tracks to ``planefuse.rrd`` as they are written; the
+        :class:`~planefuse.viz.RerunLogger` is :attr:`rerun` for the pipeline's own logging.
 
     Attributes
     ----------
@@ -184,8 +193,7 @@ class OutputWriter:
             for table, name in ((self._dets, "detections.csv"), (self._tracks, "tracks.csv")):
                 if (self.out_dir / name).exists():
                     cols = read_table(self.out_dir / name)
-                    table.rows = [tuple(r) for r in zip(*(cols[c].tolist() for c in table.columns))]
-                    table.rows = [(int(r[0]),) + r[1:] for r in table.rows]
+                    table.rows = list(zip(*(cols[c].tolist() for c in table.columns)))
                     table.truncate(self.resume_step)
         if self.config_text:
             atomic_write_text(self.out_dir / "config.yaml", self.config_text)
@@ -505,6 +513,9 @@ class OutputWriter:
             self.rerun = None
 
 
+_COLUMN_DTYPES = {"step": np.int64, "track_id": np.int64, "source": object}
+
+
 def _columns(columns: tuple[str, ...], rows: list) -> dict[str, np.ndarray]:
-    return {name: np.asarray([r[j] for r in rows], dtype=object if name == "source" else float)
+    return {name: np.asarray([r[j] for r in rows], dtype=_COLUMN_DTYPES.get(name, float))
             for j, name in enumerate(columns)}

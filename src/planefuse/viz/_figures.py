@@ -1,4 +1,7 @@
-"""Figures of a run (matplotlib, Agg): each function takes plain arrays and returns a Figure.
+"""Figures of a run (matplotlib): each function takes plain arrays and returns a Figure.
+
+Figures are built with matplotlib's object API (``Figure``, no pyplot), so
+importing this module changes no global backend and works without a display.
 
 Floor-plan axes are world X (right) and Y (up) in metres; grids are drawn with
 ``origin="lower"`` and ``extent=stack.extent_m`` so that cell ``[iy, ix]`` sits
@@ -10,18 +13,15 @@ from __future__ import annotations
 import contextlib
 import io
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
-
-from ..geometry import PinholeCamera  # noqa: E402
-from ..grid import PlaneStack  # noqa: E402
+from ..geometry import PinholeCamera
+from ..grid import PlaneStack
 
 __all__ = [
     "FigureInputs",
@@ -69,18 +69,17 @@ class FigureInputs:
 
 
 def png_bytes(fig: Figure, dpi: int = 100) -> bytes:
-    """Render ``fig`` to PNG bytes and close it."""
+    """Render ``fig`` to PNG bytes (Agg)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
     return buf.getvalue()
 
 
 def _plane_axes(n: int, size_in: float = 3.2) -> tuple[Figure, np.ndarray]:
     cols = min(n, 4)
     rows = -(-n // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(size_in * cols, size_in * rows + 0.4), squeeze=False,
-                             constrained_layout=True)
+    fig = Figure(figsize=(size_in * cols, size_in * rows + 0.4), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False)
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
     return fig, axes.ravel()
@@ -94,7 +93,7 @@ def _track_lines(ax, tracks: Mapping[str, np.ndarray] | None, upto_step: float, 
     ids = np.asarray(tracks["track_id"])
     xy = np.stack([np.asarray(tracks["x_m"], float), np.asarray(tracks["y_m"], float)], axis=-1)
     keep = steps <= upto_step
-    cmap = plt.get_cmap("tab10")
+    cmap = matplotlib.colormaps["tab10"]
     for k, tid in enumerate(np.unique(ids[keep])):
         m = keep & (ids == tid)
         order = np.argsort(steps[m])
@@ -150,8 +149,7 @@ def plot_plane_occupancy(
         _track_lines(ax, tracks, upto)
         ax.set_xlim(stack.extent_m[:2])
         ax.set_ylim(stack.extent_m[2:])
-    handles, labels = axes[0].get_legend_handles_labels()
-    if handles:
+    if axes[0].get_legend_handles_labels()[0]:
         axes[0].legend(fontsize=7, loc="upper right")
     fig.colorbar(im, ax=list(axes[: stack.n_planes]), shrink=0.8, label="P(occupied)")
     fig.suptitle("Occupancy per plane" + (f" at t = {time_s:.2f} s" if time_s is not None else ""))
@@ -190,11 +188,12 @@ def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spaci
         Distance between drawn grid lines [m].
     """
     w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
-    fig, ax = plt.subplots(figsize=(5.0, 5.0 * h / w + 0.3), constrained_layout=True)
-    if image is None:
-        image = np.full((h, w), 0.15)
-    ax.imshow(image, cmap="gray" if np.ndim(image) == 2 else None, extent=(-0.5, w - 0.5, h - 0.5, -0.5))
-    cmap = plt.get_cmap("viridis")
+    fig = Figure(figsize=(5.0, 5.0 * h / w + 0.3), layout="constrained")
+    ax = fig.subplots()
+    image = np.full((h, w), 235, np.uint8) if image is None else np.asarray(image)
+    scale = {"vmin": 0, "vmax": 255} if image.dtype == np.uint8 else {}
+    ax.imshow(image, cmap="gray" if image.ndim == 2 else None, extent=(-0.5, w - 0.5, h - 0.5, -0.5), **scale)
+    cmap = matplotlib.colormaps["viridis"]
     for l in range(stack.n_planes):
         color = cmap(l / max(stack.n_planes - 1, 1))
         lines = grid_lines_world(stack, l, spacing_m)
@@ -225,7 +224,8 @@ def plot_saliency(times_s, azimuth_rad, saliency) -> Figure:
     s = np.asarray(saliency, float)
     if s.shape != (t.size, az.size):
         raise ValueError(f"saliency must have shape (T, A) = ({t.size}, {az.size}), got {s.shape}")
-    fig, ax = plt.subplots(figsize=(7, 3.2), constrained_layout=True)
+    fig = Figure(figsize=(7, 3.2), layout="constrained")
+    ax = fig.subplots()
     m = ax.pcolormesh(t, np.degrees(az), s.T, shading="nearest", cmap="viridis")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("azimuth [deg]")
@@ -269,7 +269,8 @@ def plot_metrics(metrics: Mapping[str, object]) -> Figure | None:
     n = bool(scalars) + bool(series)
     if n == 0:
         return None
-    fig, axes = plt.subplots(1, n, figsize=(5.5 * n, 3.2), squeeze=False, constrained_layout=True)
+    fig = Figure(figsize=(5.5 * n, 3.2), layout="constrained")
+    axes = fig.subplots(1, n, squeeze=False)
     axes = list(axes.ravel())
     if scalars:
         ax = axes.pop(0)

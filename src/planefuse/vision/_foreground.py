@@ -65,9 +65,9 @@ class ForegroundParams:
     threshold: float | None = None
     detect_shadows: bool = True
     shadow_likelihood: float = 0.1
-    open_px: int = 3
+    open_px: int = 2
     close_px: int = 5
-    blur_px: int = 5
+    blur_px: int = 3
     floor: float = 0.02
     ceiling: float = 0.98
     learning_rate: float = -1.0

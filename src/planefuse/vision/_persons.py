@@ -13,14 +13,20 @@ The person's top plane is ``k*(X) = argmax_{k >= k_min} S_k(X)``, where
 must be occupied from the ground up to at least that plane. ``k*`` gives the
 height estimate.
 
+A person fills only part of its footprint disc (radius ``radius_m``) on a
+plane: low planes cut two legs, and the space between them is seen as
+background. So before the column sum each plane's log-odds are max-pooled over
+the footprint disc (``L_l <- max_{|X'-X| <= r} L_l(X')``): "something of the
+person is within r of X on every plane up to k".
+
 ``S`` grows with the number of views behind it (cells seen by 2 cameras cannot
 collect the evidence of cells seen by 4), so detection uses the *agreement*::
 
-    A(X) = sum_{footprint} S_{k*}(X') / sum_{footprint} N_{k*}(X')    N_k = (camera, plane) views in the column
+    A(X) = mean_{footprint} S_{k*}(X') / (N_{k*}(X') log(p_d / p_fa))    N_k = (camera, plane) views in the column
 
-the mean per-view log-likelihood ratio over a person's footprint (disc of
-``radius_m``), normalised by its largest possible value ``log(p_d / p_fa)``:
-1 when every view of every plane of the column sees foreground. Local maxima of
+the per-view log-likelihood ratio normalised by its largest possible value
+(1 when every view of every plane of the column sees foreground), averaged over
+the footprint disc so that its maximum sits at the person's centre. Local maxima of
 ``A`` at least ``nms_radius_m`` apart with ``A >= min_agreement`` on cells seen
 by at least ``min_cameras`` cameras are the feet positions, with confidence A.
 """
@@ -48,7 +54,8 @@ class PersonParams:
         Every person reaches at least this height [m]: all planes at or below
         it must be occupied (the lowest plane is always required).
     radius_m : float
-        Radius of a person's footprint [m] (score averaged over this disc).
+        Radius of a person's footprint [m] (per-plane max-pooling and
+        smoothing disc).
     nms_radius_m : float
         Minimum distance between two detections [m].
     min_agreement : float
@@ -59,7 +66,7 @@ class PersonParams:
     """
 
     min_height_m: float = 1.0
-    radius_m: float = 0.2
+    radius_m: float = 0.25
     nms_radius_m: float = 0.45
     min_agreement: float = 0.8
     min_cameras: int = 2
@@ -110,15 +117,21 @@ def person_score_map(log_odds, views, stack: PlaneStack, max_log_ratio: float,
         raise ValueError(f"max_log_ratio must be > 0, got {max_log_ratio}")
     heights = np.asarray(stack.heights_m)
     k_min = max(int(np.searchsorted(heights, params.min_height_m, side="right")) - 1, 0)
-    cum = np.cumsum(L, axis=0)[k_min:]
+    disc = _disc(params.radius_m / stack.cell_size_m)
+    # A person fills only part of its footprint on a plane (two legs low down): per plane, the best
+    # cell within the footprint speaks for the column.
+    pooled = np.stack([cv2.dilate(L[l], disc.astype(np.uint8), borderType=cv2.BORDER_CONSTANT,
+                                  borderValue=0.0) for l in range(len(L))])
+    cum = np.cumsum(pooled, axis=0)[k_min:]
     top = np.argmax(cum, axis=0)
     col = np.take_along_axis(cum, top[None], axis=0)[0]
     n_col = np.take_along_axis(np.cumsum(N, axis=0)[k_min:], top[None], axis=0)[0]
-    kernel = _disc(params.radius_m / stack.cell_size_m).astype(np.float32)
-    s = cv2.filter2D(col, -1, kernel, borderType=cv2.BORDER_CONSTANT)
-    n = cv2.filter2D(n_col, -1, kernel, borderType=cv2.BORDER_CONSTANT)
     with np.errstate(invalid="ignore", divide="ignore"):
-        agreement = np.where((n > 0) & (N[0] >= params.min_cameras), s / (n * max_log_ratio), -1.0)
+        a = np.where(n_col > 0, col / (n_col * max_log_ratio), 0.0).astype(np.float32)
+    # Smooth over the footprint so that the pooled plateau peaks at the person's centre.
+    kernel = disc.astype(np.float32) / disc.sum()
+    a = cv2.filter2D(a, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    agreement = np.where(N[0] >= params.min_cameras, a, -1.0)
     return agreement.astype(np.float32), top + k_min
 
 

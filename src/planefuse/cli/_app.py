@@ -37,6 +37,8 @@ def _register() -> None:
     # Each module adds its commands to ``app`` on import.
     from . import _demo  # noqa: F401
     from . import _simulate  # noqa: F401
+    from . import _calib  # noqa: F401
+    from . import _cameras  # noqa: F401
 
 
 _register()

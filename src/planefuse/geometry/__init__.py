@@ -25,6 +25,13 @@ from ._homography import (
     normalize_homography,
     parallel_plane_homology,
 )
+from ._imu import (
+    ATTITUDE_METHODS,
+    R_world_cam_from_attitude,
+    attitude_from_imu,
+    inclination_error_rad,
+    yaw_from_ground_points,
+)
 from ._rig import T_world_cam_look_at, default_camera_ring
 from ._transforms import (
     apply_transform,
@@ -38,6 +45,11 @@ from ._transforms import (
 )
 
 __all__ = [
+    "ATTITUDE_METHODS",
+    "R_world_cam_from_attitude",
+    "attitude_from_imu",
+    "inclination_error_rad",
+    "yaw_from_ground_points",
     "T_world_cam_look_at",
     "default_camera_ring",
     "CameraIntrinsics",

@@ -68,7 +68,7 @@ class PersonParams:
     min_height_m: float = 1.0
     radius_m: float = 0.25
     nms_radius_m: float = 0.45
-    min_agreement: float = 0.8
+    min_agreement: float = 0.7
     min_cameras: int = 2
 
     def __post_init__(self) -> None:

@@ -1,0 +1,27 @@
+"""Calibration loaders: OpenCV YAML/XML camera files, WILDTRACK XML, EPFL POM ground homographies."""
+
+from ._epfl import (
+    H_WORLD_TOPVIEW_TERRACE,
+    EpflBoxes,
+    EpflGroundHomography,
+    epfl_terrace_pom_stack,
+    load_epfl_boxes,
+    load_epfl_homography,
+)
+from ._filestorage import load_opencv_camera, load_opencv_intrinsics, save_opencv_camera
+from ._wildtrack import WILDTRACK_CAMERAS, load_wildtrack_camera, load_wildtrack_rig
+
+__all__ = [
+    "H_WORLD_TOPVIEW_TERRACE",
+    "EpflBoxes",
+    "EpflGroundHomography",
+    "epfl_terrace_pom_stack",
+    "load_epfl_boxes",
+    "load_epfl_homography",
+    "load_opencv_camera",
+    "load_opencv_intrinsics",
+    "save_opencv_camera",
+    "WILDTRACK_CAMERAS",
+    "load_wildtrack_camera",
+    "load_wildtrack_rig",
+]

@@ -65,7 +65,7 @@ def epfl(
     step: int = typer.Option(1, help="Use every step-th frame."),
     thresholds_m: str = typer.Option("0.5,1.0", help="Match distances [m] to score at."),
     min_cameras: int = typer.Option(3, help="Cameras that must see a ground cell."),
-    nms_radius_m: float = typer.Option(0.6, help="Minimum distance between detections [m]."),
+    nms_radius_m: float = typer.Option(0.8, help="Minimum distance between detections [m]."),
     json_out: Path = typer.Option(None, help="Write the scores as JSON here."),
 ) -> None:
     """Detect people on an EPFL POM sequence from per-view boxes (ground homographies only) and score them."""

@@ -80,6 +80,10 @@ class PersonParams:
             raise ValueError(f"PersonParams.min_cameras must be >= 1, got {self.min_cameras}")
 
 
+#: Agreement values within this of a peak belong to its plateau (position = plateau centroid).
+_PLATEAU = 0.02
+
+
 def _disc(radius_cells: float) -> np.ndarray:
     r = max(int(np.floor(radius_cells)), 0)
     y, x = np.mgrid[-r:r + 1, -r:r + 1]
@@ -154,7 +158,8 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
     Returns
     -------
     GroundDetections
-        ``xy_m`` at local maxima of the agreement (cell centres, world XY [m]),
+        ``xy_m`` at local maxima of the agreement (centroid of the peak's
+        plateau, world XY [m]),
         ``confidence`` = agreement clipped to [0, 1], ``height_m`` = upper band
         edge of the person's top occupied plane (the head lies between that
         plane and the next one up).
@@ -173,10 +178,21 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
             d2 = (iy[i + 1:] - iy[i]) ** 2 + (ix[i + 1:] - ix[i]) ** 2
             keep[i + 1:] &= d2 > r_cells * r_cells
     iy, ix, s = iy[keep], ix[keep], s[keep]
+    # Saturated agreement forms plateaus: place each person at the centroid of its plateau (the cells
+    # within the NMS radius scoring within `plateau` of the peak), not at an arbitrary tied cell.
+    r = int(np.ceil(r_cells))
+    fy, fx = iy.astype(float), ix.astype(float)
+    for i in range(len(s)):
+        y0, y1 = max(iy[i] - r, 0), min(iy[i] + r + 1, stack.ny)
+        x0, x1 = max(ix[i] - r, 0), min(ix[i] + r + 1, stack.nx)
+        yy, xx = np.mgrid[y0:y1, x0:x1]
+        near = (yy - iy[i]) ** 2 + (xx - ix[i]) ** 2 <= r_cells * r_cells
+        top_cells = near & (score[y0:y1, x0:x1] >= s[i] - _PLATEAU)
+        fy[i], fx[i] = yy[top_cells].mean(), xx[top_cells].mean()
     edges = np.asarray(stack.band_edges_m)
     return GroundDetections(
         float(time_s),
-        stack.xy_from_index(iy, ix).reshape(-1, 2),
+        stack.xy_from_index(fy, fx).reshape(-1, 2),
         np.clip(s, 0.0, 1.0),
         edges[top[iy, ix] + 1],
         source,

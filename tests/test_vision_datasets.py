@@ -87,3 +87,35 @@ def test_image_folders_with_a_missing_frame(tmp_path):
     assert out[1][1][1] is None and out[1][1][0].shape == (4, 6, 3)
     with pytest.raises(ValueError, match="no numbered image files"):
         list(image_folder_frames([tmp_path]))
+
+
+def test_simulated_scene_exact_masks_multiplane():
+    from planefuse.sim import default_scene_config, simulate
+    from planefuse.vision._datasets import recording_frames
+
+    rec = simulate(default_scene_config(duration_s=2.0, seed=1))
+    frames = [f for i, f in enumerate(recording_frames(rec, masks=True)) if i % 5 == 0]
+    people = rec.groundtruth.people
+    moda = {}
+    for heights in ([0.1], [0.1, 0.5, 1.0, 1.5]):
+        stack = PlaneStack.from_extent(heights, (0, 10), (0, 10), 0.05)
+        out = camera_detections(frames, lookups_from_cameras(rec.cameras, stack), stack,
+                                CameraParams(foreground=None))
+        s = detection_scores([(people.detections_at(d.time_s).xy_m, d.xy_m) for _, d in out], 0.5)
+        moda[len(heights)] = s.moda
+    assert moda[4] >= 0.9 and moda[4] > moda[1]
+
+
+def test_cli_epfl_runs(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from planefuse.cli._app import app
+
+    out = tmp_path / "scores.json"
+    r = CliRunner().invoke(app, ["cameras", "epfl", str(shared_data("epfl_pom")), "--step", "500",
+                                 "--json-out", str(out)])
+    assert r.exit_code == 0, r.output
+    scores = json.loads(out.read_text())
+    assert [s["threshold_m"] for s in scores] == [0.5, 1.0] and scores[0]["frames"] == 11

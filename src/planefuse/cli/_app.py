@@ -34,11 +34,15 @@ def _root(
 
 
 def _register() -> None:
-    # Each module adds its commands to ``app`` on import.
-    from . import _demo  # noqa: F401
-    from . import _simulate  # noqa: F401
-    from . import _calib  # noqa: F401
-    from . import _cameras  # noqa: F401
+    """Import every ``cli/_<name>.py`` module: each adds its commands to :data:`app` on import."""
+    import importlib
+    import pkgutil
+
+    from . import __path__ as cli_path
+
+    for mod in sorted(m.name for m in pkgutil.iter_modules(cli_path)):
+        if mod.startswith("_") and mod != "_app":
+            importlib.import_module(f"{__package__}.{mod}")
 
 
 _register()

@@ -1,9 +1,11 @@
 """Evaluation against ground truth."""
 
 from ._detection import DetectionScores, detection_scores, match_detections
+from ._tracking import tracking_metrics
 
 __all__ = [
     "DetectionScores",
     "detection_scores",
     "match_detections",
+    "tracking_metrics",
 ]

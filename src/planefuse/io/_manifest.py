@@ -103,7 +103,7 @@ class ImuEntry(_Entry):
 
 class LaserEntry(_Entry):
     """A (nodding) laser range finder. Scans are NPZ chunks with ``time_s (S,)``, ``angles_rad (B,)``,
-    ``ranges_m (S, B)`` (NaN = no return) and ``tilt_rad (S,)`` or ``(S, B)``; other per-scan arrays are
+    ``ranges_m (S, B)`` (inf = no return, NaN = invalid) and ``tilt_rad (S,)`` or ``(S, B)``; other per-scan arrays are
     kept. ``T_world_base`` is the pose of the untilted scanner; ``model`` holds the device parameters."""
 
     type: Literal["laser"]

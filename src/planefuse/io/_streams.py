@@ -237,7 +237,8 @@ class LaserScans:
     angles_rad : ndarray, shape (B,)
         Beam angles in the scanner's plane, counter-clockwise from its x axis [rad].
     ranges_m : ndarray, shape (S, B)
-        Ranges [m]; NaN where there is no return (beyond max range).
+        Ranges [m]; ``inf`` where there is no return within the maximum range, NaN for an invalid
+        return (closer than the minimum range), as in :class:`planefuse.laser.LaserScan`.
     tilt_rad : ndarray, shape (S,) or (S, B)
         Nodding angle of the scanner for each scan (or each beam) [rad].
     extra : dict of str -> ndarray
@@ -292,12 +293,19 @@ class LaserStream:
     data: LaserScans | None = None
     paths: list[Path] = field(default_factory=list)
     gaps: list[Gap] = field(default_factory=list)
+    generate: Callable[[int], Iterator[LaserScans]] | None = None
 
     def chunks(self, max_scans: int = 400) -> Iterator[LaserScans]:
-        """Consecutive batches of scans (one NPZ file each when reading from disk), timestamps checked."""
+        """Consecutive batches of scans (one NPZ file each when reading from disk), timestamps checked.
+
+        In-memory streams slice ``data``; simulated streams call ``generate(max_scans)`` (ray casting on demand).
+        """
         if self.data is not None:
             for a in range(0, len(self.data), max_scans):
                 yield self.data.slice(a, a + max_scans)
+            return
+        if self.generate is not None:
+            yield from self.generate(max_scans)
             return
         checker = TimeChecker(self.name, self.rate_hz)
         n = 0

@@ -13,25 +13,31 @@ __all__ = ["load_yaml_model", "format_validation_error"]
 M = TypeVar("M", bound=BaseModel)
 
 
-def _line_of(node: yaml.Node | None, loc: tuple) -> int | None:
-    """1-based line of the deepest YAML node reachable along ``loc`` (pydantic error location)."""
+def _locate(node: yaml.Node | None, loc: tuple) -> tuple[int | None, list[str]]:
+    """1-based line of the deepest YAML node along ``loc`` (a pydantic error location) and the field path.
+
+    Pydantic puts the tag of a discriminated union into the location (``sensors.0.camera.K``); a key that
+    is the ``type`` of the mapping it indexes is dropped from the path.
+    """
     line = None if node is None else node.start_mark.line + 1
+    parts: list[str] = []
     for key in loc:
+        nxt = None
         if isinstance(node, yaml.MappingNode):
-            nxt = None
-            for k, v in node.value:
-                if isinstance(k, yaml.ScalarNode) and k.value == str(key):
-                    nxt = v
-                    break
+            items = {k.value: v for k, v in node.value if isinstance(k, yaml.ScalarNode)}
+            if str(key) in items:
+                nxt = items[str(key)]
+            elif isinstance(items.get("type"), yaml.ScalarNode) and items["type"].value == str(key):
+                continue  # union tag, not a field
         elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) and 0 <= key < len(node.value):
             nxt = node.value[key]
+        parts.append(str(key))
+        if nxt is not None:
+            node = nxt
+            line = node.start_mark.line + 1
         else:
-            nxt = None
-        if nxt is None:
-            break
-        node = nxt
-        line = node.start_mark.line + 1
-    return line
+            node = None
+    return line, parts
 
 
 def format_validation_error(err: ValidationError, source: str, root: yaml.Node | None = None) -> str:
@@ -39,8 +45,8 @@ def format_validation_error(err: ValidationError, source: str, root: yaml.Node |
     lines = []
     for e in err.errors():
         loc = tuple(x for x in e["loc"] if not (isinstance(x, str) and x.startswith("function-")))
-        field = ".".join(str(x) for x in loc) or "<root>"
-        line = _line_of(root, loc)
+        line, parts = _locate(root, loc)
+        field = ".".join(parts) or "<root>"
         where = f"{source}:{line}" if line is not None else source
         lines.append(f"{where}: field {field}: {e['msg']}")
     return "\n".join(lines)

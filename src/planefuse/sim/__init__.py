@@ -27,7 +27,8 @@ from ._config import (
 )
 from ._imu import R_cam_imu, T_cam_imu, simulate_static_imu
 from ._render import CameraRenderer, body_surface_points, render_background
-from ._scene import Body, PeopleState, Scene
+from ._scene import Body, PeopleState, Scene, sample_points_in_bodies
+from ._sensors import audio_stream, laser_stream, tilting_unit_from_model, tilting_unit_from_spec
 from ._simulate import groundtruth_of, sample_times, simulate
 
 __all__ = [
@@ -48,9 +49,14 @@ __all__ = [
     "CameraRenderer",
     "body_surface_points",
     "render_background",
+    "audio_stream",
+    "laser_stream",
+    "tilting_unit_from_model",
+    "tilting_unit_from_spec",
     "Body",
     "PeopleState",
     "Scene",
+    "sample_points_in_bodies",
     "groundtruth_of",
     "sample_times",
     "simulate",

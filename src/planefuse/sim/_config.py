@@ -84,10 +84,11 @@ class LaserSpec(_Model):
     rate_hz: PositiveFloat = 40.0
     fov_deg: float = Field(270.0, gt=0, le=360)
     resolution_deg: float = Field(0.25, gt=0)
+    range_min_m: float = Field(0.1, ge=0)
     max_range_m: PositiveFloat = 30.0
     range_noise_m: float = Field(0.01, ge=0)
-    tilt_min_deg: float = -10.0
-    tilt_max_deg: float = 10.0
+    tilt_min_deg: float = Field(-5.0, description="nodding range; positive tilts look down")
+    tilt_max_deg: float = 15.0
     tilt_period_s: PositiveFloat = 2.0
 
     def T_world_base(self) -> np.ndarray:
@@ -106,7 +107,7 @@ class HeadSpec(_Model):
     fs_hz: int = Field(16000, gt=0)
     head_radius_m: PositiveFloat = 0.0875
     hrtf_sofa: Path | None = Field(None, description="SOFA HRTF file; None = spherical head model")
-    rt60_s: PositiveFloat = 0.4
+    rt60_s: float = Field(0.3, ge=0, description="reverberation time; 0 = anechoic")
 
     def T_world_head(self) -> np.ndarray:
         """Pose (4, 4) of the head frame in the world."""

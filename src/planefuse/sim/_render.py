@@ -217,7 +217,9 @@ class CameraRenderer:
         self.spec = render
         self.seed = seed
         self.camera_index = camera_index
-        self.background = render_background(camera, scene.room_xy_m, scene.wall_height_m, seed + 101 * camera_index)
+        self._background: np.ndarray | None = None
+        T_cam_world = camera.T_cam_world
+        self._R_cam_world, self._t_cam_world = T_cam_world[:3, :3].copy(), T_cam_world[:3, 3].copy()
         W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
         if noise_bank is None:
             noise_bank = make_noise_bank(W, H, render.pixel_noise_std, seed)
@@ -226,6 +228,24 @@ class CameraRenderer:
         self.noise_bank = noise_bank
         self._shades = [self._shade_table(b) for b in scene.bodies]
         self._phase = np.random.default_rng([seed, 3, camera_index]).uniform(0, 2 * np.pi)
+
+    def project(self, p_world: np.ndarray) -> np.ndarray:
+        """:meth:`PinholeCamera.project` of points (N, 3) with the inverse pose computed once (hot path)."""
+        pc = p_world @ self._R_cam_world.T + self._t_cam_world
+        z = pc[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = self.camera.intrinsics.pixels_from_normalized(pc[:, :2] / z[:, None])
+        uv[z <= 0] = np.nan
+        return uv
+
+    @property
+    def background(self) -> np.ndarray:
+        """The empty room (H, W, 3) uint8 BGR, ray cast on first use."""
+        if self._background is None:
+            sc = self.scene
+            self._background = render_background(self.camera, sc.room_xy_m, sc.wall_height_m,
+                                                 self.seed + 101 * self.camera_index)
+        return self._background
 
     def gain(self, time_s: float, rng: np.random.Generator) -> float:
         """Global illumination gain at ``time_s``: slow drift plus per-frame flicker."""
@@ -263,7 +283,7 @@ class CameraRenderer:
         cyl_pts, sph_pts = body_surface_points(cyl, sph)
         # One projection and one fixed-point conversion for every sample point of the frame.
         n_c = cyl_pts.reshape(-1, 3).shape[0]
-        uv = cam.project(np.concatenate([cyl_pts.reshape(-1, 3), sph_pts.reshape(-1, 3)]))
+        uv = self.project(np.concatenate([cyl_pts.reshape(-1, 3), sph_pts.reshape(-1, 3)]))
         ok = np.isfinite(uv).all(axis=1)
         fx = _poly(np.where(ok[:, None], uv, 0.0))
         fx_cyl, ok_cyl = fx[:n_c].reshape(len(cyl), 3 * N_RING, 2), ok[:n_c].reshape(len(cyl), 3 * N_RING)
@@ -292,6 +312,9 @@ class CameraRenderer:
                 cv2.fillConvexPoly(labels, hull, int(pid) + 1, cv2.LINE_8, _SUBPIXEL_BITS)
                 if not colour:
                     continue
+                if part == 0:  # legs are a few pixels wide: one flat colour
+                    cv2.fillConvexPoly(img, hull, shade[0][N_RING + 1], cv2.LINE_8, _SUBPIXEL_BITS)
+                    continue
                 cv2.fillConvexPoly(img, hull, shade[part][-1], cv2.LINE_8, _SUBPIXEL_BITS)
                 for i in np.nonzero(facing[j] & quad_ok[j])[0]:
                     cv2.fillConvexPoly(img, quads[j, i], shade[part][i], cv2.LINE_8, _SUBPIXEL_BITS)
@@ -309,7 +332,7 @@ class CameraRenderer:
         return img, labels
 
     def _shadows(self, img: np.ndarray, cyl: np.ndarray) -> None:
-        """Darken the floor under each person (a blurred disc): not part of the foreground mask."""
+        """Darken the floor under each person (blurred ellipses, by up to 45 grey levels): not foreground."""
         torso = cyl[2::3]
         P = len(torso)
         ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
@@ -317,31 +340,31 @@ class CameraRenderer:
         pts = np.zeros((P, 16, 3))
         pts[..., 0] = torso[:, 0, None] + rad * np.cos(ang)
         pts[..., 1] = torso[:, 1, None] + rad * 1.3 * np.sin(ang)
-        uv = self.camera.project(pts.reshape(-1, 3)).reshape(P, 16, 2)
+        uv = self.project(pts.reshape(-1, 3)).reshape(P, 16, 2)
+        uv = uv[np.isfinite(uv).all(axis=(1, 2))]
+        if not len(uv):
+            return
         H, W = img.shape[:2]
-        for p in range(P):
-            if not np.isfinite(uv[p]).all():
-                continue
-            x0, y0 = np.floor(uv[p].min(axis=0)).astype(int) - 4
-            x1, y1 = np.ceil(uv[p].max(axis=0)).astype(int) + 5
-            x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
-            if x1 <= x0 or y1 <= y0:
-                continue
-            m = np.zeros((y1 - y0, x1 - x0), np.uint8)
-            cv2.fillConvexPoly(m, _poly(uv[p] - (x0, y0)), 255, cv2.LINE_AA, _SUBPIXEL_BITS)
-            m = cv2.GaussianBlur(m, (0, 0), 1.5)
-            roi = img[y0:y1, x0:x1]
-            factor = 1.0 - (0.35 / 255.0) * m.astype(np.float32)
-            roi[:] = (roi * factor[..., None]).astype(np.uint8)
+        x0, y0 = np.maximum(np.floor(uv.min(axis=(0, 1))).astype(int) - 4, 0)
+        x1, y1 = np.minimum(np.ceil(uv.max(axis=(0, 1))).astype(int) + 5, (W, H))
+        if x1 <= x0 or y1 <= y0:
+            return
+        m = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        for q in uv:
+            cv2.fillConvexPoly(m, _poly(q - (x0, y0)), 45, cv2.LINE_AA, _SUBPIXEL_BITS)
+        m = cv2.GaussianBlur(m, (0, 0), 1.5)
+        roi = img[y0:y1, x0:x1]
+        cv2.subtract(roi, cv2.cvtColor(m, cv2.COLOR_GRAY2BGR), dst=roi)
 
     @staticmethod
     def _shade_table(body: Body) -> list[list[list[list[float]]]]:
-        """Per part (legs, torso): colours of the N_RING side facets, the top cap and the silhouette fill."""
+        """Per part (legs, torso): colours of the N_RING side facets, the top cap, the mean side shade and the
+        silhouette fill (the darkest shade, seen only between facets)."""
         lam = 0.5 + 0.5 * np.clip(_FACET_NORMALS @ _LIGHT[:2], 0.0, 1.0)
         out = []
         for bgr in (body.leg_bgr, body.torso_bgr):
             base = np.asarray(bgr, dtype=float)
-            rows = [base * x for x in lam] + [base * (0.5 + 0.5 * _LIGHT[2]), base * 0.5]
+            rows = [base * x for x in lam] + [base * (0.5 + 0.5 * _LIGHT[2]), base * lam.mean(), base * 0.5]
             out.append([r.tolist() for r in rows])
         return out
 

@@ -5,7 +5,7 @@ metres. A person is two legs and a torso (vertical cylinders) and a head (a sphe
 apart along the walking direction with a gait phase that advances with the distance walked, so
 planes at different heights cut different cross-sections. Trajectories come from a small social-force
 model: each person walks at their preferred speed towards a random goal, sometimes stops there,
-turns smoothly, keeps away from the walls and roughly avoids the others.
+turns smoothly, keeps away from the walls and roughly avoids the others; people stop to talk.
 """
 
 from __future__ import annotations
@@ -16,12 +16,14 @@ import numpy as np
 
 from ._config import SceneConfig
 
-__all__ = ["Body", "Scene", "PeopleState"]
+__all__ = ["Body", "Scene", "PeopleState", "sample_points_in_bodies"]
 
 #: Internal integration step of the walking model [s]; states are interpolated between steps.
 DT_S = 0.02
 #: Horizontal distance walked per full gait cycle (two steps) [m].
 STRIDE_M = 1.3
+#: Speakers start stopping this long before they speak, so that they stand (nearly) still while talking [s].
+STOP_BEFORE_SPEAKING_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -127,22 +129,28 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
     hd = np.arctan2(goal[:, 1] - p[:, 1], goal[:, 0] - p[:, 0])
     ph = rng.uniform(0, 2 * np.pi, size=P)
     tau_s, max_turn_rad_s = 0.5, 2.5
+    # Speakers stop to talk: they slow down from STOP_BEFORE_SPEAKING_S before each interval.
+    talking = np.zeros((n, P), dtype=bool)
+    for spk in cfg.speakers:
+        for a, b in spk.intervals_s:
+            talking[:, spk.person_id] |= (t >= a - STOP_BEFORE_SPEAKING_S) & (t <= b)
     xy[0], heading[0], phase[0] = p, hd, ph
     for k in range(1, n):
         to_goal = goal - p
         dist = np.linalg.norm(to_goal, axis=1)
-        # Slow down when close to the goal, stand still while pausing.
+        # Slow down when close to the goal, stand still while pausing or talking.
         want = pref * np.clip(dist / 0.8, 0.0, 1.0)
-        want[pause > 0] = 0.0
+        want[(pause > 0) | talking[k]] = 0.0
         desired = to_goal / np.maximum(dist, 1e-9)[:, None] * want[:, None]
         # Social force between people (exponential repulsion) and from the walls.
         d = p[:, None, :] - p[None, :, :]
         r = np.linalg.norm(d, axis=2) + np.eye(P)
-        f = 2.0 * np.exp((0.7 - r) / 0.25) / r
+        f = 2.0 * np.exp((0.8 - r) / 0.25) / r
         np.fill_diagonal(f, 0.0)
         rep = np.einsum("ij,ijk->ik", np.where(r < 2.0, f, 0.0), d)
         rep[:, 0] += 1.0 * np.exp((lo_xy[0] - p[:, 0]) / 0.2) - 1.0 * np.exp((p[:, 0] - hi_xy[0]) / 0.2)
         rep[:, 1] += 1.0 * np.exp((lo_xy[1] - p[:, 1]) / 0.2) - 1.0 * np.exp((p[:, 1] - hi_xy[1]) / 0.2)
+        rep[talking[k]] *= 0.1  # a talker holds their ground; the others walk around them
         v = v + ((desired - v) / tau_s + rep) * DT_S
         sp = np.linalg.norm(v, axis=1)
         v *= (np.minimum(sp, 1.8) / np.maximum(sp, 1e-9))[:, None]
@@ -285,3 +293,37 @@ class Scene:
         p = self.mouth_positions_at(times_s) - T[:3, 3]
         q = p @ T[:3, :3]
         return np.arctan2(q[..., 1], q[..., 0]), np.arctan2(q[..., 2], np.hypot(q[..., 0], q[..., 1]))
+
+
+def sample_points_in_bodies(cylinders, spheres, n_per_volume: int, rng: np.random.Generator):
+    """Uniform random points inside every body volume (e.g. to check masks or ray casts against).
+
+    Parameters
+    ----------
+    cylinders : ndarray, shape (C, 5)
+        ``[x_m, y_m, radius_m, z_bottom_m, z_top_m]`` as from :meth:`Scene.bodies_at`.
+    spheres : ndarray, shape (S, 4)
+        ``[x_m, y_m, z_m, radius_m]``.
+    n_per_volume : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    points : ndarray, shape ((C + S) * n_per_volume, 3)
+        World points [m], the cylinders' first.
+    volume_index : ndarray, shape ((C + S) * n_per_volume,) int
+        Row of the volume each point is in: ``0..C-1`` cylinders, ``C..C+S-1`` spheres.
+    """
+    cyl = np.asarray(cylinders, dtype=float).reshape(-1, 5)
+    sph = np.asarray(spheres, dtype=float).reshape(-1, 4)
+    n = int(n_per_volume)
+    a = rng.uniform(0, 2 * np.pi, (len(cyl), n))
+    r = cyl[:, 2, None] * np.sqrt(rng.uniform(0, 1, (len(cyl), n)))
+    z = cyl[:, 3, None] + (cyl[:, 4] - cyl[:, 3])[:, None] * rng.uniform(0, 1, (len(cyl), n))
+    pc = np.stack([cyl[:, 0, None] + r * np.cos(a), cyl[:, 1, None] + r * np.sin(a), z], axis=-1)
+    v = rng.normal(size=(len(sph), n, 3))
+    v *= (sph[:, 3, None] * np.cbrt(rng.uniform(0, 1, (len(sph), n))))[..., None] / np.linalg.norm(v, axis=-1,
+                                                                                                 keepdims=True)
+    ps = sph[:, None, :3] + v
+    idx = np.repeat(np.arange(len(cyl) + len(sph)), n)
+    return np.concatenate([pc.reshape(-1, 3), ps.reshape(-1, 3)]), idx

@@ -9,6 +9,7 @@ from ._config import SceneConfig, default_scene_config
 from ._imu import T_cam_imu, simulate_static_imu
 from ._render import CameraRenderer, make_noise_bank
 from ._scene import Scene
+from ._sensors import audio_stream, laser_stream
 
 __all__ = ["simulate", "sample_times"]
 
@@ -20,10 +21,11 @@ def sample_times(duration_s: float, rate_hz: float, offset_s: float = 0.0) -> np
 
 
 def simulate(config: SceneConfig | None = None) -> Recording:
-    """Simulate a scene: people walking in a room, seen by cameras with IMUs (and the other sensors).
+    """Simulate a scene: people walking in a room, seen by cameras with IMUs, a nodding laser scanner
+    and heard by a binaural head.
 
-    Frames are rendered lazily when a camera stream is read (so a long simulation does not have to fit
-    in memory); IMU data and ground truth are computed now.
+    Frames are rendered and laser scans ray cast lazily when their stream is read (so a long simulation
+    does not have to fit in memory); IMU data, the ear signals and the ground truth are computed now.
 
     Parameters
     ----------
@@ -65,6 +67,11 @@ def simulate(config: SceneConfig | None = None) -> Recording:
             name = f"{spec.name}_imu"
             rec.imus[name] = ImuStream(name, spec.name, T, cfg.imu.rate_hz, len(t_imu), cfg.imu.gyro_noise_rad_s,
                                        cfg.imu.accel_noise_m_s2, cfg.imu.gravity_m_s2, data=data)
+    if cfg.laser is not None:
+        rec.lasers[cfg.laser.name] = laser_stream(scene, cfg.laser, sample_times(cfg.duration_s, cfg.laser.rate_hz),
+                                                  cfg.seed)
+    if cfg.head is not None:
+        rec.audio[cfg.head.name] = audio_stream(scene, cfg.seed)
     rec.groundtruth = groundtruth_of(scene)
     rec.scene = scene  # type: ignore[attr-defined]
     rec.config = cfg  # type: ignore[attr-defined]

@@ -1,0 +1,102 @@
+"""``planefuse check CONFIG.yaml``: validate a configuration and its recording without running."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..config import CheckReport, ConfigError, RunConfig, check_recording, load_config
+from ._app import app, console
+from ._config import exit_on_config_error
+
+SCENE_FILE = "scene.yaml"
+
+
+def read_recording_for_check(cfg: RunConfig):
+    """Cameras, stream time stamps [s] and required streams of ``cfg.recording`` (planefuse.io).
+
+    Reads only the streams' time stamps (laser scans chunk by chunk; audio as its first and
+    last sample time). Raises ``ValueError`` when the recording or a calibration does not load.
+    """
+    from ..io import read_recording
+
+    rec = read_recording(cfg.recording)
+    times: dict[str, np.ndarray] = {name: cs.times_s for name, cs in rec.camera_streams.items()}
+    for name, imu in rec.imus.items():
+        times[name] = np.concatenate([c.times_s for c in imu.chunks()]) if imu.n_samples else np.zeros(0)
+    for name, ls in rec.lasers.items():
+        times[name] = np.concatenate([c.times_s for c in ls.chunks()]) if ls.n_scans else np.zeros(0)
+    for name, au in rec.audio.items():
+        times[name] = au.start_time_s + np.array([0.0, max(au.n_samples - 1, 0) / au.fs_hz]) \
+            if au.n_samples else np.zeros(0)
+    expected: list[str] = []
+    if cfg.sensors.cameras.enabled:
+        expected += list(rec.camera_streams) or ["camera"]
+    if cfg.sensors.laser.enabled:
+        expected += list(rec.lasers) or ["laser"]
+    if cfg.sensors.sound.enabled:
+        expected += list(rec.audio) or ["binaural"]
+    return rec.cameras, times, expected
+
+
+def _report_json(report: CheckReport) -> str:
+    return json.dumps({
+        "ok": report.ok,
+        "issues": [{"level": i.level, "subject": i.subject, "message": i.message} for i in report.issues],
+        "camera_visible_fraction": {k: np.asarray(v).tolist() for k, v in report.camera_visible_fraction.items()},
+    })
+
+
+@app.command()
+def check(
+    config: Path = typer.Argument(..., help="Run configuration (YAML)."),
+    log_json: bool = typer.Option(False, "--log-json", help="Print the findings as one JSON object."),
+) -> None:
+    """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running."""
+    try:
+        cfg = load_config(config)
+    except ConfigError as err:
+        if log_json:
+            print(json.dumps({"ok": False, "file": str(err.file), "issues": [
+                {"level": "error", "subject": i.field_path, "message": i.message, "expected": i.expected,
+                 "line": i.line} for i in err.issues]}))
+            raise typer.Exit(2) from None
+        exit_on_config_error(err)
+    report = CheckReport()
+    stack = cfg.planes.to_stack()
+    report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
+               f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
+    if not cfg.recording.is_dir():
+        report.add("error", "recording", f"folder {cfg.recording} does not exist")
+    elif not (cfg.recording / SCENE_FILE).is_file():
+        report.add("error", "recording", f"{cfg.recording} has no {SCENE_FILE} manifest")
+    else:
+        try:
+            inputs = read_recording_for_check(cfg)
+        except (ValueError, OSError) as err:
+            report.add("error", "recording", f"cannot read the recording: {err}")
+            inputs = None
+        if inputs is not None:
+            cameras, times, expected = inputs
+            sub = check_recording(cameras if cfg.sensors.cameras.enabled else [], stack, times, expected)
+            report.issues += sub.issues
+            report.camera_visible_fraction = sub.camera_visible_fraction
+            report.coverage_fraction = sub.coverage_fraction
+    if log_json:
+        print(_report_json(report))
+    else:
+        table = Table(title=f"planefuse check {config}")
+        for col in ("level", "subject", "finding"):
+            table.add_column(col)
+        style = {"error": "bold red", "warning": "yellow", "info": "green"}
+        for it in report.issues:
+            table.add_row(f"[{style[it.level]}]{it.level}[/]", escape(it.subject), escape(it.message))
+        console.print(table)
+        console.print("[bold green]OK[/]: ready to run" if report.ok
+                      else f"[bold red]{len(report.errors)} error(s)[/]")
+    raise typer.Exit(0 if report.ok else 1)

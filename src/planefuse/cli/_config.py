@@ -1,0 +1,51 @@
+"""``planefuse config init|show``: write the commented example configuration, or print a validated one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+import yaml
+from rich.markup import escape
+
+from ..config import ConfigError, example_yaml, load_config
+from ..outputs import atomic_write_text
+from ._app import app, console
+
+config_app = typer.Typer(help="Write or inspect a run configuration (YAML).", no_args_is_help=True)
+app.add_typer(config_app, name="config")
+
+
+def exit_on_config_error(err: ConfigError) -> None:
+    """Print a :class:`ConfigError` readably and exit with status 2."""
+    console.print(f"[bold red]invalid configuration[/] {escape(str(err.file))}", highlight=False)
+    for it in err.issues:
+        where = f"{err.file}:{it.line}" if it.line else str(err.file)
+        exp = f"\n      expected: {it.expected}" if it.expected else ""
+        console.print(f"  [red]x[/] {escape(where)}: [bold]{escape(it.field_path or '<file>')}[/]: "
+                      f"{escape(it.message + exp)}", highlight=False)
+    raise typer.Exit(2)
+
+
+@config_app.command("init")
+def config_init(
+    path: Path = typer.Argument(Path("planefuse.yaml"), help="Where to write the example configuration."),
+    recording: str = typer.Option("recordings/my-scene", help="Recording folder to put in the example."),
+    force: bool = typer.Option(False, "--force", help="Overwrite an existing file."),
+) -> None:
+    """Write a commented example configuration (every field, its unit and range)."""
+    if path.exists() and not force:
+        console.print(f"[red]{path} exists[/]; use --force to overwrite it")
+        raise typer.Exit(1)
+    atomic_write_text(path, example_yaml(recording))
+    console.print(f"wrote {path}; edit it, then run [bold]planefuse check {path}[/]")
+
+
+@config_app.command("show")
+def config_show(path: Path = typer.Argument(..., help="Configuration file.")) -> None:
+    """Validate a configuration and print it with every default filled in and paths resolved."""
+    try:
+        cfg = load_config(path)
+    except ConfigError as err:
+        exit_on_config_error(err)
+    typer.echo(yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False), nl=False)

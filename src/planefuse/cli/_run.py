@@ -1,0 +1,50 @@
+"""``planefuse run CONFIG.yaml``: the whole system on a recording folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+import yaml
+
+from ._app import app, console
+
+
+@app.command()
+def run(
+    config: Path = typer.Argument(..., help="Run configuration (planefuse config init writes an example)."),
+    quiet: bool = typer.Option(False, "--quiet", help="No progress output."),
+    log_json: bool = typer.Option(False, "--log-json", help="Progress as JSON lines on stderr (for scripts)."),
+) -> None:
+    """Register every modality of the configured recording on the planes, filter, track, evaluate (when the
+    recording has ground truth) and write occupancy, detections, tracks, metrics, figures and report.html."""
+    from ..config import ConfigError, config_hash, load_config
+    from ..io import read_recording
+    from ..outputs import progress_mode
+    from ..pipeline import run_to_folder, system_params_from_config
+    from ._demo import _print_summary
+
+    try:
+        cfg = load_config(config)
+    except ConfigError as exc:
+        console.print(f"[red]{exc}[/red]")
+        raise typer.Exit(2) from None
+    try:
+        rec = read_recording(cfg.recording)
+    except (ValueError, OSError) as exc:
+        console.print(f"[red]recording {cfg.recording}: {exc}[/red]")
+        raise typer.Exit(1) from None
+    params = system_params_from_config(cfg)
+    out = cfg.outputs
+    try:
+        _, metrics = run_to_folder(
+            rec, params, out.out_dir, progress_mode=progress_mode(quiet, log_json), animation=out.animation,
+            figures=out.figures, report=out.report, rerun=out.rerun, chunk_steps=out.chunk_steps,
+            config_text=yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False) + f"# {config_hash(cfg)}\n",
+            stack=cfg.planes.to_stack(),
+        )
+    except KeyboardInterrupt:
+        console.print(f"interrupted: outputs so far are in {out.out_dir}; re-run to resume")
+        raise typer.Exit(130) from None
+    if metrics and not quiet:
+        _print_summary(metrics, out.out_dir)

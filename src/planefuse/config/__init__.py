@@ -1,0 +1,44 @@
+"""Run configuration: one YAML file validated by pydantic models, and the pre-run checks.
+
+``load_config(path)`` returns a :class:`RunConfig` or raises :class:`ConfigError`
+naming the file, each field path and its expected unit and range;
+``example_yaml()`` is the commented example written by ``planefuse config init``;
+``check_recording(...)`` runs the checks of ``planefuse check`` on loaded sensor data.
+"""
+
+from ._check import CheckIssue, CheckReport, check_recording
+from ._load import ConfigError, ConfigIssue, config_from_dict, config_hash, example_yaml, load_config
+from ._models import (
+    CameraSensorConfig,
+    DetectionModelConfig,
+    FilterModelConfig,
+    LaserSensorConfig,
+    ModelsConfig,
+    OutputsConfig,
+    PlanesConfig,
+    RunConfig,
+    SensorsConfig,
+    SoundSensorConfig,
+)
+
+__all__ = [
+    "CameraSensorConfig",
+    "CheckIssue",
+    "CheckReport",
+    "ConfigError",
+    "ConfigIssue",
+    "DetectionModelConfig",
+    "FilterModelConfig",
+    "LaserSensorConfig",
+    "ModelsConfig",
+    "OutputsConfig",
+    "PlanesConfig",
+    "RunConfig",
+    "SensorsConfig",
+    "SoundSensorConfig",
+    "check_recording",
+    "config_from_dict",
+    "config_hash",
+    "example_yaml",
+    "load_config",
+]

@@ -1,0 +1,112 @@
+"""Multi-object tracking metrics (CLEAR MOT and identity metrics) on ground-plane positions, via motmetrics.
+
+Ground truth and hypotheses are sequences of frames, each with a time [s], identities and world XY
+positions [m]. A hypothesis and a ground-truth object can match when their ground distance is at most
+``max_distance_m`` (0.5 m by default, the usual threshold for people on the ground plane).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+import motmetrics as mm
+import numpy as np
+from scipy.spatial.distance import cdist
+
+__all__ = ["tracking_metrics"]
+
+_METRICS = {
+    "mota": "mota",
+    "motp_m": "motp",
+    "idf1": "idf1",
+    "idp": "idp",
+    "idr": "idr",
+    "precision": "precision",
+    "recall": "recall",
+    "num_switches": "num_switches",
+    "num_false_positives": "num_false_positives",
+    "num_misses": "num_misses",
+    "num_objects": "num_objects",
+    "num_unique_objects": "num_unique_objects",
+    "mostly_tracked": "mostly_tracked",
+    "mostly_lost": "mostly_lost",
+    "num_fragmentations": "num_fragmentations",
+}
+
+
+def _frame(f: Any, what: str, i: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """``(time_s, ids (N,), xy_m (N, 2))`` from a tuple or an object with ``time_s, ids, xy_m``."""
+    if isinstance(f, tuple) and len(f) == 3:
+        t, ids, xy = f
+    elif all(hasattr(f, a) for a in ("time_s", "ids", "xy_m")):
+        t, ids, xy = f.time_s, f.ids, f.xy_m
+    else:
+        raise ValueError(f"{what}[{i}] must be (time_s, ids, xy_m) or have those attributes, got {type(f).__name__}")
+    ids = np.asarray(ids).reshape(-1)
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2) if np.size(xy) else np.zeros((0, 2))
+    if len(ids) != len(xy):
+        raise ValueError(f"{what}[{i}]: {len(ids)} ids but {len(xy)} positions")
+    if not np.isfinite(float(t)):
+        raise ValueError(f"{what}[{i}]: time_s must be finite, got {t}")
+    return float(t), ids, xy
+
+
+def tracking_metrics(
+    ground_truth: Iterable,
+    hypotheses: Iterable,
+    max_distance_m: float = 0.5,
+    time_tolerance_s: float = 1e-3,
+) -> dict[str, float]:
+    """MOTA, MOTP, IDF1, identity switches and friends for people tracked on the ground plane.
+
+    Parameters
+    ----------
+    ground_truth : iterable of frames
+        One frame per evaluated instant: ``(time_s, ids (N,), xy_m (N, 2))`` or any object with attributes
+        ``time_s, ids, xy_m`` [s, -, m]. Every ground-truth frame is evaluated.
+    hypotheses : iterable of frames
+        Tracker output frames, same layout (e.g. :class:`planefuse.tracking.Tracks`). Each ground-truth
+        frame is paired with the hypothesis frame nearest in time within ``time_tolerance_s``; a
+        ground-truth frame without one counts all its objects as misses. Hypothesis frames paired with no
+        ground-truth frame are not evaluated (their number is returned as ``num_unpaired_hypothesis_frames``).
+    max_distance_m : float
+        Largest ground distance [m] for a match (motmetrics' distance threshold).
+    time_tolerance_s : float
+        Largest time difference [s] between paired frames.
+
+    Returns
+    -------
+    dict
+        ``mota, motp_m`` (mean distance of the matches [m]), ``idf1, idp, idr, precision, recall`` (floats,
+        NaN when undefined), counts ``num_switches, num_false_positives, num_misses, num_objects,
+        num_unique_objects, mostly_tracked, mostly_lost, num_fragmentations, num_frames,
+        num_unpaired_hypothesis_frames``.
+    """
+    if not (np.isfinite(max_distance_m) and max_distance_m > 0):
+        raise ValueError(f"max_distance_m must be finite and > 0, got {max_distance_m}")
+    gt = [_frame(f, "ground_truth", i) for i, f in enumerate(ground_truth)]
+    hyp = [_frame(f, "hypotheses", i) for i, f in enumerate(hypotheses)]
+    if not gt:
+        raise ValueError("ground_truth holds no frame")
+    hyp_t = np.array([h[0] for h in hyp]) if hyp else np.zeros(0)
+    used = np.zeros(len(hyp), bool)
+    acc = mm.MOTAccumulator(auto_id=True)
+    for t, gid, gxy in gt:
+        hid, hxy = np.zeros(0, dtype=np.int64), np.zeros((0, 2))
+        if hyp:
+            j = int(np.argmin(np.abs(hyp_t - t)))
+            if abs(hyp_t[j] - t) <= time_tolerance_s:
+                _, hid, hxy = hyp[j]
+                used[j] = True
+        d = cdist(gxy, hxy) if len(gxy) and len(hxy) else np.zeros((len(gxy), len(hxy)))
+        d = np.where(d <= max_distance_m, d, np.nan)
+        acc.update(list(gid), list(hid), d)
+    summary = mm.metrics.create().compute(acc, metrics=list(_METRICS.values()), name="all")
+    out = {k: float(summary[v].iloc[0]) for k, v in _METRICS.items()}
+    for k in _METRICS:
+        if k.startswith("num_") or k.startswith("mostly_"):
+            out[k] = int(out[k])
+    out["num_frames"] = len(gt)
+    out["num_unpaired_hypothesis_frames"] = int((~used).sum())
+    return out

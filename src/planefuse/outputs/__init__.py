@@ -1,0 +1,25 @@
+"""What a run writes: atomic files, the resumable :class:`OutputWriter`, and progress reporting.
+
+See ``docs/outputs.md`` for the folder layout and how the pipeline drives the writer.
+"""
+
+from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
+from ._progress import ProgressMode, ProgressReporter, progress_mode, progress_steps
+from ._writer import DETECTION_COLUMNS, TRACK_COLUMNS, OutputWriter, mot_rows, read_table
+
+__all__ = [
+    "DETECTION_COLUMNS",
+    "TRACK_COLUMNS",
+    "OutputWriter",
+    "ProgressMode",
+    "ProgressReporter",
+    "atomic_open",
+    "atomic_write_bytes",
+    "atomic_write_json",
+    "atomic_write_text",
+    "mot_rows",
+    "progress_mode",
+    "progress_steps",
+    "read_table",
+    "remove_stale_temporaries",
+]

@@ -1,0 +1,510 @@
+"""The run's output folder: occupancy (zarr), detections and tracks (CSV + MOTChallenge), metrics, report.
+
+Layout of ``out_dir``::
+
+    run_state.json      config hash, chunk size, finished chunks, status (the commit record)
+    config.yaml         the configuration of the run
+    occupancy.zarr/     group: occupancy (T, L, ny, nx) float32 P(occupied), time_s (T,) float64
+    detections.csv      step,time_s,x_m,y_m,height_m,confidence,source
+    tracks.csv          step,time_s,track_id,x_m,y_m,vx_m_s,vy_m_s
+    detections_mot.txt  MOTChallenge rows (see :func:`mot_rows`)
+    tracks_mot.txt      MOTChallenge rows
+    checkpoint.npz      filter state at the last finished chunk (optional)
+    metrics.json
+    figures/*.png, animation.gif|mp4, report.html, planefuse.rrd
+
+Work is committed one chunk of ``chunk_steps`` time steps at a time: the zarr
+chunk, the CSV files and the checkpoint are written (each atomically), then
+``run_state.json`` records the chunk as finished. A re-run with the same
+configuration hash resumes at the first unfinished chunk; a different hash
+starts afresh. Interrupting (Ctrl-C) flushes the partial chunk so every file is
+valid, but does not mark it finished.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import shutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+import zarr
+
+from ..grid import GroundDetections, PlaneStack
+from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
+
+__all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table"]
+
+DETECTION_COLUMNS = ("step", "time_s", "x_m", "y_m", "height_m", "confidence", "source")
+TRACK_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
+STATE_FILE = "run_state.json"
+_OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
+          "checkpoint.npz", "metrics.json", "figures", "report.html", "animation.gif", "animation.mp4",
+          "planefuse.rrd", "config.yaml", STATE_FILE)
+
+
+def mot_rows(steps, ids, xy_m, confidence, person_radius_m: float) -> np.ndarray:
+    """MOTChallenge rows ``frame, id, bb_left, bb_top, bb_width, bb_height, conf, x, y, z`` on the floor plan.
+
+    Frames are 1-based (``step + 1``). The "bounding box" is the person's
+    square footprint on the ground plane in metres (``x - r, y - r, 2r, 2r``),
+    so motmetrics' IoU distance works on the floor plan; ``x, y`` are the
+    world position [m] and ``z`` is -1. Detections use id -1.
+
+    Returns
+    -------
+    ndarray, shape (N, 10), float64
+    """
+    steps = np.asarray(steps, dtype=float).reshape(-1)
+    xy = np.asarray(xy_m, dtype=float).reshape(-1, 2)
+    n = len(steps)
+    r = float(person_radius_m)
+    out = np.empty((n, 10))
+    out[:, 0] = steps + 1
+    out[:, 1] = np.asarray(ids, dtype=float).reshape(-1) if np.ndim(ids) else float(ids)
+    out[:, 2] = xy[:, 0] - r
+    out[:, 3] = xy[:, 1] - r
+    out[:, 4] = 2 * r
+    out[:, 5] = 2 * r
+    out[:, 6] = np.asarray(confidence, dtype=float).reshape(-1) if np.ndim(confidence) else float(confidence)
+    out[:, 7:9] = xy
+    out[:, 9] = -1
+    return out
+
+
+def read_table(path: Path | str) -> dict[str, np.ndarray]:
+    """Read a ``detections.csv`` / ``tracks.csv`` written by :class:`OutputWriter` into column arrays."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        raise ValueError(f"{path}: empty file (expected a header row)")
+    return _columns(tuple(rows[0]), rows[1:])
+
+
+@dataclass
+class _Table:
+    columns: tuple[str, ...]
+    rows: list[tuple] = field(default_factory=list)
+
+    def truncate(self, step: int) -> None:
+        self.rows = [r for r in self.rows if r[0] < step]
+
+    def csv_text(self) -> str:
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(self.columns)
+        w.writerows(self.rows)
+        return buf.getvalue()
+
+
+class OutputWriter:
+    """Writes everything a run produces into ``out_dir``, resumably and atomically.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Output folder (created).
+    stack : PlaneStack
+        The plane stack; occupancy arrays are ``(L, ny, nx)`` on it.
+    config_hash : str
+        Identifies the configuration (:func:`planefuse.config.config_hash`);
+        finished chunks of a previous run are reused only if it matches.
+    chunk_steps : int
+        Time steps per chunk (the unit of commit and resume).
+    write_zarr : bool
+        Keep occupancy on disk (``occupancy.zarr``); if False it is kept in
+        memory for the figures only and a run cannot resume.
+    config_text : str
+        YAML of the configuration, copied to ``config.yaml`` and the report.
+    person_radius_m : float
+        Footprint radius [m] used for the MOTChallenge boxes.
+
+    Attributes
+    ----------
+    resume_step : int
+        First time step the pipeline must compute (0 for a fresh run).
+    resumed : bool
+        True when finished chunks of a previous run were kept.
+    """
+
+    def __init__(
+        self,
+        out_dir: Path | str,
+        stack: PlaneStack,
+        *,
+        config_hash: str,
+        chunk_steps: int = 50,
+        write_zarr: bool = True,
+        config_text: str = "",
+        person_radius_m: float = 0.3,
+        figures: bool = True,
+        animation: str = "gif",
+        report: bool = True,
+        figure_dpi: int = 100,
+        rerun: bool = False,
+    ):
+        if int(chunk_steps) < 1:
+            raise ValueError(f"chunk_steps must be >= 1, got {chunk_steps}")
+        self.out_dir = Path(out_dir)
+        self.stack = stack
+        self.config_hash = str(config_hash)
+        self.chunk_steps = int(chunk_steps)
+        self.write_zarr = bool(write_zarr)
+        self.config_text = config_text
+        self.person_radius_m = float(person_radius_m)
+        if animation not in ("gif", "mp4", "none"):
+            raise ValueError(f"animation must be 'gif', 'mp4' or 'none', got {animation!r}")
+        self.figures, self.animation, self.report, self.figure_dpi = bool(figures), animation, bool(report), \
+            int(figure_dpi)
+        self.metrics: dict[str, Any] = {}
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(self.out_dir)
+
+        state = self._read_state()
+        self.resumed = bool(
+            state and self.write_zarr and state.get("config_hash") == self.config_hash
+            and state.get("chunk_steps") == self.chunk_steps and state.get("n_chunks_done", 0) > 0
+            and (self.out_dir / "occupancy.zarr").exists()
+        )
+        self.n_chunks_done = int(state["n_chunks_done"]) if self.resumed else 0
+        self.resume_step = self.n_chunks_done * self.chunk_steps
+        if not self.resumed:
+            self._clear()
+        self._dets = _Table(DETECTION_COLUMNS)
+        self._tracks = _Table(TRACK_COLUMNS)
+        self._open_zarr()
+        if self.resumed:
+            for table, name in ((self._dets, "detections.csv"), (self._tracks, "tracks.csv")):
+                if (self.out_dir / name).exists():
+                    cols = read_table(self.out_dir / name)
+                    table.rows = [tuple(r) for r in zip(*(cols[c].tolist() for c in table.columns))]
+                    table.rows = [(int(r[0]),) + r[1:] for r in table.rows]
+                    table.truncate(self.resume_step)
+        if self.config_text:
+            atomic_write_text(self.out_dir / "config.yaml", self.config_text)
+        self._buffer: dict[int, tuple[float, np.ndarray]] = {}
+        self._steps_written = self.resume_step
+        self._write_state("running")
+        self.rerun = None
+        if rerun:
+            from ..viz import RerunLogger
+
+            self.rerun = RerunLogger(self.out_dir / "planefuse.rrd", stack)
+
+    # -- construction from a configuration -------------------------------------------------------------------------
+    @classmethod
+    def from_config(cls, cfg) -> "OutputWriter":
+        """Writer for a :class:`planefuse.config.RunConfig` (paths already resolved)."""
+        from ..config import config_hash
+
+        text = yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False)
+        return cls(
+            cfg.outputs.out_dir, cfg.planes.to_stack(), config_hash=config_hash(cfg),
+            chunk_steps=cfg.outputs.chunk_steps, write_zarr=cfg.outputs.zarr, config_text=text,
+            person_radius_m=cfg.models.detection.person_radius_m, figures=cfg.outputs.figures,
+            animation=cfg.outputs.animation, report=cfg.outputs.report, figure_dpi=cfg.outputs.figure_dpi,
+            rerun=cfg.outputs.rerun,
+        )
+
+    # -- state ---------------------------------------------------------------------------------------------------
+    def _read_state(self) -> dict | None:
+        p = self.out_dir / STATE_FILE
+        try:
+            return json.loads(p.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+
+    def _write_state(self, status: str) -> None:
+        atomic_write_json(self.out_dir / STATE_FILE, {
+            "status": status,
+            "config_hash": self.config_hash,
+            "chunk_steps": self.chunk_steps,
+            "n_chunks_done": self.n_chunks_done,
+            "n_steps_finished": self.n_chunks_done * self.chunk_steps,
+            "n_steps_written": self._steps_written,
+        })
+
+    def _clear(self) -> None:
+        for name in _OWNED:
+            p = self.out_dir / name
+            if p.is_dir():
+                shutil.rmtree(p)
+            elif p.exists():
+                p.unlink()
+
+    def _open_zarr(self) -> None:
+        L, ny, nx = self.stack.shape
+        store = zarr.storage.LocalStore(self.out_dir / "occupancy.zarr") if self.write_zarr \
+            else zarr.storage.MemoryStore()
+        if self.resumed:
+            self._group = zarr.open_group(store, mode="r+")
+            self._occ = self._group["occupancy"]
+            self._time = self._group["time_s"]
+            self._occ.resize((self.resume_step, L, ny, nx))
+            self._time.resize((self.resume_step,))
+            return
+        g = zarr.open_group(store, mode="w")
+        g.attrs.update({
+            "heights_m": list(self.stack.heights_m), "x_min_m": self.stack.x_min_m, "y_min_m": self.stack.y_min_m,
+            "cell_size_m": self.stack.cell_size_m, "config_hash": self.config_hash,
+            "convention": "occupancy[t, l, iy, ix] = P(occupied) of the cell centred at x_min_m+(ix+0.5)*cell, "
+                          "y_min_m+(iy+0.5)*cell on the plane z = heights_m[l]",
+        })
+        self._occ = g.create_array("occupancy", shape=(0, L, ny, nx), chunks=(self.chunk_steps, 1, ny, nx),
+                                   dtype="float32", fill_value=np.nan)
+        self._time = g.create_array("time_s", shape=(0,), chunks=(self.chunk_steps,), dtype="float64",
+                                    fill_value=np.nan)
+        self._group = g
+
+    # -- writing ---------------------------------------------------------------------------------------------------
+    def write_occupancy(self, step: int, time_s: float, occupancy,
+                        checkpoint: Callable[[], Mapping[str, np.ndarray]] | None = None) -> bool:
+        """Record the posterior occupancy of every plane at one time step.
+
+        Parameters
+        ----------
+        step : int
+            Time-step index, counted from 0; steps must arrive in order starting at :attr:`resume_step`.
+        time_s : float
+            Time of the step [s].
+        occupancy : ndarray, shape (L, ny, nx)
+            P(occupied) per cell, in [0, 1].
+        checkpoint : callable, optional
+            Returns the filter state (name -> array) to save when this step
+            completes a chunk; called only then. :meth:`load_checkpoint` gives it back on resume.
+
+        Returns
+        -------
+        bool
+            True when this step completed (and committed) a chunk.
+        """
+        occ = np.asarray(occupancy, dtype=np.float32)
+        if occ.shape != self.stack.shape:
+            raise ValueError(f"occupancy must have shape {self.stack.shape} (L, ny, nx), got {occ.shape}")
+        expected = self._steps_written + len(self._buffer)
+        if int(step) != expected:
+            raise ValueError(f"step {step} out of order: expected step {expected}")
+        if not np.isfinite(time_s):
+            raise ValueError(f"time_s must be finite, got {time_s}")
+        self._buffer[int(step)] = (float(time_s), occ)
+        if self.rerun is not None:
+            self.rerun.set_time(step, time_s)
+            self.rerun.log_occupancy(occ)
+        if len(self._buffer) == self.chunk_steps:
+            self._flush_buffer()
+            self._commit(checkpoint)
+            return True
+        return False
+
+    def write_detections(self, step: int, detections: GroundDetections) -> None:
+        """Record the people detected at ``step`` (positions on the ground plane [m]).
+
+        Call it before the ``write_occupancy`` of the same step: that call may commit the step's chunk.
+        """
+        self._check_open_step(step)
+        if self.rerun is not None:
+            self.rerun.set_time(step, detections.time_s)
+            self.rerun.log_detections(detections.xy_m)
+        for (x, y), h, c in zip(detections.xy_m, detections.height_m, detections.confidence):
+            self._dets.rows.append((int(step), float(detections.time_s), float(x), float(y), float(h), float(c),
+                                    detections.source))
+
+    def write_tracks(self, step: int, time_s: float, track_ids, xy_m, velocity_m_s=None) -> None:
+        """Record the confirmed tracks at ``step``.
+
+        Parameters
+        ----------
+        track_ids : array-like of int, shape (N,)
+        xy_m : array-like, shape (N, 2)
+            Positions on the ground plane [m].
+        velocity_m_s : array-like, shape (N, 2), optional
+            Velocities [m/s]; NaN when omitted.
+
+        Call it before the ``write_occupancy`` of the same step: that call may commit the step's chunk.
+        """
+        self._check_open_step(step)
+        ids = np.asarray(track_ids, dtype=np.int64).reshape(-1)
+        xy = np.asarray(xy_m, dtype=float).reshape(-1, 2)
+        v = np.full_like(xy, np.nan) if velocity_m_s is None else np.asarray(velocity_m_s, float).reshape(-1, 2)
+        if not (len(ids) == len(xy) == len(v)):
+            raise ValueError(f"track_ids {ids.shape}, xy_m {xy.shape}, velocity_m_s {v.shape} disagree on N")
+        if self.rerun is not None:
+            self.rerun.set_time(step, time_s)
+            self.rerun.log_tracks(ids, xy)
+        for i, p, vv in zip(ids, xy, v):
+            self._tracks.rows.append((int(step), float(time_s), int(i), *map(float, p), *map(float, vv)))
+
+    def _check_open_step(self, step: int) -> None:
+        if int(step) < self._steps_written:
+            raise ValueError(
+                f"step {step} is already written (its chunk was flushed or committed by write_occupancy); write "
+                "a step's detections and tracks before its occupancy"
+            )
+
+    def write_metrics(self, metrics: Mapping[str, Any]) -> None:
+        """Write ``metrics.json`` (scalars, and lists for per-step series); merges with earlier calls."""
+        self.metrics.update(metrics)
+        atomic_write_json(self.out_dir / "metrics.json", self.metrics)
+
+    def _flush_buffer(self) -> None:
+        if not self._buffer:
+            return
+        steps = sorted(self._buffer)
+        a, b = steps[0], steps[-1] + 1
+        L, ny, nx = self.stack.shape
+        self._occ.resize((b, L, ny, nx))
+        self._time.resize((b,))
+        self._occ[a:b] = np.stack([self._buffer[s][1] for s in steps])
+        self._time[a:b] = np.array([self._buffer[s][0] for s in steps])
+        self._steps_written = b
+        self._buffer.clear()
+        self._write_tables()
+
+    def _write_tables(self) -> None:
+        atomic_write_text(self.out_dir / "detections.csv", self._dets.csv_text())
+        atomic_write_text(self.out_dir / "tracks.csv", self._tracks.csv_text())
+        for name, table, id_col in (("detections_mot.txt", self._dets, None), ("tracks_mot.txt", self._tracks, 2)):
+            rows = np.asarray([(r[0], -1 if id_col is None else r[id_col], r[2 if id_col is None else 3],
+                                r[3 if id_col is None else 4], r[5] if id_col is None else 1.0)
+                               for r in table.rows], dtype=float).reshape(-1, 5)
+            mot = mot_rows(rows[:, 0], rows[:, 1], rows[:, 2:4], rows[:, 4], self.person_radius_m)
+            with atomic_open(self.out_dir / name, "w") as f:
+                np.savetxt(f, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"],
+                           delimiter=",")
+
+    def _commit(self, checkpoint: Callable[[], Mapping[str, np.ndarray]] | None) -> None:
+        if checkpoint is not None:
+            with atomic_open(self.out_dir / "checkpoint.npz", "wb") as f:
+                np.savez(f, step=self._steps_written, **dict(checkpoint()))
+        self.n_chunks_done = self._steps_written // self.chunk_steps
+        self._write_state("running")
+
+    def load_checkpoint(self) -> dict[str, np.ndarray] | None:
+        """The filter state saved with the last finished chunk of a resumed run (None on a fresh run)."""
+        p = self.out_dir / "checkpoint.npz"
+        if not self.resumed or not p.exists():
+            return None
+        with np.load(p) as z:
+            state = {k: z[k] for k in z.files}
+        if int(state.pop("step")) != self.resume_step:
+            return None
+        return state
+
+    def flush(self, status: str = "interrupted") -> None:
+        """Write the steps buffered so far (a partial chunk) so all files are valid; the chunk stays unfinished."""
+        self._flush_buffer()
+        self._write_tables()
+        self._write_state(status)
+
+    # -- reading back ----------------------------------------------------------------------------------------------
+    @property
+    def n_steps(self) -> int:
+        """Time steps written to the occupancy store."""
+        return self._steps_written
+
+    def occupancy(self) -> np.ndarray:
+        """All occupancy written so far, shape (T, L, ny, nx) float32."""
+        return self._occ[:]
+
+    def times_s(self) -> np.ndarray:
+        """Times [s] of the written steps, shape (T,)."""
+        return self._time[:]
+
+    def detections_table(self) -> dict[str, np.ndarray]:
+        """Detections recorded so far as column arrays (:data:`DETECTION_COLUMNS`)."""
+        return _columns(self._dets.columns, self._dets.rows)
+
+    def tracks_table(self) -> dict[str, np.ndarray]:
+        """Tracks recorded so far as column arrays (:data:`TRACK_COLUMNS`)."""
+        return _columns(self._tracks.columns, self._tracks.rows)
+
+    # -- ending ----------------------------------------------------------------------------------------------------
+    def finish(self, figure_inputs=None, *, progress=None) -> dict[str, Path]:
+        """Flush the last steps, close the rerun recording, then build figures, animation and ``report.html``.
+
+        What is built follows the constructor's ``figures``, ``animation``, ``report`` and ``figure_dpi``.
+
+        Parameters
+        ----------
+        figure_inputs : planefuse.viz.FigureInputs, optional
+            Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
+        progress : ProgressReporter, optional
+            Reports the figure step.
+
+        Returns
+        -------
+        dict of str -> Path
+            What was written: ``"report"``, ``"animation"``, ``"rerun"`` and one entry per figure.
+        """
+        self._flush_buffer()
+        self._write_tables()
+        # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
+        self.n_chunks_done = self._steps_written // self.chunk_steps
+        self._write_state("finished")
+        written: dict[str, Path] = {}
+        if self.rerun is not None:
+            written["rerun"] = self.rerun.close()
+            self.rerun = None
+        figs: dict[str, bytes] = {}
+        if self.figures or self.report:
+            from ..viz import FigureInputs, run_figures
+
+            inputs = figure_inputs if figure_inputs is not None else FigureInputs()
+            figs = run_figures(self.stack, self.occupancy(), self.times_s(), self.detections_table(),
+                               self.tracks_table(), self.metrics, inputs, dpi=self.figure_dpi, progress=progress)
+        if self.figures:
+            for name, png in figs.items():
+                p = self.out_dir / "figures" / f"{name}.png"
+                atomic_write_bytes(p, png)
+                written[name] = p
+        if self.animation != "none" and self._steps_written:
+            from ..viz import animate_stack
+
+            p = self.out_dir / f"animation.{self.animation}"
+            animate_stack(p, self.stack, self.occupancy(), self.tracks_table())
+            written["animation"] = p
+        if self.report:
+            from ..report import write_report
+
+            p = self.out_dir / "report.html"
+            write_report(p, figs, self.metrics, self.config_text, run_summary=self.summary())
+            written["report"] = p
+        return written
+
+    def summary(self) -> dict[str, Any]:
+        """Counts for the report: steps, planes, grid, detections, tracks, resume information."""
+        tr = self._tracks.rows
+        return {
+            "time steps": self._steps_written,
+            "planes (heights m)": ", ".join(f"{h:g}" for h in self.stack.heights_m),
+            "grid (ny x nx, cell m)": f"{self.stack.ny} x {self.stack.nx}, {self.stack.cell_size_m:g}",
+            "detections": len(self._dets.rows),
+            "track points": len(tr),
+            "distinct tracks": len({r[2] for r in tr}),
+            "resumed at step": self.resume_step if self.resumed else "no (fresh run)",
+            "config hash": self.config_hash[:16],
+        }
+
+    def __enter__(self) -> "OutputWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            with contextlib.suppress(Exception):
+                self.flush("interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed")
+        if self.rerun is not None:
+            with contextlib.suppress(Exception):
+                self.rerun.close()
+            self.rerun = None
+
+
+def _columns(columns: tuple[str, ...], rows: list) -> dict[str, np.ndarray]:
+    return {name: np.asarray([r[j] for r in rows], dtype=object if name == "source" else float)
+            for j, name in enumerate(columns)}

@@ -1,0 +1,113 @@
+"""Run the system on a recording and write everything a user looks at (planefuse.outputs / viz / report)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io import Recording
+from ..outputs import OutputWriter, progress_steps
+from ..tracking import TrackerOutput
+from ..viz import FigureInputs
+from ._system import SystemParams, SystemResult, evaluate_system, run_system, stack_for_recording
+
+__all__ = ["run_to_folder"]
+
+
+def _params_text(params: SystemParams) -> str:
+    def plain(o):
+        if is_dataclass(o):
+            return {k: plain(v) for k, v in asdict(o).items()}
+        if isinstance(o, (list, tuple)):
+            return [plain(v) for v in o]
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        return o if isinstance(o, (int, float, str, bool, type(None))) else repr(o)
+
+    return json.dumps(plain(params), indent=1, sort_keys=True, default=repr)
+
+
+def _figure_inputs(rec: Recording, result: SystemResult) -> FigureInputs:
+    cams = rec.cameras
+    images = {}
+    for c in cams:
+        cs = rec.camera(c.name)
+        if len(cs):
+            images[c.name] = cs.frame(len(cs) // 2)
+    rep = result.report
+    laser = np.concatenate([p.reshape(-1, 3) for p in rep.laser_points_world]) if rep.laser_points_world else None
+    sal = np.stack(rep.sound_saliency) if rep.sound_saliency else None
+    gt = None
+    if rec.groundtruth is not None and rec.groundtruth.people is not None:
+        p = rec.groundtruth.people
+        times = np.array([o.time_s for o in result.outputs])
+        idx = np.array([int(np.argmin(np.abs(p.times_s - t))) for t in times], dtype=int)
+        T, P = len(idx), len(p.person_ids)
+        gt = {"step": np.repeat(np.arange(T), P), "track_id": np.tile(p.person_ids, T),
+              "x_m": p.xy_m[idx, :, 0].ravel(), "y_m": p.xy_m[idx, :, 1].ravel()}
+    return FigureInputs(cameras=cams, camera_images=images, laser_points_world=laser, saliency=sal,
+                        saliency_times_s=np.asarray(rep.sound_times_s) if sal is not None else None,
+                        saliency_azimuth_rad=rep.sound_azimuth_grid_rad if sal is not None else None,
+                        ground_truth=gt)
+
+
+def run_to_folder(
+    rec: Recording,
+    params: SystemParams,
+    out_dir: str | Path,
+    *,
+    progress_mode: str = "rich",
+    animation: str = "gif",
+    figures: bool = True,
+    report: bool = True,
+    rerun: bool = False,
+    chunk_steps: int = 25,
+    config_text: str | None = None,
+    stack=None,
+) -> tuple[SystemResult, dict]:
+    """Run :func:`run_system` on ``rec`` and write occupancy (zarr), detections, tracks (CSV + MOTChallenge),
+    ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into ``out_dir``.
+
+    Outputs are written atomically; Ctrl-C leaves the steps written so far valid and readable. A re-run with
+    the same parameters into the same folder keeps the finished chunks (they are recomputed by the filter,
+    whose state depends on the whole past, but not rewritten).
+
+    Returns
+    -------
+    (SystemResult, dict)
+        The result and the metrics (empty without ground truth).
+    """
+    stack = stack if stack is not None else stack_for_recording(rec, params)
+    text = config_text if config_text is not None else _params_text(params)
+    digest = hashlib.sha256((text + repr(rec.source) + repr(rec.duration_s)).encode()).hexdigest()[:16]
+    n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1
+    with progress_steps(progress_mode) as progress, OutputWriter(
+        out_dir, stack, config_hash=digest, chunk_steps=chunk_steps, config_text=text, animation=animation,
+        figures=figures, report=report, rerun=rerun,
+    ) as out:
+        step = 0
+        with progress.step("register + filter + track", total=n_steps, unit="steps",
+                           completed=0) as advance:
+
+            def on_output(o: TrackerOutput) -> None:
+                nonlocal step
+                if step >= out.resume_step:
+                    out.write_detections(step, o.detections)
+                    out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_mps)
+                    out.write_occupancy(step, o.time_s, o.occupancy)
+                step += 1
+                advance(1)
+
+            result = run_system(rec, params, stack, on_output=on_output)
+        metrics = {}
+        if rec.groundtruth is not None and rec.groundtruth.people is not None:
+            with progress.step("evaluate", total=1, unit="runs") as advance:
+                metrics = evaluate_system(rec, result, params.threshold_m)
+                advance(1)
+            out.write_metrics(metrics)
+        out.finish(_figure_inputs(rec, result), progress=progress)
+    return result, metrics

@@ -1,0 +1,51 @@
+"""Bayesian Occupancy Filter per plane, asynchronous multi-sensor fusion, clustering and tracking.
+
+``track_evidence(stack, evidence, params)`` is the end-to-end entry point; the pieces are the filter
+(:func:`bof_predict`, :func:`bof_update`, :class:`BayesianOccupancyFilter`), the re-ordering buffer
+(:class:`AsyncEvidenceBuffer`), the column clustering (:func:`cluster_occupancy`) and the tracker
+(:class:`MultiPersonTracker`). See docs/filter.md.
+"""
+
+from ._async import AsyncEvidenceBuffer, EvidenceBatch, LateEvidenceWarning
+from ._bof import (
+    BayesianOccupancyFilter,
+    BOFParams,
+    BOFState,
+    bof_initial_state,
+    bof_predict,
+    bof_update,
+    transition_probabilities,
+    velocity_grid_mps,
+)
+from ._bof_numpy import bof_predict_numpy, bof_update_numpy
+from ._clustering import ClusterParams, Clusters, cluster_occupancy, column_log_odds
+from ._pipeline import TrackerOutput, TrackingParams, track_evidence
+from ._synthetic import evidence_from_people
+from ._tracker import MultiPersonTracker, TrackerParams, Tracks
+
+__all__ = [
+    "AsyncEvidenceBuffer",
+    "BOFParams",
+    "BOFState",
+    "BayesianOccupancyFilter",
+    "ClusterParams",
+    "Clusters",
+    "EvidenceBatch",
+    "LateEvidenceWarning",
+    "MultiPersonTracker",
+    "TrackerOutput",
+    "TrackerParams",
+    "TrackingParams",
+    "Tracks",
+    "bof_initial_state",
+    "bof_predict",
+    "bof_predict_numpy",
+    "bof_update",
+    "bof_update_numpy",
+    "cluster_occupancy",
+    "column_log_odds",
+    "evidence_from_people",
+    "track_evidence",
+    "transition_probabilities",
+    "velocity_grid_mps",
+]

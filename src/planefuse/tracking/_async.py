@@ -1,0 +1,122 @@
+"""Asynchronous sensors: re-order evidence inside a time window and group what arrived at the same instant.
+
+Sensors publish at their own rates and their messages reach the filter late and out of order (network,
+processing latency). :class:`AsyncEvidenceBuffer` holds every message until the newest time stamp seen is
+``window_s`` past it, then releases the held messages in time order; messages whose stamps agree within
+``merge_tolerance_s`` are released together as one :class:`EvidenceBatch` whose log-odds are the sum of the
+sensors' log-odds (the product over sensors of seed eq. 7). A message older than what was already released
+cannot be used any more without re-running the filter: it is counted in :attr:`AsyncEvidenceBuffer.n_late`,
+kept in :attr:`AsyncEvidenceBuffer.late` and a :class:`LateEvidenceWarning` is issued.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..grid import Evidence
+
+__all__ = ["AsyncEvidenceBuffer", "EvidenceBatch", "LateEvidenceWarning"]
+
+
+class LateEvidenceWarning(UserWarning):
+    """Evidence arrived after the filter had already passed its time stamp (older than the window)."""
+
+
+@dataclass(frozen=True)
+class EvidenceBatch:
+    """Evidence of every sensor observed at one instant.
+
+    Attributes
+    ----------
+    time_s : float
+        Time stamp of the batch [s] (the earliest stamp among the merged messages).
+    sensors : tuple of str
+        Sensors whose messages were merged, in arrival order.
+    log_odds : ndarray, shape (L, ny, nx), float32
+        Sum over the merged messages of ``log P(Z_i|occ) - log P(Z_i|free)``.
+    """
+
+    time_s: float
+    sensors: tuple[str, ...]
+    log_odds: np.ndarray
+
+
+class AsyncEvidenceBuffer:
+    """Re-ordering buffer in front of the filter.
+
+    Parameters
+    ----------
+    window_s : float
+        How long [s] a message is held for older ones to arrive: a message with stamp ``t`` is released once
+        a message with stamp ``>= t + window_s`` has been pushed (or on :meth:`flush`). 0 releases at once.
+    merge_tolerance_s : float
+        Messages whose stamps differ by at most this [s] form one batch.
+    shape : tuple of int, optional
+        Expected ``(L, ny, nx)`` of every message's log-odds; checked on push if given.
+    """
+
+    def __init__(self, window_s: float = 0.2, merge_tolerance_s: float = 1e-6, shape=None) -> None:
+        if not (np.isfinite(window_s) and window_s >= 0):
+            raise ValueError(f"window_s must be finite and >= 0, got {window_s}")
+        if not (np.isfinite(merge_tolerance_s) and merge_tolerance_s >= 0):
+            raise ValueError(f"merge_tolerance_s must be finite and >= 0, got {merge_tolerance_s}")
+        self.window_s = float(window_s)
+        self.merge_tolerance_s = float(merge_tolerance_s)
+        self.shape = None if shape is None else tuple(int(s) for s in shape)
+        self._heap: list[tuple[float, int, Evidence]] = []
+        self._counter = itertools.count()
+        self._newest_s = -np.inf
+        self.released_until_s: float = -np.inf
+        self.late: list[Evidence] = []
+
+    @property
+    def n_late(self) -> int:
+        """Number of messages that arrived older than the already released time (not used by the filter)."""
+        return len(self.late)
+
+    @property
+    def n_pending(self) -> int:
+        """Number of messages held in the buffer."""
+        return len(self._heap)
+
+    def push(self, evidence: Evidence) -> list[EvidenceBatch]:
+        """Add one message; return the batches that became ready, in time order."""
+        if not isinstance(evidence, Evidence):
+            raise ValueError(f"evidence must be a planefuse.grid.Evidence, got {type(evidence).__name__}")
+        if self.shape is not None and evidence.log_odds.shape != self.shape:
+            raise ValueError(f"Evidence from {evidence.sensor!r} has shape {evidence.log_odds.shape}, "
+                             f"expected {self.shape}")
+        t = float(evidence.time_s)
+        if t < self.released_until_s - self.merge_tolerance_s:
+            self.late.append(evidence)
+            warnings.warn(
+                f"Evidence from {evidence.sensor!r} at t={t:.6f} s arrived after the filter reached "
+                f"t={self.released_until_s:.6f} s (older than the {self.window_s} s window); not fused "
+                f"({self.n_late} late so far)", LateEvidenceWarning, stacklevel=2)
+            return []
+        heapq.heappush(self._heap, (t, next(self._counter), evidence))
+        self._newest_s = max(self._newest_s, t)
+        return self._release(self._newest_s - self.window_s)
+
+    def flush(self) -> list[EvidenceBatch]:
+        """Release everything still held, in time order."""
+        return self._release(np.inf)
+
+    def _release(self, until_s: float) -> list[EvidenceBatch]:
+        out: list[EvidenceBatch] = []
+        while self._heap and self._heap[0][0] <= until_s:
+            t0 = self._heap[0][0]
+            group = []
+            while self._heap and self._heap[0][0] <= t0 + self.merge_tolerance_s:
+                group.append(heapq.heappop(self._heap)[2])
+            # a message at the time already released is one more measurement of that instant (dt = 0)
+            t_batch = max(t0, self.released_until_s)
+            log_odds = np.sum([e.log_odds for e in group], axis=0, dtype=np.float32)
+            out.append(EvidenceBatch(t_batch, tuple(e.sensor for e in group), log_odds))
+            self.released_until_s = t_batch
+        return out

@@ -1,0 +1,258 @@
+r"""From filtered occupancy on every plane to person hypotheses on the ground ("fast clustering").
+
+A person standing on cell ``c`` occupies the planes of its column from the ground band up to its head.
+The column evidence of ``c`` combines, over the *body planes* (planes no higher than
+``body_max_height_m``, which every person reaches), the filtered log-odds relative to the prior, each
+smoothed over the person's cross-section (``G``: Gaussian of ``smoothing_m``; legs and thin silhouettes
+spread into one blob) and capped above at ``plane_cap``::
+
+    D_l(c) = G * [ logit P_l(occ) - logit p0 ](c)
+    S(c)   = sum_{l in body, |D_l(c)| > observed_min} min(D_l(c), plane_cap) / max(n_observed(c), 1)
+
+i.e. the mean, over the body planes whose belief departs from the prior (observed planes), of the capped
+log-odds. The cap and the mean make it a soft AND over planes: a column occupied on some body planes but
+observed free on another (a multi-camera "ghost", where silhouette rays of different people cross at some
+heights only) is pulled down by the free plane instead of being carried by the occupied ones, and a
+column must be occupied on every plane that was observed. A plane no sensor has seen stays at the prior
+and does not count, so a person seen only by the laser (one plane) or only by sound still produces a
+column. Modes of ``S`` above ``threshold`` (local maxima at least
+``min_separation_m`` apart) are refined by mean-shift steps with a flat disc kernel of radius
+``person_radius_m`` on ``max(S, 0)``. Each cluster reports
+
+* position: the mean-shift mode [m];
+* velocity: the occupancy-weighted mean of the BOF cell velocities ``E[V | occ]`` over the disc and the
+  body planes, weights ``max(P_l - p0, 0)`` [m/s];
+* height: the highest plane whose disc-maximum occupancy reaches 0.5, linearly interpolated with the plane
+  above it to the height where the profile crosses 0.5 [m] (NaN if no plane reaches 0.5);
+* confidence: ``logistic(S(mode) - threshold)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from ..grid import GroundDetections, PlaneStack, log_odds_from_probability, probability_from_log_odds
+
+__all__ = ["ClusterParams", "Clusters", "cluster_occupancy", "column_log_odds"]
+
+
+@dataclass(frozen=True)
+class ClusterParams:
+    """Parameters of the column clustering.
+
+    Attributes
+    ----------
+    body_max_height_m : float
+        Planes at or below this height [m] form the column evidence (every person reaches them).
+    plane_cap : float
+        Largest contribution of one plane to ``S`` (> 0).
+    observed_min : float
+        A body plane counts as observed at a cell where its smoothed log-odds departs from the prior's by
+        more than this.
+    threshold : float
+        Minimum column evidence ``S`` of a mode (mean capped log-odds per observed plane).
+    smoothing_m : float
+        Standard deviation [m] of the Gaussian smoothing of each plane's log-odds.
+    person_radius_m : float
+        Radius [m] of the mean-shift disc and of the velocity/height aggregation.
+    min_separation_m : float
+        Modes closer than this [m] are merged (the higher one wins).
+    mean_shift_iterations : int
+        Mean-shift refinements of each mode.
+    """
+
+    body_max_height_m: float = 1.5
+    plane_cap: float = 4.0
+    observed_min: float = 0.5
+    threshold: float = 2.5
+    smoothing_m: float = 0.1
+    person_radius_m: float = 0.3
+    min_separation_m: float = 0.4
+    mean_shift_iterations: int = 3
+
+    def __post_init__(self) -> None:
+        for name in ("smoothing_m", "person_radius_m", "min_separation_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+        if not np.isfinite(self.threshold):
+            raise ValueError(f"threshold must be finite, got {self.threshold}")
+        if not (np.isfinite(self.plane_cap) and self.plane_cap > 0):
+            raise ValueError(f"plane_cap must be finite and > 0, got {self.plane_cap}")
+        if int(self.mean_shift_iterations) < 0:
+            raise ValueError(f"mean_shift_iterations must be >= 0, got {self.mean_shift_iterations}")
+
+
+@dataclass(frozen=True)
+class Clusters:
+    """Person hypotheses at one instant.
+
+    Attributes
+    ----------
+    time_s : float
+        Time [s].
+    xy_m : ndarray, shape (N, 2)
+        Ground positions (world XY) [m].
+    velocity_mps : ndarray, shape (N, 2)
+        Mean BOF velocity (vx, vy) [m/s].
+    height_m : ndarray, shape (N,)
+        Estimated height [m]; NaN where no plane reaches occupancy 0.5.
+    confidence : ndarray, shape (N,)
+        In [0, 1].
+    column_log_odds : ndarray, shape (ny, nx)
+        The column evidence ``S``.
+    """
+
+    time_s: float
+    xy_m: np.ndarray
+    velocity_mps: np.ndarray
+    height_m: np.ndarray
+    confidence: np.ndarray
+    column_log_odds: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.xy_m)
+
+    def to_ground_detections(self) -> GroundDetections:
+        """The clusters as :class:`~planefuse.grid.GroundDetections` (source ``"bof"``)."""
+        return GroundDetections(self.time_s, self.xy_m, self.confidence, self.height_m, source="bof")
+
+
+def _body_planes(stack: PlaneStack, params: ClusterParams) -> np.ndarray:
+    body = np.flatnonzero(np.asarray(stack.heights_m) <= params.body_max_height_m)
+    if body.size == 0:
+        raise ValueError(f"no plane of the stack (heights {stack.heights_m}) is at or below "
+                         f"body_max_height_m={params.body_max_height_m}")
+    return body
+
+
+def column_log_odds(occupancy, stack: PlaneStack, prior_occupancy: float, params: ClusterParams) -> np.ndarray:
+    """Column evidence ``S`` (module docstring), shape (ny, nx).
+
+    Parameters
+    ----------
+    occupancy : array_like, shape (L, ny, nx)
+        Filtered ``P(occ)`` per plane.
+    stack : PlaneStack
+        The planes (their heights select the body planes).
+    prior_occupancy : float
+        ``p0`` of the filter.
+    params : ClusterParams
+        Clustering parameters.
+    """
+    occ = np.asarray(occupancy, dtype=float)
+    if occ.shape != stack.shape:
+        raise ValueError(f"occupancy must have shape {stack.shape}, got {occ.shape}")
+    body = _body_planes(stack, params)
+    d = log_odds_from_probability(occ[body]) - log_odds_from_probability(prior_occupancy)
+    if params.smoothing_m > 0:
+        sigma = params.smoothing_m / stack.cell_size_m
+        d = ndimage.gaussian_filter(d, (0, sigma, sigma), mode="nearest")
+    observed = np.abs(d) > params.observed_min
+    return np.where(observed, np.minimum(d, params.plane_cap), 0.0).sum(axis=0) / np.maximum(observed.sum(axis=0), 1)
+
+
+def _height_from_profile(profile: np.ndarray, heights_m: np.ndarray) -> float:
+    """Height [m] where the occupancy profile (per plane, bottom up) last crosses 0.5; NaN if never >= 0.5."""
+    above = np.flatnonzero(profile >= 0.5)
+    if above.size == 0:
+        return float("nan")
+    top = above[-1]
+    if top == len(profile) - 1:
+        return float(heights_m[top])
+    p_lo, p_hi = profile[top], profile[top + 1]
+    frac = (p_lo - 0.5) / max(p_lo - p_hi, 1e-12)
+    return float(heights_m[top] + frac * (heights_m[top + 1] - heights_m[top]))
+
+
+def cluster_occupancy(
+    time_s: float,
+    occupancy,
+    velocity_mps,
+    stack: PlaneStack,
+    prior_occupancy: float,
+    params: ClusterParams | None = None,
+) -> Clusters:
+    """Find person hypotheses in the filtered plane stack (module docstring).
+
+    Parameters
+    ----------
+    time_s : float
+        Time of the occupancy [s].
+    occupancy : array_like, shape (L, ny, nx)
+        Filtered ``P(occ)`` per plane.
+    velocity_mps : array_like, shape (L, ny, nx, 2)
+        BOF ``E[V | occ]`` per cell (vx, vy) [m/s].
+    stack : PlaneStack
+        The plane stack.
+    prior_occupancy : float
+        ``p0`` of the filter.
+    params : ClusterParams, optional
+        Clustering parameters.
+    """
+    params = params if params is not None else ClusterParams()
+    occ = np.asarray(occupancy, dtype=float)
+    vel = np.asarray(velocity_mps, dtype=float)
+    if vel.shape != stack.shape + (2,):
+        raise ValueError(f"velocity_mps must have shape {stack.shape + (2,)}, got {vel.shape}")
+    S = column_log_odds(occ, stack, prior_occupancy, params)
+    cell = stack.cell_size_m
+
+    # modes: local maxima of the smoothed evidence, one per plateau, at least min_separation apart
+    r_sep = max(int(round(params.min_separation_m / cell)), 1)
+    yy, xx = np.mgrid[-r_sep:r_sep + 1, -r_sep:r_sep + 1]
+    peaks = (S == ndimage.maximum_filter(S, footprint=(yy**2 + xx**2) <= r_sep**2, mode="nearest"))
+    peaks &= S >= params.threshold
+    lab, n = ndimage.label(peaks)
+    if n == 0:
+        empty = np.zeros((0, 2))
+        return Clusters(float(time_s), empty, empty.copy(), np.zeros(0), np.zeros(0), S)
+    centres = np.asarray(ndimage.center_of_mass(peaks, lab, np.arange(1, n + 1)))  # (n, 2) as (iy, ix)
+
+    # mean-shift with a flat disc kernel on max(S, 0)
+    w_map = np.maximum(S, 0.0)
+    r = params.person_radius_m / cell
+    ri = int(np.ceil(r))
+    dy, dx = np.mgrid[-ri:ri + 1, -ri:ri + 1]
+    disc = (dy**2 + dx**2) <= r * r
+    dy, dx = dy[disc], dx[disc]
+    ny, nx = S.shape
+
+    def window(c):
+        iy = np.rint(c[0]).astype(int) + dy
+        ix = np.rint(c[1]).astype(int) + dx
+        ok = (iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)
+        return iy[ok], ix[ok]
+
+    for _ in range(int(params.mean_shift_iterations)):
+        for i, c in enumerate(centres):
+            iy, ix = window(c)
+            w = w_map[iy, ix]
+            if w.sum() > 0:
+                centres[i] = (np.sum(w * iy) / w.sum(), np.sum(w * ix) / w.sum())
+    # modes that converged onto each other: keep the strongest
+    strength = ndimage.map_coordinates(S, centres.T, order=1, mode="nearest")
+    order = np.argsort(-strength)
+    keep: list[int] = []
+    for i in order:
+        if all(np.hypot(*(centres[i] - centres[j])) * cell >= params.min_separation_m for j in keep):
+            keep.append(i)
+    centres, strength = centres[keep], strength[keep]
+
+    body = _body_planes(stack, params)
+    excess = np.maximum(occ - prior_occupancy, 0.0)
+    heights = np.asarray(stack.heights_m)
+    v_out = np.zeros((len(centres), 2))
+    h_out = np.full(len(centres), np.nan)
+    for i, c in enumerate(centres):
+        iy, ix = window(c)
+        w = excess[body][:, iy, ix]
+        if w.sum() > 0:
+            v_out[i] = np.einsum("lc,lcd->d", w, vel[body][:, iy, ix]) / w.sum()
+        h_out[i] = _height_from_profile(occ[:, iy, ix].max(axis=1), heights)
+    xy = stack.xy_from_index(centres[:, 0], centres[:, 1])
+    conf = probability_from_log_odds(strength - params.threshold)
+    return Clusters(float(time_s), xy, v_out, h_out, conf, S)

@@ -1,0 +1,32 @@
+"""What a user looks at: matplotlib figures, the plane-stack animation and the rerun recording."""
+
+from ._animation import animate_stack, stack_frames
+from ._figures import (
+    FigureInputs,
+    grid_lines_world,
+    plot_camera_grid,
+    plot_laser_points,
+    plot_metrics,
+    plot_plane_occupancy,
+    plot_saliency,
+    png_bytes,
+    run_figures,
+)
+from ._rerun import RerunLogger, plane_entity, rrd_entity_paths
+
+__all__ = [
+    "FigureInputs",
+    "RerunLogger",
+    "animate_stack",
+    "grid_lines_world",
+    "plane_entity",
+    "plot_camera_grid",
+    "plot_laser_points",
+    "plot_metrics",
+    "plot_plane_occupancy",
+    "plot_saliency",
+    "png_bytes",
+    "rrd_entity_paths",
+    "run_figures",
+    "stack_frames",
+]

@@ -1,0 +1,151 @@
+"""Animation of the plane stack over time (GIF through imageio; MP4 through imageio or OpenCV).
+
+Frames are built directly from the arrays (colour map + nearest-neighbour
+upscaling), not by redrawing a matplotlib figure per step, so a few hundred
+steps take a second or two.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+
+import cv2
+import imageio.v3 as iio
+import matplotlib
+import numpy as np
+
+from ..grid import PlaneStack
+from ..outputs._atomic import TMP_MARK
+
+__all__ = ["stack_frames", "animate_stack"]
+
+
+def stack_frames(
+    stack: PlaneStack,
+    occupancy,
+    tracks: Mapping[str, np.ndarray] | None = None,
+    *,
+    steps=None,
+    cell_px: int = 2,
+    gap_px: int = 4,
+) -> np.ndarray:
+    """RGB frames showing every plane side by side (lowest plane left), world Y up.
+
+    Parameters
+    ----------
+    stack : PlaneStack
+    occupancy : ndarray, shape (T, L, ny, nx)
+        P(occupied) in [0, 1]; NaN is drawn grey.
+    tracks : dict of column arrays, optional
+        ``step``, ``x_m``, ``y_m``: positions at a step are drawn as white dots on every plane.
+    steps : ndarray of int, shape (T,), optional
+        Step number of each frame (to match tracks); defaults to 0..T-1.
+    cell_px : int
+        Pixels per cell side.
+    gap_px : int
+        Pixels between planes.
+
+    Returns
+    -------
+    ndarray, shape (T, ny * cell_px, L * (nx * cell_px + gap_px) - gap_px, 3), uint8
+    """
+    occ = np.asarray(occupancy, dtype=np.float32)
+    if occ.ndim != 4 or occ.shape[1:] != stack.shape:
+        raise ValueError(f"occupancy must have shape (T, {', '.join(map(str, stack.shape))}), got {occ.shape}")
+    T, L, ny, nx = occ.shape
+    steps = np.arange(T) if steps is None else np.asarray(steps)
+    rgba = matplotlib.colormaps["magma"](np.nan_to_num(occ, nan=0.0), bytes=True)[..., :3]
+    rgba[np.isnan(occ)] = 90
+    rgba = rgba[:, :, ::-1]  # row iy grows with world Y: flip so Y points up in the image
+    big = np.repeat(np.repeat(rgba, cell_px, axis=2), cell_px, axis=3)
+    h, w = ny * cell_px, nx * cell_px
+    frames = np.full((T, h, L * (w + gap_px) - gap_px, 3), 255, np.uint8)
+    for l in range(L):
+        frames[:, :, l * (w + gap_px): l * (w + gap_px) + w] = big[:, l]
+    if tracks is not None and len(tracks.get("step", [])):
+        ts = np.asarray(tracks["step"], float).astype(np.int64)
+        iy, ix = stack.index_from_xy(np.stack([np.asarray(tracks["x_m"], float),
+                                               np.asarray(tracks["y_m"], float)], -1))
+        frame_of_step = {int(s): i for i, s in enumerate(steps)}
+        fi = np.array([frame_of_step.get(int(s), -1) for s in ts])
+        ok = (fi >= 0) & (iy >= 0)
+        r = max(cell_px, 2)
+        for f, y, x in zip(fi[ok], iy[ok], ix[ok]):
+            v = (ny - 1 - y) * cell_px
+            for l in range(L):
+                u = l * (w + gap_px) + x * cell_px
+                frames[f, max(v - r, 0): v + r + 1, max(u - r, 0): min(u + r + 1, l * (w + gap_px) + w)] = 255
+    return frames
+
+
+def animate_stack(
+    path: Path | str,
+    stack: PlaneStack,
+    occupancy,
+    tracks: Mapping[str, np.ndarray] | None = None,
+    *,
+    fps: float = 10.0,
+    max_frames: int = 300,
+    max_width_px: int = 1200,
+) -> Path:
+    """Write an animation of the plane stack over time to ``path`` (``.gif`` or ``.mp4``).
+
+    Parameters
+    ----------
+    occupancy : ndarray, shape (T, L, ny, nx)
+    tracks : dict of column arrays, optional
+    fps : float
+        Frames per second of the animation.
+    max_frames : int
+        Longer runs are subsampled evenly (the count dropped is warned about).
+    max_width_px : int
+        Cells are drawn with as many pixels as fit this width (at least 1, at most 8).
+
+    Returns
+    -------
+    Path
+        The file written (atomically).
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".gif", ".mp4"):
+        raise ValueError(f"animation path must end in .gif or .mp4, got {path.name!r}")
+    occ = np.asarray(occupancy)
+    T = occ.shape[0]
+    if T == 0:
+        raise ValueError("occupancy has no time steps to animate")
+    idx = np.unique(np.linspace(0, T - 1, min(T, max_frames)).round().astype(int))
+    if len(idx) < T:
+        warnings.warn(f"animation shows {len(idx)} of {T} steps (max_frames={max_frames})", stacklevel=2)
+    L, ny, nx = stack.shape
+    cell_px = max(1, min(8, (max_width_px - 4 * (L - 1)) // (L * nx)))
+    frames = stack_frames(stack, occ[idx], tracks, steps=idx, cell_px=cell_px)
+    if suffix == ".mp4":  # codecs want even sizes
+        frames = frames[:, : frames.shape[1] // 2 * 2, : frames.shape[2] // 2 * 2]
+    tmp = path.with_name(f".{path.stem}{TMP_MARK}{path.suffix}")
+    try:
+        if suffix == ".gif":
+            iio.imwrite(tmp, frames, duration=1000.0 / fps, loop=0)
+        else:
+            _write_mp4(tmp, frames, fps)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def _write_mp4(path: Path, frames: np.ndarray, fps: float) -> None:
+    try:
+        iio.imwrite(path, frames, fps=fps)
+        return
+    except (OSError, ImportError, ValueError):
+        pass  # no imageio video plugin installed: OpenCV's FFmpeg backend writes MPEG-4 Part 2
+    h, w = frames.shape[1:3]
+    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
+    if not vw.isOpened():
+        raise OSError(f"cannot write MP4 {path}: neither imageio (ffmpeg/pyav) nor OpenCV can encode video here")
+    for f in frames:
+        vw.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+    vw.release()

@@ -1,0 +1,353 @@
+"""Figures of a run (matplotlib, Agg): each function takes plain arrays and returns a Figure.
+
+Floor-plan axes are world X (right) and Y (up) in metres; grids are drawn with
+``origin="lower"`` and ``extent=stack.extent_m`` so that cell ``[iy, ix]`` sits
+at its world position (see :mod:`planefuse.grid`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from ..geometry import PinholeCamera  # noqa: E402
+from ..grid import PlaneStack  # noqa: E402
+
+__all__ = [
+    "FigureInputs",
+    "plot_plane_occupancy",
+    "plot_camera_grid",
+    "plot_saliency",
+    "plot_laser_points",
+    "plot_metrics",
+    "png_bytes",
+    "run_figures",
+    "grid_lines_world",
+]
+
+
+@dataclass
+class FigureInputs:
+    """Optional material for the figures of a run, beyond what :class:`~planefuse.outputs.OutputWriter` holds.
+
+    Attributes
+    ----------
+    cameras : list of PinholeCamera
+        Calibrated cameras (world frame).
+    camera_images : dict of str -> ndarray
+        One frame per camera name, (H, W) gray or (H, W, 3) RGB uint8; cameras
+        without an image are drawn on a blank frame.
+    laser_points_world : ndarray, shape (N, 3)
+        Laser hits in the world frame [m] (e.g. one scan per laser).
+    saliency : ndarray, shape (T, A)
+        Auditory saliency per frame and azimuth bin (any non-negative scale).
+    saliency_times_s : ndarray, shape (T,)
+        Times of the saliency frames [s].
+    saliency_azimuth_rad : ndarray, shape (A,)
+        Azimuths of the bins [rad], in the microphone pair's frame.
+    ground_truth : dict of str -> ndarray
+        Ground-truth table with columns ``step``, ``track_id``, ``x_m``, ``y_m`` (drawn dashed).
+    """
+
+    cameras: list[PinholeCamera] = field(default_factory=list)
+    camera_images: dict[str, np.ndarray] = field(default_factory=dict)
+    laser_points_world: np.ndarray | None = None
+    saliency: np.ndarray | None = None
+    saliency_times_s: np.ndarray | None = None
+    saliency_azimuth_rad: np.ndarray | None = None
+    ground_truth: dict[str, np.ndarray] | None = None
+
+
+def png_bytes(fig: Figure, dpi: int = 100) -> bytes:
+    """Render ``fig`` to PNG bytes and close it."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _plane_axes(n: int, size_in: float = 3.2) -> tuple[Figure, np.ndarray]:
+    cols = min(n, 4)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(size_in * cols, size_in * rows + 0.4), squeeze=False,
+                             constrained_layout=True)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    return fig, axes.ravel()
+
+
+def _track_lines(ax, tracks: Mapping[str, np.ndarray] | None, upto_step: float, style: str = "-",
+                 label: str = "track") -> None:
+    if not tracks or len(tracks.get("step", [])) == 0:
+        return
+    steps = np.asarray(tracks["step"], float)
+    ids = np.asarray(tracks["track_id"])
+    xy = np.stack([np.asarray(tracks["x_m"], float), np.asarray(tracks["y_m"], float)], axis=-1)
+    keep = steps <= upto_step
+    cmap = plt.get_cmap("tab10")
+    for k, tid in enumerate(np.unique(ids[keep])):
+        m = keep & (ids == tid)
+        order = np.argsort(steps[m])
+        path = xy[m][order]
+        ax.plot(path[:, 0], path[:, 1], style, color=cmap(int(tid) % 10), lw=1.2,
+                label=f"{label} {int(tid)}" if k < 6 else None)
+        ax.plot(path[-1, 0], path[-1, 1], "o", color=cmap(int(tid) % 10), ms=4)
+
+
+def plot_plane_occupancy(
+    stack: PlaneStack,
+    occupancy,
+    *,
+    time_s: float | None = None,
+    detections_xy_m=None,
+    tracks: Mapping[str, np.ndarray] | None = None,
+    step: int | None = None,
+    ground_truth: Mapping[str, np.ndarray] | None = None,
+) -> Figure:
+    """Occupancy of every plane over the floor plan, with detections and tracks.
+
+    Parameters
+    ----------
+    stack : PlaneStack
+    occupancy : ndarray, shape (L, ny, nx)
+        P(occupied) per cell in [0, 1] (NaN drawn as unknown).
+    time_s : float, optional
+        Shown in the title [s].
+    detections_xy_m : ndarray, shape (N, 2), optional
+        Ground-plane detections [m], drawn as crosses on every plane.
+    tracks : dict of column arrays, optional
+        Table with ``step``, ``track_id``, ``x_m``, ``y_m``; rows with ``step``
+        up to ``step`` (all if None) are drawn as lines.
+    ground_truth : dict of column arrays, optional
+        Same columns, drawn dashed.
+    """
+    occ = np.asarray(occupancy, dtype=float)
+    if occ.shape != stack.shape:
+        raise ValueError(f"occupancy must have shape {stack.shape} (L, ny, nx), got {occ.shape}")
+    fig, axes = _plane_axes(stack.n_planes)
+    upto = np.inf if step is None else step
+    im = None
+    for l, ax in enumerate(axes[: stack.n_planes]):
+        im = ax.imshow(occ[l], origin="lower", extent=stack.extent_m, vmin=0, vmax=1, cmap="magma",
+                       interpolation="nearest")
+        ax.set_title(f"plane z = {stack.heights_m[l]:g} m", fontsize=9)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        if detections_xy_m is not None and len(detections_xy_m):
+            d = np.asarray(detections_xy_m, float).reshape(-1, 2)
+            ax.plot(d[:, 0], d[:, 1], "x", color="cyan", ms=6, label="detection")
+        _track_lines(ax, ground_truth, upto, "--", "truth")
+        _track_lines(ax, tracks, upto)
+        ax.set_xlim(stack.extent_m[:2])
+        ax.set_ylim(stack.extent_m[2:])
+    handles, labels = axes[0].get_legend_handles_labels()
+    if handles:
+        axes[0].legend(fontsize=7, loc="upper right")
+    fig.colorbar(im, ax=list(axes[: stack.n_planes]), shrink=0.8, label="P(occupied)")
+    fig.suptitle("Occupancy per plane" + (f" at t = {time_s:.2f} s" if time_s is not None else ""))
+    return fig
+
+
+def grid_lines_world(stack: PlaneStack, plane: int, spacing_m: float = 1.0, samples: int = 100) -> np.ndarray:
+    """World polylines of the grid of one plane: lines x = const and y = const every ``spacing_m``.
+
+    Returns
+    -------
+    ndarray, shape (K, samples, 3)
+        K polylines of ``samples`` points each, on z = ``stack.heights_m[plane]`` [m]; sampled
+        densely so that lens distortion shows once projected.
+    """
+    x0, x1, y0, y1 = stack.extent_m
+    z = stack.heights_m[plane]
+    xs = np.unique(np.r_[np.arange(x0, x1 + 1e-9, spacing_m), x1])
+    ys = np.unique(np.r_[np.arange(y0, y1 + 1e-9, spacing_m), y1])
+    t = np.linspace(0.0, 1.0, samples)
+    vert = [np.stack([np.full_like(t, x), y0 + t * (y1 - y0), np.full_like(t, z)], -1) for x in xs]
+    horiz = [np.stack([x0 + t * (x1 - x0), np.full_like(t, y), np.full_like(t, z)], -1) for y in ys]
+    return np.stack(vert + horiz)
+
+
+def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spacing_m: float = 1.0) -> Figure:
+    """A camera frame with the grid of every plane projected through the camera (lens distortion included).
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+    stack : PlaneStack
+    image : ndarray, shape (H, W) or (H, W, 3), optional
+        The frame to draw under the grid; blank when omitted.
+    spacing_m : float
+        Distance between drawn grid lines [m].
+    """
+    w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
+    fig, ax = plt.subplots(figsize=(5.0, 5.0 * h / w + 0.3), constrained_layout=True)
+    if image is None:
+        image = np.full((h, w), 0.15)
+    ax.imshow(image, cmap="gray" if np.ndim(image) == 2 else None, extent=(-0.5, w - 0.5, h - 0.5, -0.5))
+    cmap = plt.get_cmap("viridis")
+    for l in range(stack.n_planes):
+        color = cmap(l / max(stack.n_planes - 1, 1))
+        lines = grid_lines_world(stack, l, spacing_m)
+        uv = camera.project(lines)
+        for k, line in enumerate(uv):
+            ax.plot(line[:, 0], line[:, 1], "-", color=color, lw=0.7,
+                    label=f"z = {stack.heights_m[l]:g} m" if k == 0 else None)
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_xlabel("u [px]")
+    ax.set_ylabel("v [px]")
+    ax.set_title(f"{camera.name}: registered planes (grid every {spacing_m:g} m)", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
+    return fig
+
+
+def plot_saliency(times_s, azimuth_rad, saliency) -> Figure:
+    """Auditory saliency over time and azimuth (azimuth shown in degrees).
+
+    Parameters
+    ----------
+    times_s : ndarray, shape (T,)
+    azimuth_rad : ndarray, shape (A,)
+    saliency : ndarray, shape (T, A)
+    """
+    t = np.asarray(times_s, float)
+    az = np.asarray(azimuth_rad, float)
+    s = np.asarray(saliency, float)
+    if s.shape != (t.size, az.size):
+        raise ValueError(f"saliency must have shape (T, A) = ({t.size}, {az.size}), got {s.shape}")
+    fig, ax = plt.subplots(figsize=(7, 3.2), constrained_layout=True)
+    m = ax.pcolormesh(t, np.degrees(az), s.T, shading="nearest", cmap="viridis")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("azimuth [deg]")
+    ax.set_title("Auditory saliency map")
+    fig.colorbar(m, ax=ax, label="saliency")
+    return fig
+
+
+def plot_laser_points(stack: PlaneStack, points_world) -> Figure:
+    """Laser hits assigned to each plane by height band (``stack.plane_index_from_z``).
+
+    Parameters
+    ----------
+    points_world : ndarray, shape (N, 3)
+        Hits in the world frame [m]; those outside every band are counted in the title.
+    """
+    p = np.asarray(points_world, float).reshape(-1, 3)
+    k = stack.plane_index_from_z(p[:, 2])
+    fig, axes = _plane_axes(stack.n_planes, 2.8)
+    for l, ax in enumerate(axes[: stack.n_planes]):
+        q = p[k == l]
+        ax.plot(q[:, 0], q[:, 1], ".", ms=2, color="tab:red")
+        ax.set_xlim(stack.extent_m[:2])
+        ax.set_ylim(stack.extent_m[2:])
+        ax.set_aspect("equal")
+        lo, hi = stack.band_edges_m[l], stack.band_edges_m[l + 1]
+        ax.set_title(f"z = {stack.heights_m[l]:g} m ({lo:g}-{hi:g} m): {len(q)} pts", fontsize=8)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    fig.suptitle(f"Laser points per plane ({int(np.sum(k < 0))} of {len(p)} outside all bands)")
+    return fig
+
+
+def plot_metrics(metrics: Mapping[str, object]) -> Figure | None:
+    """Scalar metrics as a bar chart and per-step series (lists) as lines; None if there is nothing to plot."""
+    scalars = {k: float(v) for k, v in metrics.items()
+               if isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and np.isfinite(v)}
+    series = {k: np.asarray(v, float) for k, v in metrics.items()
+              if isinstance(v, (list, tuple, np.ndarray)) and len(v) > 1
+              and all(isinstance(x, (int, float, np.number)) or x is None for x in v)}
+    n = bool(scalars) + bool(series)
+    if n == 0:
+        return None
+    fig, axes = plt.subplots(1, n, figsize=(5.5 * n, 3.2), squeeze=False, constrained_layout=True)
+    axes = list(axes.ravel())
+    if scalars:
+        ax = axes.pop(0)
+        ax.barh(list(scalars), list(scalars.values()), color="tab:blue")
+        for i, v in enumerate(scalars.values()):
+            ax.text(v, i, f" {v:.3g}", va="center", fontsize=8)
+        ax.set_title("Metrics")
+    if series:
+        ax = axes.pop(0)
+        for k, v in series.items():
+            ax.plot(v, label=k)
+        ax.set_xlabel("step")
+        ax.legend(fontsize=7)
+        ax.set_title("Per-step metrics")
+    return fig
+
+
+def run_figures(
+    stack: PlaneStack,
+    occupancy,
+    times_s,
+    detections: Mapping[str, np.ndarray],
+    tracks: Mapping[str, np.ndarray],
+    metrics: Mapping[str, object],
+    inputs: FigureInputs,
+    *,
+    dpi: int = 100,
+    progress=None,
+) -> dict[str, bytes]:
+    """Every figure of a run as PNG bytes, keyed by a file-name stem.
+
+    Parameters
+    ----------
+    occupancy : ndarray, shape (T, L, ny, nx)
+    times_s : ndarray, shape (T,)
+    detections, tracks : dict of column arrays
+        As returned by :meth:`OutputWriter.detections_table` / ``tracks_table``.
+    metrics : dict
+    inputs : FigureInputs
+    progress : ProgressReporter, optional
+    """
+    occ = np.asarray(occupancy)
+    jobs: list[tuple[str, object]] = []
+    if occ.shape[0]:
+        last = occ.shape[0] - 1
+        dstep = np.asarray(detections.get("step", []), float)
+        det_xy = np.stack([np.asarray(detections["x_m"], float)[dstep == last],
+                           np.asarray(detections["y_m"], float)[dstep == last]], -1) if dstep.size else None
+        jobs.append(("occupancy_last", lambda: plot_plane_occupancy(
+            stack, occ[last], time_s=float(times_s[last]), detections_xy_m=det_xy, tracks=tracks,
+            ground_truth=inputs.ground_truth)))
+        jobs.append(("occupancy_mean", lambda: _mean_fig(stack, occ, tracks, inputs.ground_truth)))
+    for cam in inputs.cameras:
+        jobs.append((f"camera_{cam.name}", lambda cam=cam: plot_camera_grid(
+            cam, stack, inputs.camera_images.get(cam.name))))
+    if inputs.saliency is not None:
+        jobs.append(("saliency", lambda: plot_saliency(inputs.saliency_times_s, inputs.saliency_azimuth_rad,
+                                                       inputs.saliency)))
+    if inputs.laser_points_world is not None:
+        jobs.append(("laser_points", lambda: plot_laser_points(stack, inputs.laser_points_world)))
+    if metrics:
+        jobs.append(("metrics", lambda: plot_metrics(metrics)))
+    out: dict[str, bytes] = {}
+    step = progress.step("figures", total=len(jobs), unit="figures") if progress is not None \
+        else contextlib.nullcontext(lambda n=1: None)
+    with step as advance:
+        for name, make in jobs:
+            fig = make()
+            if fig is not None:
+                out[name] = png_bytes(fig, dpi)
+            advance(1)
+    return out
+
+
+def _mean_fig(stack: PlaneStack, occ: np.ndarray, tracks, ground_truth) -> Figure:
+    with warnings.catch_warnings():  # all-NaN cells (never observed) stay NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(occ, axis=0)
+    fig = plot_plane_occupancy(stack, mean, tracks=tracks, ground_truth=ground_truth)
+    fig.suptitle(f"Mean occupancy over {occ.shape[0]} steps, with all tracks")
+    return fig

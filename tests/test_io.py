@@ -1,0 +1,313 @@
+"""Evidence for the recording format: exact round trips and clear errors for broken recordings."""
+
+from __future__ import annotations
+
+import shutil
+import warnings
+
+import numpy as np
+import pytest
+import soundfile as sf
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planefuse.io import (
+    AudioStream,
+    LaserScans,
+    LaserStream,
+    read_recording,
+)
+from planefuse.io._timestamps import TimeChecker, read_csv_chunks, write_csv
+from planefuse.sim import SceneConfig, simulate
+
+
+def _small_config(**kw) -> SceneConfig:
+    base = {
+        "duration_s": 1.0,
+        "n_people": 3,
+        "seed": 5,
+        "laser": {"resolution_deg": 2.0},
+        "head": {"rt60_s": 0.0},
+        "cameras": [
+            {"name": "a", "position_m": [0.3, 0.3, 3.0], "target_m": [5, 5, 0], "width_px": 160, "height_px": 120},
+            {"name": "b", "position_m": [9.7, 9.7, 2.8], "target_m": [5, 5, 0], "width_px": 160, "height_px": 120,
+             "rate_hz": 10, "time_offset_s": 0.013},
+        ],
+    }
+    base.update(kw)
+    return SceneConfig.model_validate(base)
+
+
+def _synthetic_laser(rng, n_scans=90, n_beams=181) -> LaserStream:
+    times = 0.005 + np.arange(n_scans) / 40.0
+    ranges = rng.uniform(0.1, 12.0, (n_scans, n_beams))
+    ranges[rng.random(ranges.shape) < 0.05] = np.nan
+    scans = LaserScans(times, np.linspace(-np.radians(135), np.radians(135), n_beams), ranges,
+                       np.radians(10) * np.sin(2 * np.pi * times / 2.0),
+                       {"T_world_scanner": np.tile(np.eye(4), (n_scans, 1, 1))})
+    return LaserStream("syn_laser", np.eye(4), 40.0, n_scans, {"fov_deg": 270.0, "resolution_deg": 1.5}, data=scans)
+
+
+def _synthetic_audio(rng, n=16000 + 37) -> AudioStream:
+    x = (0.1 * rng.normal(size=(n, 2))).astype(np.float32)
+    T = np.eye(4)
+    T[:3, 3] = [5.0, 0.3, 1.6]
+    return AudioStream("syn_head", T, 16000, 0.0, n, data=x)
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    rng = np.random.default_rng(11)
+    rec = simulate(_small_config())
+    rec.lasers["syn_laser"] = _synthetic_laser(rng)
+    rec.audio["syn_head"] = _synthetic_audio(rng)
+    out = tmp_path_factory.mktemp("rec") / "r"
+    rec.write(out)
+    return rec, out
+
+
+def test_round_trip_is_identical(written):
+    rec, out = written
+    back = read_recording(out)
+    assert back.duration_s == rec.duration_s and back.room_xy_m == rec.room_xy_m
+    assert list(back.camera_streams) == ["a", "b"]
+    for name, cs in rec.camera_streams.items():
+        cb = back.camera(name)
+        np.testing.assert_array_equal(cb.times_s, cs.times_s)
+        np.testing.assert_array_equal(cb.camera.K, cs.camera.K)
+        np.testing.assert_array_equal(cb.camera.T_world_cam, cs.camera.T_world_cam)
+        np.testing.assert_array_equal(cb.camera.intrinsics.dist, cs.camera.intrinsics.dist)
+        for fa, fb in zip(cs, cb, strict=True):
+            assert fa.time_s == fb.time_s
+            np.testing.assert_array_equal(fa.image, fb.image)
+            np.testing.assert_array_equal(fa.mask, fb.mask)
+    assert back.camera("b").times_s[0] == 0.013 and len(back.camera("b")) == 10
+    for name, s in rec.imus.items():
+        a, b = s.read(), back.imu(name).read()
+        for f in ("times_s", "gyro_rad_s", "accel_m_s2"):
+            np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+        np.testing.assert_array_equal(back.imu(name).T_cam_imu, s.T_cam_imu)
+        assert back.imu(name).attached_to == s.attached_to
+    for name in ("laser0", "syn_laser"):
+        la, lb = rec.laser(name).read(), back.laser(name).read()
+        for f in ("times_s", "angles_rad", "ranges_m", "tilt_rad"):
+            np.testing.assert_array_equal(getattr(la, f), getattr(lb, f))
+        np.testing.assert_array_equal(back.laser(name).T_world_base, rec.laser(name).T_world_base)
+        assert back.laser(name).model == rec.laser(name).model
+    np.testing.assert_array_equal(rec.laser("syn_laser").read().extra["T_world_scanner"],
+                                  back.laser("syn_laser").read().extra["T_world_scanner"])
+    assert back.laser("syn_laser").model == {"fov_deg": 270.0, "resolution_deg": 1.5}
+    assert len(back.laser("syn_laser").paths) == 1 and len(back.laser("laser0").paths) == 1
+    assert np.isfinite(back.laser("laser0").read().ranges_m).all()  # a closed room: every beam returns
+    for name in ("head", "syn_head"):
+        np.testing.assert_array_equal(rec.binaural(name).read(), back.binaural(name).read())
+        np.testing.assert_array_equal(rec.binaural(name).T_world_head, back.binaural(name).T_world_head)
+    blocks = list(back.binaural("syn_head").blocks(5000))
+    assert [t for t, _ in blocks] == [0.0, 5000 / 16000, 10000 / 16000, 15000 / 16000]
+    ga, gb = rec.groundtruth, back.groundtruth
+    for f in ("times_s", "person_ids", "xy_m", "heading_rad", "speed_m_s", "height_m"):
+        np.testing.assert_array_equal(getattr(ga.people, f), getattr(gb.people, f))
+    np.testing.assert_array_equal(ga.bodies, gb.bodies)
+    for f in ("times_s", "person_ids", "speaking", "position_m", "azimuth_rad", "elevation_rad"):
+        np.testing.assert_array_equal(getattr(ga.sound, f), getattr(gb.sound, f))
+    assert back.provenance["seed"] == 5
+    det = gb.people.detections_at(0.5)
+    assert len(det) == 3 and det.time_s == 0.48
+
+
+def test_streams_are_lazy_and_chunked(written):
+    _, out = written
+    back = read_recording(out)
+    chunks = list(back.imu("a_imu").chunks(max_rows=64))
+    assert [len(c) for c in chunks] == [64, 64, 64, 8]
+    assert np.all(np.diff(np.concatenate([c.times_s for c in chunks])) > 0)
+    # Deleting a frame after opening only fails when that frame is read, naming it.
+    shutil.copytree(out, out.parent / "lazy")
+    lazy = read_recording(out.parent / "lazy")
+    (out.parent / "lazy/cameras/a/frames/000020.png").unlink()
+    lazy.camera("a").frame(19)
+    with pytest.raises(ValueError, match=r"cameras/a/frames/000020\.png: file not found"):
+        lazy.camera("a").frame(20)
+
+
+def test_jpeg_frames_are_close_and_masks_exact(tmp_path):
+    rec = simulate(_small_config(duration_s=0.2))
+    rec.write(tmp_path / "j", image_format="jpg")
+    back = read_recording(tmp_path / "j")
+    for fa, fb in zip(rec.camera("a"), back.camera("a"), strict=True):
+        np.testing.assert_array_equal(fa.mask, fb.mask)
+        err = fa.image.astype(float) - fb.image
+        assert 10 * np.log10(255**2 / np.mean(err**2)) > 35  # PSNR [dB]
+    with pytest.raises(ValueError, match="image_format must be one of"):
+        rec.write(tmp_path / "x", image_format="bmp")
+
+
+def _copy(written, tmp_path, name="broken"):
+    dst = tmp_path / name
+    shutil.copytree(written[1], dst)
+    return dst
+
+
+def test_output_folder_must_be_empty(written):
+    with pytest.raises(ValueError, match="output folder is not empty"):
+        written[0].write(written[1])
+
+
+def test_truncated_imu_csv_names_file_and_line(written, tmp_path):
+    d = _copy(written, tmp_path)
+    p = d / "imu/a_imu.csv"
+    text = p.read_text()
+    p.write_text(text[: len(text) - 25])  # cut the last line in the middle
+    rec = read_recording(d)
+    with pytest.raises(ValueError, match=r"a_imu\.csv:201: truncated line"):
+        rec.imu("a_imu").read()
+    lines = text.splitlines(keepends=True)
+    p.write_text("".join(lines[:-10]))  # whole lines missing
+    with pytest.raises(ValueError, match=r"a_imu\.csv: manifest says n_samples = 200, file has 190 rows"):
+        read_recording(d).imu("a_imu").read()
+
+
+def test_truncated_png_names_file(written, tmp_path):
+    d = _copy(written, tmp_path)
+    p = d / "cameras/b/frames/000004.png"
+    p.write_bytes(p.read_bytes()[:300])
+    rec = read_recording(d)
+    rec.camera("b").frame(3)
+    with pytest.raises(ValueError, match=r"000004\.png: cannot decode image"):
+        rec.camera("b").frame(4)
+
+
+def test_truncated_laser_npz_and_wav_name_file(written, tmp_path):
+    d = _copy(written, tmp_path)
+    p = d / "laser/syn_laser/scans_000000.npz"
+    p.write_bytes(p.read_bytes()[:1000])
+    with pytest.raises(ValueError, match=r"scans_000000\.npz: cannot read NPZ"):
+        read_recording(d).laser("syn_laser").read()
+    w = d / "audio/syn_head.wav"
+    w.write_bytes(w.read_bytes()[:20000])
+    with pytest.raises(ValueError, match=r"syn_head\.wav: .*(truncated|cannot read)"):
+        read_recording(d)
+
+
+def test_missing_stream_names_file(written, tmp_path):
+    d = _copy(written, tmp_path)
+    (d / "imu/b_imu.csv").unlink()
+    with pytest.raises(ValueError, match=r"imu/b_imu\.csv: file not found \(missing stream of imu 'b_imu'\)"):
+        read_recording(d)
+    d = _copy(written, tmp_path, "b2")
+    shutil.rmtree(d / "cameras/a")
+    with pytest.raises(ValueError, match=r"cameras/a/times\.csv: file not found"):
+        read_recording(d)
+    d = _copy(written, tmp_path, "b3")
+    (d / "scene.yaml").unlink()
+    with pytest.raises(ValueError, match=r"scene\.yaml: file not found"):
+        read_recording(d)
+
+
+def test_unknown_sensor_in_manifest_names_line_and_field(written, tmp_path):
+    d = _copy(written, tmp_path)
+    m = yaml.safe_load((d / "scene.yaml").read_text())
+    m["sensors"].append({"type": "radar", "name": "r0", "file": "radar.bin"})
+    text = yaml.safe_dump(m, sort_keys=False)
+    (d / "scene.yaml").write_text(text)
+    line = text.splitlines().index("- type: radar") + 1
+    with pytest.raises(ValueError, match=rf"scene\.yaml:{line}: field sensors\.{len(m['sensors']) - 1}: .*'radar'"):
+        read_recording(d)
+    m["sensors"].pop()
+    m["sensors"][2]["attached_to"] = "nowhere"
+    (d / "scene.yaml").write_text(yaml.safe_dump(m, sort_keys=False))
+    with pytest.raises(ValueError, match=r"attached_to 'nowhere', which is not a camera"):
+        read_recording(d)
+    m["sensors"][2]["attached_to"] = "a"
+    m["sensors"][0]["T_world_cam"][0][0] = 3.0
+    (d / "scene.yaml").write_text(yaml.safe_dump(m, sort_keys=False))
+    with pytest.raises(ValueError, match=r"field sensors\.0\.T_world_cam"):
+        read_recording(d)
+
+
+def test_timestamps_going_backwards_name_file_and_line(written, tmp_path):
+    d = _copy(written, tmp_path)
+    p = d / "imu/a_imu.csv"
+    lines = p.read_text().splitlines(keepends=True)
+    lines[50], lines[51] = lines[51], lines[50]  # rows for samples 48 and 49 (file lines 51, 52)
+    p.write_text("".join(lines))
+    with pytest.raises(ValueError, match=r"a_imu\.csv: line 52: time_s .* goes backwards"):
+        read_recording(d).imu("a_imu").read()
+    t = d / "cameras/a/times.csv"
+    lines = t.read_text().splitlines(keepends=True)
+    lines[8] = lines[7]
+    t.write_text("".join(lines))
+    with pytest.raises(ValueError, match=r"times\.csv: line 9: duplicate time_s"):
+        read_recording(d)
+    g = d / "groundtruth/people.csv"
+    lines = g.read_text().splitlines(keepends=True)
+    lines[1], lines[-1] = lines[-1], lines[1]
+    g.write_text("".join(lines))
+    shutil.copy(written[1] / "cameras/a/times.csv", t)
+    with pytest.raises(ValueError, match=r"people\.csv:3: time_s .* goes backwards"):
+        read_recording(d)
+
+
+def test_laser_timestamps_backwards_name_field(tmp_path, rng):
+    s = _synthetic_laser(rng)
+    s.data.times_s[30] = s.data.times_s[10]
+    from planefuse.io import Recording
+
+    Recording(duration_s=3.0, lasers={"syn_laser": s}).write(tmp_path / "l")
+    with pytest.raises(ValueError, match=r"scans_000000\.npz: time_s\[30\]: time_s .* goes backwards"):
+        read_recording(tmp_path / "l").laser().read()
+
+
+def test_gaps_are_reported(written, tmp_path):
+    d = _copy(written, tmp_path)
+    p = d / "imu/a_imu.csv"
+    lines = p.read_text().splitlines(keepends=True)
+    del lines[101:111]
+    p.write_text("".join(lines))
+    m = yaml.safe_load((d / "scene.yaml").read_text())
+    next(s for s in m["sensors"] if s["name"] == "a_imu")["n_samples"] = 190
+    (d / "scene.yaml").write_text(yaml.safe_dump(m, sort_keys=False))
+    imu = read_recording(d).imu("a_imu")
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        data = imu.read()
+    assert len(data) == 190 and len(imu.gaps) == 1 and imu.gaps[0].missing == 10
+    assert imu.gaps[0].after_s == pytest.approx(99 / 200) and imu.gaps[0].before_s == pytest.approx(110 / 200)
+    assert any("gap in timestamps" in str(x.message) for x in w)
+
+
+def test_wav_with_wrong_channels_is_rejected(written, tmp_path):
+    d = _copy(written, tmp_path)
+    sf.write(d / "audio/syn_head.wav", np.zeros((16037, 1), np.float32), 16000, subtype="FLOAT")
+    with pytest.raises(ValueError, match=r"syn_head\.wav: expected 2 channels at fs_hz = 16000, got 1"):
+        read_recording(d)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.floats(allow_nan=False, allow_infinity=False, width=64), min_size=0, max_size=60),
+    st.integers(1, 17),
+)
+def test_csv_float64_round_trip_exact(tmp_path_factory, values, chunk):
+    path = tmp_path_factory.mktemp("csv") / "t.csv"
+    a = np.array(values, dtype=float).reshape(-1, 1)
+    rows = np.column_stack([np.arange(len(a), dtype=float), a]) if len(a) else np.zeros((0, 2))
+    write_csv(path, ["time_s", "v"], rows)
+    parts = list(read_csv_chunks(path, ["time_s", "v"], max_rows=chunk))
+    back = np.concatenate([p for p, _ in parts]) if parts else np.zeros((0, 2))
+    np.testing.assert_array_equal(back, rows)
+    assert [line for _, line in parts] == list(range(2, 2 + len(rows), chunk))
+
+
+@given(st.lists(st.floats(0, 100, allow_nan=False), min_size=2, max_size=50))
+def test_time_checker_accepts_exactly_increasing_sequences(ts):
+    t = np.array(ts)
+    increasing = bool(np.all(np.diff(t) > 0))
+    checker = TimeChecker("x.csv")
+    if increasing:
+        checker.check(t[: len(t) // 2])
+        checker.check(t[len(t) // 2 :])
+    else:
+        with pytest.raises(ValueError, match=r"x\.csv: time_s\[\d+\]: (duplicate|time_s .* goes backwards)"):
+            checker.check(t)

@@ -13,13 +13,16 @@ from planefuse.calib import load_wildtrack_rig
 from planefuse.eval import detection_scores
 from planefuse.geometry import apply_homography
 from planefuse.grid import PlaneStack
-from planefuse.vision import CameraParams, PersonParams, camera_detections, lookups_from_cameras
-from planefuse.vision._datasets import (
+from planefuse.vision import (
+    CameraParams,
+    PersonParams,
+    camera_detections,
     epfl_box_frames,
     epfl_ground_truth,
     epfl_lookups,
     image_folder_frames,
     load_epfl_sequence,
+    lookups_from_cameras,
 )
 
 
@@ -91,7 +94,7 @@ def test_image_folders_with_a_missing_frame(tmp_path):
 
 def test_simulated_scene_exact_masks_multiplane():
     from planefuse.sim import default_scene_config, simulate
-    from planefuse.vision._datasets import recording_frames
+    from planefuse.vision import recording_frames
 
     rec = simulate(default_scene_config(duration_s=2.0, seed=1))
     frames = [f for i, f in enumerate(recording_frames(rec, masks=True)) if i % 5 == 0]

@@ -18,13 +18,11 @@ from ..vision import (
     ForegroundParams,
     PersonParams,
     camera_detections,
-    lookups_from_cameras,
-)
-from ..vision._datasets import (
     epfl_box_frames,
     epfl_ground_truth,
     epfl_lookups,
     load_epfl_sequence,
+    lookups_from_cameras,
     read_epfl_detections,
     recording_frames,
     wildtrack_frames,

@@ -108,7 +108,8 @@ def epfl_lookups(seq: EpflSequence, stack: PlaneStack) -> list[ImagePlaneLookup]
 
 
 def epfl_box_frames(seq: EpflSequence, frames=None, *, boxes: list[dict[int, np.ndarray]] | None = None,
-                    foot_fraction: float = 1.0, floor: float = 0.02, ceiling: float = 0.98) -> Iterator[tuple[float, list[np.ndarray]]]:
+                    foot_fraction: float = 1.0, floor: float = 0.02,
+                    ceiling: float = 0.98) -> Iterator[tuple[float, list[np.ndarray]]]:
     """Filled person boxes per view as foreground likelihoods.
 
     Parameters

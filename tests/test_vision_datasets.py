@@ -122,3 +122,29 @@ def test_cli_epfl_runs(tmp_path):
     assert r.exit_code == 0, r.output
     scores = json.loads(out.read_text())
     assert [s["threshold_m"] for s in scores] == [0.5, 1.0] and scores[0]["frames"] == 11
+
+
+def test_cli_wildtrack_on_frames_with_a_missing_one(tmp_path):
+    """The WILDTRACK path end to end: real calibration, frames in Image_subsets/C*/, one frame missing."""
+    from typer.testing import CliRunner
+
+    from planefuse.cli._app import app
+
+    root = shared_data("wildtrack")
+    d = tmp_path / "wildtrack"
+    d.mkdir()
+    for sub in ("intrinsic", "extrinsic"):
+        (d / sub).symlink_to(root / sub)
+    for i in range(1, 8):
+        img = cv2.imread(str(root / "images_or" / f"C{i}.jpg"), cv2.IMREAD_COLOR)
+        (d / "Image_subsets" / f"C{i}").mkdir(parents=True)
+        for k in (0, 5):
+            if i == 3 and k == 5:
+                continue
+            cv2.imwrite(str(d / "Image_subsets" / f"C{i}" / f"{k:08d}.png"), img)
+    out = tmp_path / "det.csv"
+    with pytest.warns(UserWarning, match="C3: no frame at t=2.5"):
+        r = CliRunner().invoke(app, ["cameras", "wildtrack", str(d), "--cell-m", "0.25", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert "2 instants, 1 missing frames" in " ".join(r.output.split())
+    assert out.read_text().splitlines()[0] == "time_s,x_m,y_m,confidence,height_m"

@@ -13,7 +13,8 @@ def render_cylinder_mask(camera, people_xy, heights_m, radius_m: float = 0.2) ->
     o = camera.center_world
     mask = np.zeros(len(d), dtype=bool)
     a = d[:, 0] ** 2 + d[:, 1] ** 2
-    for (cx, cy), top in zip(np.asarray(people_xy, float).reshape(-1, 2), np.broadcast_to(heights_m, (len(people_xy),))):
+    xy = np.asarray(people_xy, float).reshape(-1, 2)
+    for (cx, cy), top in zip(xy, np.broadcast_to(heights_m, (len(xy),))):
         ox, oy = o[0] - cx, o[1] - cy
         b = 2 * (ox * d[:, 0] + oy * d[:, 1])
         c = ox * ox + oy * oy - radius_m**2

@@ -187,6 +187,8 @@ class BOFState:
         occ = np.empty(self.free.shape, np.float32)
         vel = np.empty(self.free.shape + (2,), np.float32)
         _moments_kernel(self.occ_v, self.velocities_mps.astype(np.float32), occ, vel)
+        # float32 sums of K masses can exceed 1 by an ulp when a cell is (almost) surely occupied.
+        np.clip(occ, 0.0, 1.0, out=occ)
         return occ, vel
 
     def copy(self) -> "BOFState":

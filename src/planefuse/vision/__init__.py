@@ -1,5 +1,16 @@
 """Cameras: foreground likelihoods, multi-view fusion on the plane stack, people on the ground."""
 
+from ._datasets import (
+    EpflSequence,
+    epfl_box_frames,
+    epfl_ground_truth,
+    epfl_lookups,
+    image_folder_frames,
+    load_epfl_sequence,
+    read_epfl_detections,
+    recording_frames,
+    wildtrack_frames,
+)
 from ._foreground import (
     BackgroundSubtractor,
     ForegroundParams,
@@ -16,16 +27,25 @@ __all__ = [
     "CameraFusion",
     "CameraParams",
     "CameraReport",
+    "EpflSequence",
     "ForegroundParams",
     "FusionParams",
     "PersonParams",
     "camera_detections",
+    "epfl_box_frames",
+    "epfl_ground_truth",
+    "epfl_lookups",
     "foreground_from_boxes",
     "foreground_from_mask",
     "ground_detections_from_log_odds",
+    "image_folder_frames",
+    "load_epfl_sequence",
     "log_odds_table",
     "lookups_from_cameras",
     "max_log_ratio",
     "person_score_map",
+    "read_epfl_detections",
     "read_mot_detections",
+    "recording_frames",
+    "wildtrack_frames",
 ]

@@ -60,14 +60,14 @@ class ForegroundParams:
         OpenCV learning rate (-1 = automatic from ``history``).
     """
 
-    method: str = "mog2"
-    history: int = 200
+    method: str = "knn"
+    history: int = 500
     threshold: float | None = None
     detect_shadows: bool = True
     shadow_likelihood: float = 0.1
-    open_px: int = 3
+    open_px: int = 0
     close_px: int = 5
-    blur_px: int = 5
+    blur_px: int = 0
     floor: float = 0.02
     ceiling: float = 0.98
     learning_rate: float = -1.0

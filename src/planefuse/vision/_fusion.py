@@ -78,17 +78,19 @@ def log_odds_table(params: FusionParams) -> np.ndarray:
     return (np.log(f * pd + (1 - f) * (1 - pd)) - np.log(f * pfa + (1 - f) * (1 - pfa))).astype(np.float32)
 
 
-@njit(cache=True)
+@njit(cache=True, boundscheck=False)
 def _fuse_kernel(fg_q, lut, active, table, out):  # pragma: no cover - compiled
     # out[n] = sum over active cameras c seeing cell n of table[fg_q[lut[c, n]]]
     n_cam, n_cell = lut.shape
-    for n in range(n_cell):
-        s = np.float32(0.0)
-        for c in range(n_cam):
-            k = lut[c, n]
-            if k >= 0 and active[c]:
-                s += table[fg_q[k]]
-        out[n] = s
+    out[:] = 0.0
+    for c in range(n_cam):
+        if not active[c]:
+            continue
+        row = lut[c]
+        for n in range(n_cell):
+            k = row[n]
+            if k >= 0:
+                out[n] += table[fg_q[k]]
 
 
 class CameraFusion:

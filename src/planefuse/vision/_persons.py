@@ -13,14 +13,20 @@ The person's top plane is ``k*(X) = argmax_{k >= k_min} S_k(X)``, where
 must be occupied from the ground up to at least that plane. ``k*`` gives the
 height estimate.
 
+A person fills only part of its footprint disc (radius ``radius_m``) on a
+plane: low planes cut two legs, and the space between them is seen as
+background. So before the column sum each plane's log-odds are max-pooled over
+the footprint disc (``L_l <- max_{|X'-X| <= r} L_l(X')``): "something of the
+person is within r of X on every plane up to k".
+
 ``S`` grows with the number of views behind it (cells seen by 2 cameras cannot
 collect the evidence of cells seen by 4), so detection uses the *agreement*::
 
-    A(X) = sum_{footprint} S_{k*}(X') / sum_{footprint} N_{k*}(X')    N_k = (camera, plane) views in the column
+    A(X) = mean_{footprint} S_{k*}(X') / (N_{k*}(X') log(p_d / p_fa))    N_k = (camera, plane) views in the column
 
-the mean per-view log-likelihood ratio over a person's footprint (disc of
-``radius_m``), normalised by its largest possible value ``log(p_d / p_fa)``:
-1 when every view of every plane of the column sees foreground. Local maxima of
+the per-view log-likelihood ratio normalised by its largest possible value
+(1 when every view of every plane of the column sees foreground), averaged over
+the footprint disc so that its maximum sits at the person's centre. Local maxima of
 ``A`` at least ``nms_radius_m`` apart with ``A >= min_agreement`` on cells seen
 by at least ``min_cameras`` cameras are the feet positions, with confidence A.
 """
@@ -48,7 +54,8 @@ class PersonParams:
         Every person reaches at least this height [m]: all planes at or below
         it must be occupied (the lowest plane is always required).
     radius_m : float
-        Radius of a person's footprint [m] (score averaged over this disc).
+        Radius of a person's footprint [m] (per-plane max-pooling and
+        smoothing disc).
     nms_radius_m : float
         Minimum distance between two detections [m].
     min_agreement : float
@@ -59,9 +66,9 @@ class PersonParams:
     """
 
     min_height_m: float = 1.0
-    radius_m: float = 0.2
+    radius_m: float = 0.25
     nms_radius_m: float = 0.45
-    min_agreement: float = 0.8
+    min_agreement: float = 0.7
     min_cameras: int = 2
 
     def __post_init__(self) -> None:
@@ -71,6 +78,10 @@ class PersonParams:
             raise ValueError(f"PersonParams.min_agreement must be in (0, 1], got {self.min_agreement}")
         if self.min_cameras < 1:
             raise ValueError(f"PersonParams.min_cameras must be >= 1, got {self.min_cameras}")
+
+
+#: Agreement values within this of a peak belong to its plateau (position = plateau centroid).
+_PLATEAU = 0.02
 
 
 def _disc(radius_cells: float) -> np.ndarray:
@@ -110,15 +121,21 @@ def person_score_map(log_odds, views, stack: PlaneStack, max_log_ratio: float,
         raise ValueError(f"max_log_ratio must be > 0, got {max_log_ratio}")
     heights = np.asarray(stack.heights_m)
     k_min = max(int(np.searchsorted(heights, params.min_height_m, side="right")) - 1, 0)
-    cum = np.cumsum(L, axis=0)[k_min:]
+    disc = _disc(params.radius_m / stack.cell_size_m)
+    # A person fills only part of its footprint on a plane (two legs low down): per plane, the best
+    # cell within the footprint speaks for the column.
+    pooled = np.stack([cv2.dilate(L[l], disc.astype(np.uint8), borderType=cv2.BORDER_CONSTANT,
+                                  borderValue=0.0) for l in range(len(L))])
+    cum = np.cumsum(pooled, axis=0)[k_min:]
     top = np.argmax(cum, axis=0)
     col = np.take_along_axis(cum, top[None], axis=0)[0]
     n_col = np.take_along_axis(np.cumsum(N, axis=0)[k_min:], top[None], axis=0)[0]
-    kernel = _disc(params.radius_m / stack.cell_size_m).astype(np.float32)
-    s = cv2.filter2D(col, -1, kernel, borderType=cv2.BORDER_CONSTANT)
-    n = cv2.filter2D(n_col, -1, kernel, borderType=cv2.BORDER_CONSTANT)
     with np.errstate(invalid="ignore", divide="ignore"):
-        agreement = np.where((n > 0) & (N[0] >= params.min_cameras), s / (n * max_log_ratio), -1.0)
+        a = np.where(n_col > 0, col / (n_col * max_log_ratio), 0.0).astype(np.float32)
+    # Smooth over the footprint so that the pooled plateau peaks at the person's centre.
+    kernel = disc.astype(np.float32) / disc.sum()
+    a = cv2.filter2D(a, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+    agreement = np.where(N[0] >= params.min_cameras, a, -1.0)
     return agreement.astype(np.float32), top + k_min
 
 
@@ -141,7 +158,8 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
     Returns
     -------
     GroundDetections
-        ``xy_m`` at local maxima of the agreement (cell centres, world XY [m]),
+        ``xy_m`` at local maxima of the agreement (centroid of the peak's
+        plateau, world XY [m]),
         ``confidence`` = agreement clipped to [0, 1], ``height_m`` = upper band
         edge of the person's top occupied plane (the head lies between that
         plane and the next one up).
@@ -160,10 +178,21 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
             d2 = (iy[i + 1:] - iy[i]) ** 2 + (ix[i + 1:] - ix[i]) ** 2
             keep[i + 1:] &= d2 > r_cells * r_cells
     iy, ix, s = iy[keep], ix[keep], s[keep]
+    # Saturated agreement forms plateaus: place each person at the centroid of its plateau (the cells
+    # within the NMS radius scoring within `plateau` of the peak), not at an arbitrary tied cell.
+    r = int(np.ceil(r_cells))
+    fy, fx = iy.astype(float), ix.astype(float)
+    for i in range(len(s)):
+        y0, y1 = max(iy[i] - r, 0), min(iy[i] + r + 1, stack.ny)
+        x0, x1 = max(ix[i] - r, 0), min(ix[i] + r + 1, stack.nx)
+        yy, xx = np.mgrid[y0:y1, x0:x1]
+        near = (yy - iy[i]) ** 2 + (xx - ix[i]) ** 2 <= r_cells * r_cells
+        top_cells = near & (score[y0:y1, x0:x1] >= s[i] - _PLATEAU)
+        fy[i], fx[i] = yy[top_cells].mean(), xx[top_cells].mean()
     edges = np.asarray(stack.band_edges_m)
     return GroundDetections(
         float(time_s),
-        stack.xy_from_index(iy, ix).reshape(-1, 2),
+        stack.xy_from_index(fy, fx).reshape(-1, 2),
         np.clip(s, 0.0, 1.0),
         edges[top[iy, ix] + 1],
         source,

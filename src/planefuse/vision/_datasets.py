@@ -1,0 +1,264 @@
+"""Camera inputs from data-set folders: EPFL POM, WILDTRACK, planefuse recordings.
+
+Each reader returns what :func:`~planefuse.vision.camera_detections` needs: one
+:class:`~planefuse.registration.ImagePlaneLookup` per camera, and an iterator of
+``(time_s, images)`` with ``None`` for a missing frame.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from ..calib import (
+    H_WORLD_TOPVIEW_TERRACE,
+    EpflBoxes,
+    EpflGroundHomography,
+    load_epfl_boxes,
+    load_epfl_homography,
+    load_wildtrack_rig,
+)
+from ..geometry import apply_homography
+from ..grid import PlaneStack
+from ..registration import ImagePlaneLookup
+from ._foreground import foreground_from_boxes, read_mot_detections
+
+__all__ = [
+    "EpflSequence",
+    "epfl_box_frames",
+    "epfl_ground_truth",
+    "epfl_lookups",
+    "image_folder_frames",
+    "load_epfl_sequence",
+    "read_epfl_detections",
+    "recording_frames",
+    "wildtrack_frames",
+]
+
+EPFL_SIZE_PX = (360, 288)  # width, height of every EPFL view
+EPFL_FPS = 25.0
+
+
+@dataclass(frozen=True)
+class EpflSequence:
+    """One EPFL POM sequence: per camera a ground homography and its box annotations.
+
+    Attributes
+    ----------
+    names : list of str
+        Camera folder names (``terrace1-c0``...).
+    homographies : list of EpflGroundHomography
+        Image -> ground (metres for terrace, top-view units otherwise).
+    boxes : list of EpflBoxes
+        Rows of each camera's ``gt/gt.txt``.
+    """
+
+    names: list[str]
+    homographies: list[EpflGroundHomography]
+    boxes: list[EpflBoxes]
+
+    @property
+    def frames(self) -> np.ndarray:
+        """Sorted 0-based frame indices annotated in any camera."""
+        return np.unique(np.concatenate([b.frame for b in self.boxes]))
+
+
+def load_epfl_sequence(root, sequence: str = "terrace1") -> EpflSequence:
+    """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``.
+
+    ``root`` may be the data-set folder or its ``EPFL-Terrace`` / ``EPFL-Laboratory``
+    sub-folder. Terrace homographies are made metric with
+    :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE`; other sequences stay in
+    top-view units.
+    """
+    root = Path(root)
+    dirs = sorted(p for p in root.rglob(f"{sequence}-c*") if p.is_dir() and (p / "Homography.txt").is_file())
+    if not dirs:
+        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders")
+    W = H_WORLD_TOPVIEW_TERRACE if sequence.startswith("terrace") else None
+    homs = [load_epfl_homography(d / "Homography.txt", H_world_topview=W) for d in dirs]
+    boxes = [load_epfl_boxes(d / "gt" / "gt.txt") for d in dirs]
+    return EpflSequence([d.name for d in dirs], homs, boxes)
+
+
+def epfl_lookups(seq: EpflSequence, stack: PlaneStack) -> list[ImagePlaneLookup]:
+    """Ground-plane lookups from the EPFL homographies (a one-plane stack at z = 0).
+
+    The files give only the ground homography, so ``stack`` must be that one
+    plane. The homography's overall sign is fixed so that the bottom-centre pixel
+    of each view (surely on the visible ground) has positive scale.
+    """
+    if stack.heights_m != (0.0,):
+        raise ValueError(f"EPFL Homography.txt is the ground plane only: stack must have heights (0.0,), "
+                         f"got {stack.heights_m}")
+    w, h = EPFL_SIZE_PX
+    out = []
+    for hom in seq.homographies:
+        H_image_plane = hom.H_image_plane
+        xy = apply_homography(hom.H_plane_image, np.array([[w / 2, h - 1.0]]))[0]
+        if H_image_plane[2] @ np.array([xy[0], xy[1], 1.0]) < 0:
+            H_image_plane = -H_image_plane
+        out.append(ImagePlaneLookup.from_homographies(H_image_plane[None], w, h, stack))
+    return out
+
+
+def epfl_box_frames(seq: EpflSequence, frames=None, *, boxes: list[dict[int, np.ndarray]] | None = None,
+                    foot_fraction: float = 1.0, floor: float = 0.02,
+                    ceiling: float = 0.98) -> Iterator[tuple[float, list[np.ndarray]]]:
+    """Filled person boxes per view as foreground likelihoods.
+
+    Parameters
+    ----------
+    seq : EpflSequence
+    frames : iterable of int, optional
+        Frames to render (all annotated frames by default).
+    boxes : list of dict, optional
+        Per camera ``frame -> (N, 5) [left, top, width, height, conf]`` from a
+        detector (:func:`read_mot_detections`); default: the visible (not
+        ``lost``) ground-truth boxes.
+    foot_fraction : float
+        Fill only the bottom ``foot_fraction`` of each box's height (1 = the
+        whole box). With a ground-plane-only stack (all EPFL's homographies
+        give), the body above the feet only casts ghosts on the ground, so a
+        small fraction (the feet) is the useful foreground there.
+
+    Yields
+    ------
+    (time_s, list of (288, 360) float32)
+        ``time_s = frame / 25``.
+    """
+    if not 0.0 < foot_fraction <= 1.0:
+        raise ValueError(f"foot_fraction must be in (0, 1], got {foot_fraction}")
+    w, h = EPFL_SIZE_PX
+    if boxes is None:
+        boxes = []
+        for b in seq.boxes:
+            vis = ~b.lost
+            xyxy = b.box_xyxy_px[vis]
+            ltwh = np.c_[xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2] + 1, np.ones(len(xyxy))]
+            fr = b.frame[vis]
+            order = np.argsort(fr, kind="stable")
+            splits = np.flatnonzero(np.diff(fr[order])) + 1
+            boxes.append({int(fr[i[0]]): ltwh[i] for i in np.split(order, splits) if len(i)})
+    empty = np.zeros((0, 5))
+    for f in (seq.frames if frames is None else frames):
+        imgs = []
+        for per_cam in boxes:
+            b = per_cam.get(int(f), empty).copy()
+            if foot_fraction < 1.0:
+                b[:, 1] += (1.0 - foot_fraction) * b[:, 3]
+                b[:, 3] *= foot_fraction
+            imgs.append(foreground_from_boxes(b[:, :4], w, h, np.clip(b[:, 4], 0, 1), floor=floor, ceiling=ceiling))
+        yield int(f) / EPFL_FPS, imgs
+
+
+def epfl_ground_truth(seq: EpflSequence, min_views: int = 2) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Ground-truth feet from the multi-view consensus of box bottoms.
+
+    Every visible box's bottom centre is mapped to the ground through its
+    camera's homography; a person's position is the per-axis median over the
+    cameras that see them.
+
+    Returns
+    -------
+    dict
+        ``frame -> (gt_xy (G, 2), ignore_xy (I, 2))``: people seen by at least
+        ``min_views`` cameras, and people seen by fewer (to be ignored by the
+        evaluation: one view cannot place them on the ground reliably).
+    """
+    rows = []
+    for hom, b in zip(seq.homographies, seq.boxes):
+        vis = ~b.lost
+        xy = apply_homography(hom.H_plane_image, b.foot_uv()[vis])
+        rows.append(np.c_[b.frame[vis], b.track_id[vis], xy])
+    a = np.concatenate(rows)
+    key = a[:, 0] * 100_000 + a[:, 1]
+    order = np.argsort(key, kind="stable")
+    a, key = a[order], key[order]
+    starts = np.flatnonzero(np.r_[True, np.diff(key) != 0])
+    counts = np.diff(np.r_[starts, len(a)])
+    med = np.stack([np.median(a[s:s + c, 2:4], axis=0) for s, c in zip(starts, counts)])
+    frames = a[starts, 0].astype(int)
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {int(f): (np.zeros((0, 2)), np.zeros((0, 2))) for f in seq.frames}
+    for f in np.unique(frames):
+        sel = frames == f
+        out[int(f)] = (med[sel & (counts >= min_views)], med[sel & (counts < min_views)])
+    return out
+
+
+def read_epfl_detections(seq_root, names: list[str], filename: str = "det/det.txt") -> list[dict[int, np.ndarray]]:
+    """Per-camera MOTChallenge detections ``<root>/<camera>/<filename>`` (1-based frames -> 0-based)."""
+    out = []
+    for n in names:
+        det = read_mot_detections(Path(seq_root) / n / filename)
+        out.append({f - 1: b for f, b in det.items()})
+    return out
+
+
+_NUM = re.compile(r"(\d+)")
+
+
+def image_folder_frames(folders, *, fps: float = 25.0) -> Iterator[tuple[float, list[np.ndarray | None]]]:
+    """Synchronised frames from one image folder per camera, matched by the number in the file name.
+
+    A number present in some folders but not others yields ``None`` for the
+    cameras lacking it (a missing frame). Time = number / ``fps``.
+    """
+    per_cam: list[dict[int, Path]] = []
+    for folder in folders:
+        files = {}
+        for p in sorted(Path(folder).iterdir()):
+            m = _NUM.findall(p.stem)
+            if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp") and m:
+                files[int(m[-1])] = p
+        if not files:
+            raise ValueError(f"{folder}: no numbered image files")
+        per_cam.append(files)
+    for k in sorted(set().union(*per_cam)):
+        imgs = [cv2.imread(str(f[k]), cv2.IMREAD_COLOR) if k in f else None for f in per_cam]
+        yield k / fps, imgs
+
+
+def wildtrack_frames(root, *, fps: float = 2.0):
+    """Cameras (``C1``..``C7``, metres, with distortion) and frames of a WILDTRACK folder.
+
+    Frames are read from ``<root>/Image_subsets/C<i>/*.png`` (the data set's
+    layout), numbered by file name; WILDTRACK's annotated subsets are at 2 fps.
+
+    Returns
+    -------
+    cameras : list of PinholeCamera
+    frames : iterator of (time_s, list of images or None)
+    """
+    rig = load_wildtrack_rig(root)
+    names = sorted(rig)
+    sub = Path(root) / "Image_subsets"
+    if not sub.is_dir():
+        raise ValueError(f"{root}: no 'Image_subsets/' folder with the camera frames")
+    return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
+
+
+def recording_frames(recording, *, masks: bool = False) -> Iterator[tuple[float, list[np.ndarray | None]]]:
+    """Synchronised frames of a :class:`planefuse.io.Recording` (simulated or read from disk).
+
+    Instants are the first camera's frame times; another camera contributes its
+    frame of the same index when its time is within half a frame period, else
+    ``None``. ``masks=True`` yields the exact foreground masks (uint8 0/255)
+    instead of the images.
+    """
+    streams = [recording.camera(c.name) for c in recording.cameras]
+    t0 = np.asarray(streams[0].times_s)
+    half = 0.5 * float(np.median(np.diff(t0))) if len(t0) > 1 else np.inf
+    for i, t in enumerate(t0):
+        imgs: list[np.ndarray | None] = []
+        for s in streams:
+            if i < len(s) and abs(s.times_s[i] - t) <= half:
+                imgs.append(np.where(s.mask(i) > 0, np.uint8(255), np.uint8(0)) if masks else s.frame(i))
+            else:
+                imgs.append(None)
+        yield float(t), imgs

@@ -75,3 +75,18 @@ def test_cli_check_and_run_on_a_recording(recording_dir, tmp_path):
     assert {"moda", "mota", "idf1", "azimuth_mae_deg"} <= set(metrics)
     assert (out / "report.html").exists() and (out / "tracks.csv").exists()
     assert yaml.safe_load((out / "config.yaml").read_text().split("\n#")[0])["recording"] == str(recording_dir)
+
+
+def test_rerun_recording_holds_every_modality(recording_dir, tmp_path):
+    pytest.importorskip("rerun")
+    from planefuse.pipeline import run_to_folder
+    from planefuse.viz import rrd_entity_paths
+
+    rec = read_recording(recording_dir)
+    run_to_folder(rec, SystemParams(), tmp_path / "out", progress_mode="quiet", animation="none", figures=False,
+                  report=False, rerun=True)
+    paths = rrd_entity_paths(tmp_path / "out" / "planefuse.rrd")
+    for expected in ("/world/tracks", "/world/laser/laser", "/world/sound/front"):
+        assert expected in paths, sorted(paths)
+    assert any(p.startswith("/world/cameras/") and p.endswith("/image") for p in paths)
+    assert any(p.startswith("/planes/") for p in paths)

@@ -82,7 +82,7 @@ def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityRep
     maximum range (``scans_from_arrays(nan_is_no_return=True)``).
     """
     from ..laser import LaserRegistrar, scans_from_arrays
-    from ..sim._sensors import tilting_unit_from_model
+    from ..sim import tilting_unit_from_model
 
     for name in rec.lasers:
         ls = rec.laser(name)

@@ -11,7 +11,7 @@ import numpy as np
 from ..eval import detection_scores, tracking_metrics
 from ..grid import PlaneStack
 from ..io import Recording
-from ..tracking import TrackerOutput, TrackingParams, track_evidence
+from ..tracking import ClusterParams, TrackerOutput, TrackingParams, track_evidence
 from ._streams import ModalityReport, camera_evidence, laser_evidence, merged_evidence, sound_evidence
 
 __all__ = ["SystemParams", "SystemResult", "run_system", "evaluate_system", "stack_for_recording"]
@@ -36,6 +36,10 @@ class SystemParams:
         Camera pipeline parameters (defaults when None).
     laser_model : planefuse.laser.LaserSensorModel or None
     tracking : TrackingParams
+        Filter, clustering and tracker settings. The default column threshold (``S >= 1``, mean
+        capped log-odds per observed body plane) is lower than the tracker's own default (2.5): the
+        fused camera log-odds at 10 cm cells of a person seen by only two cameras stays near 1-2
+        (threshold sweep on the demo scene in docs/results.md).
     sound_block_s : float
         Length of the audio blocks localised one at a time [s].
     sound_model_path : path, optional
@@ -54,7 +58,8 @@ class SystemParams:
     use_filter: bool = True
     camera_params: object | None = None
     laser_model: object | None = None
-    tracking: TrackingParams = field(default_factory=lambda: TrackingParams(merge_tolerance_s=0.05))
+    tracking: TrackingParams = field(default_factory=lambda: TrackingParams(
+        merge_tolerance_s=0.05, cluster=ClusterParams(threshold=1.0)))
     sound_block_s: float = 0.5
     sound_model_path: object | None = None
     output_period_s: float = 0.2

@@ -122,6 +122,7 @@ class BackgroundSubtractor:
         lut[_CV_FOREGROUND] = 1.0
         self._lut = lut
         self._open = _kernel(params.open_px)
+        self._rate = params.learning_rate
         self._close = _kernel(params.close_px)
 
     def prime(self, empty_frame, n_frames: int = 30) -> None:
@@ -137,12 +138,21 @@ class BackgroundSubtractor:
             The scene without people, same format as the frames given to :meth:`apply`.
         n_frames : int
             Times the plate is fed to the model (fills its sample memory).
+
+        Notes
+        -----
+        With ``params.learning_rate < 0`` (automatic) OpenCV learns at ``1 / frames seen``, fast at
+        start so that a cold model converges; once primed the model already holds the background, so
+        :meth:`apply` then learns at the steady ``1 / history`` instead (people standing still are not
+        absorbed within a few frames).
         """
         if n_frames < 1:
             raise ValueError(f"{self.name}: n_frames must be >= 1, got {n_frames}")
         img = self._check(empty_frame)
         for _ in range(int(n_frames)):
             self._model.apply(img, learningRate=1.0 if _ == 0 else -1.0)
+        if self.params.learning_rate < 0:
+            self._rate = 1.0 / self.params.history
 
     def _check(self, frame) -> np.ndarray:
         img = np.asarray(frame)
@@ -169,7 +179,7 @@ class BackgroundSubtractor:
             Foreground likelihood in ``[floor, ceiling]``.
         """
         img = self._check(frame)
-        mask = self._model.apply(img, learningRate=self.params.learning_rate)
+        mask = self._model.apply(img, learningRate=self._rate)
         # Clean the hard decision (foreground only) before softening it.
         hard = np.where(mask == _CV_FOREGROUND, np.uint8(255), np.uint8(0))
         if self._open is not None:

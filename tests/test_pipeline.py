@@ -91,3 +91,18 @@ def test_laser_alone_finds_people_the_cameras_do_not_see():
     m = scores["system"]
     assert m["recall"] >= 0.7 and m["precision"] >= 0.9, m
     assert m["recall"] > scores["laser default"]["recall"] + 0.3, scores
+
+
+def test_rerun_recording_holds_every_modality(recording_dir, tmp_path):
+    pytest.importorskip("rerun")
+    from planefuse.pipeline import run_to_folder
+    from planefuse.viz import rrd_entity_paths
+
+    rec = read_recording(recording_dir)
+    run_to_folder(rec, SystemParams(), tmp_path / "out", progress_mode="quiet", animation="none", figures=False,
+                  report=False, rerun=True)
+    paths = rrd_entity_paths(tmp_path / "out" / "planefuse.rrd")
+    for expected in ("/world/tracks", "/world/laser/laser", "/world/sound/front"):
+        assert expected in paths, sorted(paths)
+    assert any(p.startswith("/world/cameras/") and p.endswith("/image") for p in paths)
+    assert any(p.startswith("/planes/") for p in paths)

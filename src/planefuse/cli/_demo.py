@@ -17,6 +17,7 @@ def demo(
     duration_s: float = typer.Option(10.0, "--duration-s", help="Simulated duration [s]."),
     seed: int = typer.Option(1, help="Scene seed."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
+    rerun: bool = typer.Option(False, "--rerun", help="Also write planefuse.rrd for the rerun viewer."),
 ) -> None:
     """Simulate the default scene (cameras+IMU, nodding laser, binaural head), register every modality on
     the plane stack, filter with one BOF per plane, track people, evaluate against ground truth and write
@@ -27,7 +28,8 @@ def demo(
     out = out if out is not None else Path(f"planefuse-demo-{time.strftime('%Y%m%d-%H%M%S')}")
     t0 = time.perf_counter()
     rec = simulate(default_scene_config(duration_s=duration_s, seed=seed))
-    _, metrics = run_to_folder(rec, SystemParams(), out, progress_mode="quiet" if quiet else "rich")
+    _, metrics = run_to_folder(rec, SystemParams(), out, progress_mode="quiet" if quiet else "rich",
+                               rerun=rerun)
     metrics["wall_time_s"] = time.perf_counter() - t0
     _print_summary(metrics, out)
 

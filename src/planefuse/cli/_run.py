@@ -15,6 +15,7 @@ def run(
     config: Path = typer.Argument(..., help="Run configuration (planefuse config init writes an example)."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress output."),
     log_json: bool = typer.Option(False, "--log-json", help="Progress as JSON lines on stderr (for scripts)."),
+    rerun: bool = typer.Option(False, "--rerun", help="Also write planefuse.rrd (overrides outputs.rerun)."),
 ) -> None:
     """Register every modality of the configured recording on the planes, filter, track, evaluate (when the
     recording has ground truth) and write occupancy, detections, tracks, metrics, figures and report.html."""
@@ -39,7 +40,7 @@ def run(
     try:
         _, metrics = run_to_folder(
             rec, params, out.out_dir, progress_mode=progress_mode(quiet, log_json), animation=out.animation,
-            figures=out.figures, report=out.report, rerun=out.rerun, chunk_steps=out.chunk_steps,
+            figures=out.figures, report=out.report, rerun=out.rerun or rerun, chunk_steps=out.chunk_steps,
             config_text=yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False) + f"# {config_hash(cfg)}\n",
             stack=cfg.planes.to_stack(),
         )

@@ -105,10 +105,10 @@ class CameraSensorConfig(_Model):
 
     enabled: bool = _field(True, description="Use the cameras")
     foreground_method: Literal["MOG2", "KNN"] = _field(
-        "MOG2", description="OpenCV background subtractor", expected="MOG2 or KNN"
+        "KNN", description="OpenCV background subtractor", expected="MOG2 or KNN"
     )
     history_frames: int = _field(
-        200, description="Frames in the background model's history", unit="frames", expected=">= 1", ge=1
+        500, description="Frames in the background model's history", unit="frames", expected=">= 1", ge=1
     )
     var_threshold: float | None = _field(
         None,

@@ -55,6 +55,41 @@ def _figure_inputs(rec: Recording, result: SystemResult) -> FigureInputs:
                         ground_truth=gt)
 
 
+def _log_modalities(logger, rec: Recording, result: SystemResult, camera_every_s: float = 1.0) -> None:
+    """Add the cameras (poses, a frame every ``camera_every_s``), laser points and sound wedges to the rerun
+    recording (occupancy, detections and tracks are logged by the writer at every output step)."""
+    logger.log_cameras(rec.cameras)
+    step_times = np.array([o.time_s for o in result.outputs])
+
+    def step_of(t: float) -> int:
+        return int(np.argmin(np.abs(step_times - t))) if len(step_times) else 0
+
+    for cam in rec.cameras:
+        cs = rec.camera(cam.name)
+        if not len(cs):
+            continue
+        every = max(1, int(round(camera_every_s * cs.rate_hz)))
+        for i in range(0, len(cs), every):
+            t = float(cs.times_s[i])
+            logger.set_time(step_of(t), t)
+            logger.log_camera_image(cam.name, cs.frame(i))
+    rep = result.report
+    for t, pts in zip(rep.laser_points_times_s, rep.laser_points_world):
+        logger.set_time(step_of(t), t)
+        logger.log_laser("laser", pts)
+    if rep.T_world_head is not None:
+        R = rep.T_world_head[:3, :3]
+        yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+        half = np.radians(5.0)
+        for t, az in zip(rep.sound_times_s, rep.sound_map_azimuth_rad):
+            if not np.isfinite(az):
+                continue
+            logger.set_time(step_of(t), t)
+            # two ears: the front half-line and its mirror behind the interaural axis both carry evidence
+            for name, a in (("front", yaw + az), ("back", yaw + np.pi - az)):
+                logger.log_sound_wedge(name, rep.T_world_head[:3, 3], a - half, a + half)
+
+
 def run_to_folder(
     rec: Recording,
     params: SystemParams,
@@ -103,6 +138,8 @@ def run_to_folder(
                 advance(1)
 
             result = run_system(rec, params, stack, on_output=on_output)
+        if out.rerun is not None:
+            _log_modalities(out.rerun, rec, result)
         metrics = {}
         if rec.groundtruth is not None and rec.groundtruth.people is not None:
             with progress.step("evaluate", total=1, unit="runs") as advance:

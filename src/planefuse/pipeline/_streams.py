@@ -30,11 +30,13 @@ class ModalityReport:
     n_laser_scans: int = 0
     n_laser_invalid_beams: int = 0
     laser_points_world: list[np.ndarray] = field(default_factory=list)
+    laser_points_times_s: list[float] = field(default_factory=list)
     n_sound_blocks: int = 0
     sound_times_s: list[float] = field(default_factory=list)
     sound_map_azimuth_rad: list[float] = field(default_factory=list)
     sound_saliency: list[np.ndarray] = field(default_factory=list)
     sound_azimuth_grid_rad: np.ndarray | None = None
+    T_world_head: np.ndarray | None = None
 
 
 def _synchronised_frames(rec: Recording, names: list[str], report: ModalityReport):
@@ -90,7 +92,7 @@ def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityRep
     maximum range (``scans_from_arrays(nan_is_no_return=True)``).
     """
     from ..laser import LaserRegistrar, scans_from_arrays
-    from ..sim._sensors import tilting_unit_from_model
+    from ..sim import tilting_unit_from_model
 
     for name in rec.lasers:
         ls = rec.laser(name)
@@ -106,6 +108,7 @@ def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityRep
                 report.n_laser_invalid_beams += reg.n_invalid
                 if report.n_laser_scans % keep_points_every == 1:
                     report.laser_points_world.append(reg.points_world)
+                    report.laser_points_times_s.append(scan.time_s)
                 yield reg.evidence
 
 
@@ -128,6 +131,7 @@ def sound_evidence(rec: Recording, stack: PlaneStack, report: ModalityReport, bl
             report.sound_map_azimuth_rad.append(loc.map_azimuth_rad)
             report.sound_saliency.append(loc.saliency)
             report.sound_azimuth_grid_rad = loc.azimuth_rad
+            report.T_world_head = au.T_world_head
             yield evidence_from_saliency(loc.saliency, loc.azimuth_rad, au.T_world_head, stack, t, sensor=name)
 
 

@@ -217,7 +217,7 @@ class DetectionModelConfig(_Model):
     """From occupancy to people: column clustering and track management (planefuse.tracking)."""
 
     column_threshold: float = _field(
-        1.0, description="Column log-odds above which a cluster is a person hypothesis", expected="> 0", gt=0.0
+        1.5, description="Column log-odds above which a cluster is a person hypothesis", expected="> 0", gt=0.0
     )
     person_radius_m: float = _field(
         0.3, description="Radius of a person's footprint", unit="m", expected="in (0, 2]", gt=0.0, le=2.0

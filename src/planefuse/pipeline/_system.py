@@ -39,7 +39,7 @@ class SystemParams:
         None: :func:`system_laser_model` (a return is strong evidence, a crossing beam weak, since legs
         fill a small part of a cell).
     tracking : TrackingParams
-        Filter, clustering and tracker settings. The default column threshold (``S >= 1``, mean
+        Filter, clustering and tracker settings. The default column threshold (``S >= 1.5``, mean
         capped log-odds per observed body plane) is lower than the tracker's own default (2.5): the
         fused camera log-odds at 10 cm cells of a person seen by only two cameras stays near 1-2
         (threshold sweep on the demo scene in docs/results.md).
@@ -62,7 +62,7 @@ class SystemParams:
     camera_params: object | None = None
     laser_model: object | None = None
     tracking: TrackingParams = field(default_factory=lambda: TrackingParams(
-        merge_tolerance_s=0.05, cluster=ClusterParams(threshold=1.0)))
+        merge_tolerance_s=0.05, cluster=ClusterParams(threshold=1.5)))
     sound_block_s: float = 0.5
     sound_model_path: object | None = None
     output_period_s: float = 0.2

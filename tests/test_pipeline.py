@@ -77,6 +77,22 @@ def test_cli_check_and_run_on_a_recording(recording_dir, tmp_path):
     assert yaml.safe_load((out / "config.yaml").read_text().split("\n#")[0])["recording"] == str(recording_dir)
 
 
+def test_laser_alone_finds_people_the_cameras_do_not_see():
+    """Cameras off (every person invisible to them): the nodding laser alone still finds most people,
+    and it needs the system's laser model (the laser's own default frees the cells around thin legs)."""
+    from planefuse.laser import LaserSensorModel
+
+    rec = simulate(default_scene_config(duration_s=4.0, seed=1))
+    scores = {}
+    for name, model in (("system", None), ("laser default", LaserSensorModel())):
+        res = run_system(rec, SystemParams(cameras=False, sound=False, laser_model=model))
+        assert not any("cameras" in o.sensors for o in res.outputs)
+        scores[name] = evaluate_system(rec, res)
+    m = scores["system"]
+    assert m["recall"] >= 0.7 and m["precision"] >= 0.9, m
+    assert m["recall"] > scores["laser default"]["recall"] + 0.3, scores
+
+
 def test_rerun_recording_holds_every_modality(recording_dir, tmp_path):
     pytest.importorskip("rerun")
     from planefuse.pipeline import run_to_folder

@@ -75,6 +75,28 @@ def test_background_subtraction_likelihood(method, rng):
         bs.apply(np.zeros((h, w + 1), np.uint8))
 
 
+@pytest.mark.parametrize("method", ["mog2", "knn"])
+def test_priming_with_the_empty_scene_sees_people_present_from_the_start(method, rng):
+    """A person standing still in view from the first frame: a cold model learns it as background
+    (a ghost), one primed with the empty-scene plate keeps it foreground."""
+    h, w = 96, 128
+    bg = cv2.GaussianBlur(rng.uniform(60, 200, (h, w)).astype(np.float32), (0, 0), 3)
+    scene = bg.copy()
+    scene[30:70, 50:70] = 250.0
+    params = ForegroundParams(method=method, history=500)
+    cold, primed = BackgroundSubtractor(w, h, params), BackgroundSubtractor(w, h, params)
+    primed.prime(np.clip(bg, 0, 255).astype(np.uint8))
+    for _ in range(30):
+        frame = np.clip(scene + rng.normal(0, 2, bg.shape), 0, 255).astype(np.uint8)
+        like_cold, like_primed = cold.apply(frame), primed.apply(frame)
+    assert like_primed[35:65, 55:65].mean() > 0.9 and like_primed[:25].mean() < 0.1
+    assert like_cold[35:65, 55:65].mean() < 0.5
+    with pytest.raises(ValueError, match="96x128"):
+        primed.prime(np.zeros((h + 1, w), np.uint8))
+    with pytest.raises(ValueError, match="n_frames"):
+        primed.prime(np.clip(bg, 0, 255).astype(np.uint8), n_frames=0)
+
+
 def test_external_masks_and_boxes(tmp_path):
     m = np.zeros((10, 12), np.uint8)
     m[2:5, 3:7] = 255

@@ -130,11 +130,11 @@ class LaserSensorConfig(_Model):
 
     enabled: bool = _field(True, description="Use the laser range finders")
     p_occupied_hit: float = _field(
-        0.7, description="Inverse sensor model: P(occupied) of a cell holding a beam's end point",
+        0.9, description="Inverse sensor model: P(occupied) of a cell holding a beam's end point",
         expected="in (0.5, 1)", gt=0.5, lt=1.0,
     )
     p_occupied_free: float = _field(
-        0.35, description="Inverse sensor model: P(occupied) of a cell a beam crossed before its end",
+        0.45, description="Inverse sensor model: P(occupied) of a cell a beam crossed before its end",
         expected="in (0, 0.5)", gt=0.0, lt=0.5,
     )
     no_return_free_m: float | None = _field(
@@ -217,7 +217,7 @@ class DetectionModelConfig(_Model):
     """From occupancy to people: column clustering and track management (planefuse.tracking)."""
 
     column_threshold: float = _field(
-        3.0, description="Column log-odds above which a cluster is a person hypothesis", expected="> 0", gt=0.0
+        1.5, description="Column log-odds above which a cluster is a person hypothesis", expected="> 0", gt=0.0
     )
     person_radius_m: float = _field(
         0.3, description="Radius of a person's footprint", unit="m", expected="in (0, 2]", gt=0.0, le=2.0

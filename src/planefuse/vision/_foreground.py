@@ -149,8 +149,8 @@ class BackgroundSubtractor:
         if n_frames < 1:
             raise ValueError(f"{self.name}: n_frames must be >= 1, got {n_frames}")
         img = self._check(empty_frame)
-        for _ in range(int(n_frames)):
-            self._model.apply(img, learningRate=1.0 if _ == 0 else -1.0)
+        for i in range(int(n_frames)):
+            self._model.apply(img, learningRate=1.0 if i == 0 else -1.0)
         if self.params.learning_rate < 0:
             self._rate = 1.0 / self.params.history
 

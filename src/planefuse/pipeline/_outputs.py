@@ -45,7 +45,7 @@ def _figure_inputs(rec: Recording, result: SystemResult) -> FigureInputs:
     if rec.groundtruth is not None and rec.groundtruth.people is not None:
         p = rec.groundtruth.people
         times = np.array([o.time_s for o in result.outputs])
-        idx = np.array([int(np.argmin(np.abs(p.times_s - t))) for t in times], dtype=int)
+        idx = np.array([p.index_at(t) for t in times], dtype=int)
         T, P = len(idx), len(p.person_ids)
         gt = {"step": np.repeat(np.arange(T), P), "track_id": np.tile(p.person_ids, T),
               "x_m": p.xy_m[idx, :, 0].ravel(), "y_m": p.xy_m[idx, :, 1].ravel()}

@@ -11,11 +11,15 @@ from __future__ import annotations
 import heapq
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..io import Recording
+
+if TYPE_CHECKING:
+    from ..vision import CameraReport
 
 __all__ = ["ModalityReport", "camera_evidence", "laser_evidence", "sound_evidence", "merged_evidence"]
 
@@ -24,8 +28,7 @@ __all__ = ["ModalityReport", "camera_evidence", "laser_evidence", "sound_evidenc
 class ModalityReport:
     """What each modality produced and what it had to report (missing frames, invalid returns...)."""
 
-    n_camera_frames: int = 0
-    n_missing_camera_frames: int = 0
+    camera: "CameraReport | None" = None
     camera_detections: list[GroundDetections] = field(default_factory=list)
     n_laser_scans: int = 0
     n_laser_invalid_beams: int = 0
@@ -38,41 +41,30 @@ class ModalityReport:
     sound_azimuth_grid_rad: np.ndarray | None = None
     T_world_head: np.ndarray | None = None
 
+    @property
+    def n_camera_frames(self) -> int:
+        """Synchronised camera instants processed."""
+        return self.camera.instants if self.camera is not None else 0
 
-def _synchronised_frames(rec: Recording, names: list[str], report: ModalityReport):
-    """(time_s, [image or None per camera]) at the first camera's frame times.
-
-    A camera whose nearest frame is more than half a period away has a missing
-    frame at that instant (``None``): counted in the report, the others still fuse.
-    """
-    streams = [rec.camera(n) for n in names]
-    ref = streams[0].times_s
-    for i, t in enumerate(ref):
-        images = []
-        for cs in streams:
-            j = int(np.argmin(np.abs(cs.times_s - t))) if len(cs) else -1
-            if j < 0 or abs(cs.times_s[j] - t) > 0.5 / cs.rate_hz:
-                images.append(None)
-                report.n_missing_camera_frames += 1
-            else:
-                images.append(cs.frame(j))
-        report.n_camera_frames += 1
-        yield float(t), images
+    @property
+    def n_missing_camera_frames(self) -> int:
+        """Frames missing at those instants, over all cameras (see ``camera.missing_frames``)."""
+        return self.camera.n_missing if self.camera is not None else 0
 
 
 def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityReport) -> Iterator[Evidence]:
     """Background subtraction (primed with the empty-scene image where the stream has one), registration
     on every plane and multi-view fusion (planefuse.vision)."""
-    from ..vision import CameraReport, camera_detections, lookups_from_cameras
+    from ..vision import CameraReport, camera_detections, lookups_from_cameras, recording_frames
 
     cams = rec.cameras
     names = [c.name for c in cams]
     lookups = lookups_from_cameras(cams, stack)
-    cam_report = CameraReport()
+    report.camera = CameraReport()
     # empty-scene calibration plates prime the background models (no ghosts of people already in view)
     backgrounds = [_background_or_none(rec.camera(n)) for n in names]
-    for ev, det in camera_detections(_synchronised_frames(rec, names, report), lookups, stack, params,
-                                     names=names, report=cam_report, backgrounds=backgrounds):
+    for ev, det in camera_detections(recording_frames(rec), lookups, stack, params,
+                                     names=names, report=report.camera, backgrounds=backgrounds):
         report.camera_detections.append(det)
         yield ev
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..audio import lateral_from_azimuth
 from ..eval import detection_scores, tracking_metrics
 from ..grid import PlaneStack
 from ..io import Recording
@@ -157,14 +158,7 @@ def run_system(
 def _gt_frames(rec: Recording, times_s: np.ndarray):
     gt = rec.groundtruth.people
     for t in times_s:
-        i = int(np.argmin(np.abs(gt.times_s - t)))
-        yield float(t), gt.person_ids, gt.xy_m[i]
-
-
-def _lateral(az):
-    """Fold an azimuth onto the lateral span [-pi/2, pi/2] (two ears cannot tell front from back)."""
-    az = np.angle(np.exp(1j * np.asarray(az, dtype=float)))
-    return np.where(az > np.pi / 2, np.pi - az, np.where(az < -np.pi / 2, -np.pi - az, az))
+        yield float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]
 
 
 def evaluate_system(rec: Recording, result: SystemResult, threshold_m: float = 0.5) -> dict:
@@ -191,7 +185,7 @@ def evaluate_system(rec: Recording, result: SystemResult, threshold_m: float = 0
     }
     cams = [d for d in result.report.camera_detections if d.time_s >= warm]
     if cams:
-        cd = detection_scores(((next(_gt_frames(rec, [d.time_s]))[2], d.xy_m) for d in cams), threshold_m)
+        cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), threshold_m)
         m.update(camera_only_moda=cd.moda, camera_only_modp=cd.modp)
     snd = rec.groundtruth.sound
     rep = result.report
@@ -202,7 +196,8 @@ def evaluate_system(rec: Recording, result: SystemResult, threshold_m: float = 0
             talking = np.nonzero(snd.speaking[i])[0]
             if len(talking) != 1 or not np.isfinite(az):
                 continue  # score single-talker blocks only
-            errs.append(abs(_lateral(az) - _lateral(snd.azimuth_rad[i, talking[0]])))
+            # lateral angles: two ears cannot tell front from back
+            errs.append(abs(lateral_from_azimuth(az) - lateral_from_azimuth(snd.azimuth_rad[i, talking[0]])))
         m["azimuth_mae_deg"] = float(np.degrees(np.mean(errs))) if errs else float("nan")
         m["n_sound_blocks_scored"] = len(errs)
     return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in m.items()}

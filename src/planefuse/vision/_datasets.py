@@ -247,18 +247,17 @@ def recording_frames(recording, *, masks: bool = False) -> Iterator[tuple[float,
     """Synchronised frames of a :class:`planefuse.io.Recording` (simulated or read from disk).
 
     Instants are the first camera's frame times; another camera contributes its
-    frame of the same index when its time is within half a frame period, else
-    ``None``. ``masks=True`` yields the exact foreground masks (uint8 0/255)
-    instead of the images.
+    frame nearest in time when that is within half of its own frame period, else
+    ``None`` (a missing frame, which :func:`camera_detections` reports).
+    ``masks=True`` yields the exact foreground masks (uint8 0/255) instead of the images.
     """
     streams = [recording.camera(c.name) for c in recording.cameras]
-    t0 = np.asarray(streams[0].times_s)
-    half = 0.5 * float(np.median(np.diff(t0))) if len(t0) > 1 else np.inf
-    for i, t in enumerate(t0):
+    for t in np.asarray(streams[0].times_s):
         imgs: list[np.ndarray | None] = []
         for s in streams:
-            if i < len(s) and abs(s.times_s[i] - t) <= half:
-                imgs.append(np.where(s.mask(i) > 0, np.uint8(255), np.uint8(0)) if masks else s.frame(i))
+            j = int(np.argmin(np.abs(s.times_s - t))) if len(s) else -1
+            if j >= 0 and abs(s.times_s[j] - t) <= 0.5 / s.rate_hz:
+                imgs.append(np.where(s.mask(j) > 0, np.uint8(255), np.uint8(0)) if masks else s.frame(j))
             else:
                 imgs.append(None)
         yield float(t), imgs

@@ -317,19 +317,24 @@ class LaserStream:
     data: LaserScans | None = None
     paths: list[Path] = field(default_factory=list)
     gaps: list[Gap] = field(default_factory=list)
-    generate: Callable[[int], Iterator[LaserScans]] | None = None
+    generate: Callable[[int, int], Iterator[LaserScans]] | None = None
 
-    def chunks(self, max_scans: int = 400) -> Iterator[LaserScans]:
+    def chunks(self, max_scans: int = 400, start: int = 0) -> Iterator[LaserScans]:
         """Consecutive batches of scans (one NPZ file each when reading from disk), timestamps checked.
 
-        In-memory streams slice ``data``; simulated streams call ``generate(max_scans)`` (ray casting on demand).
+        In-memory streams slice ``data``; simulated streams call ``generate(max_scans, start)`` (ray casting
+        on demand). ``start`` skips the first scans (a resumed run): files before it are read for their
+        timestamps only, simulated scans before it are not cast.
         """
+        if int(start) < 0:
+            raise ValueError(f"laser {self.name!r}: start must be >= 0, got {start}")
+        start = int(start)
         if self.data is not None:
-            for a in range(0, len(self.data), max_scans):
+            for a in range(start, len(self.data), max_scans):
                 yield self.data.slice(a, a + max_scans)
             return
         if self.generate is not None:
-            yield from self.generate(max_scans)
+            yield from self.generate(max_scans, start)
             return
         checker = TimeChecker(self.name, self.rate_hz)
         n = 0
@@ -341,8 +346,9 @@ class LaserStream:
             angles = scans.angles_rad
             checker.source = str(p)
             checker.check(scans.times_s)
-            n += len(scans)
-            yield scans
+            n0, n = n, n + len(scans)
+            if n > start:
+                yield scans if n0 >= start else scans.slice(start - n0, len(scans))
         self.gaps = checker.gaps
         if n != self.n_scans:
             raise ValueError(f"laser {self.name!r}: manifest says n_scans = {self.n_scans}, files hold {n} (truncated?)")
@@ -409,14 +415,19 @@ class AudioStream:
         """Sample times (N,) [s]."""
         return self.start_time_s + np.arange(self.n_samples) / self.fs_hz
 
-    def blocks(self, block_size: int = 16000) -> Iterator[tuple[float, np.ndarray]]:
-        """Yield ``(time_s of the block's first sample, samples (n, 2) float32)``."""
+    def blocks(self, block_size: int = 16000, start: int = 0) -> Iterator[tuple[float, np.ndarray]]:
+        """Yield ``(time_s of the block's first sample, samples (n, 2) float32)``, from sample ``start``."""
+        if int(start) < 0:
+            raise ValueError(f"audio {self.name!r}: start must be >= 0, got {start}")
+        start = int(start)
         if self.data is not None:
-            for a in range(0, len(self.data), block_size):
+            for a in range(start, len(self.data), block_size):
                 yield self.start_time_s + a / self.fs_hz, self.data[a : a + block_size]
             return
-        n = 0
+        n = start
         with self._open() as f:
+            if start:
+                f.seek(min(start, f.frames))
             for block in f.blocks(blocksize=block_size, dtype="float32", always_2d=True):
                 yield self.start_time_s + n / self.fs_hz, block
                 n += len(block)

@@ -9,7 +9,7 @@ Layout of ``out_dir``::
     tracks.csv          step,time_s,track_id,x_m,y_m,vx_m_s,vy_m_s
     detections_mot.txt  MOTChallenge rows (see :func:`mot_rows`)
     tracks_mot.txt      MOTChallenge rows
-    checkpoint.npz      filter state at the last finished chunk (optional)
+    checkpoint.npz      the run's state at the last finished chunk (optional; what a re-run resumes from)
     metrics.json
     figures/*.png, animation.gif|mp4, report.html, planefuse.rrd
 
@@ -28,6 +28,7 @@ import csv
 import io
 import json
 import shutil
+import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -205,6 +206,20 @@ class OutputWriter:
             from ..viz import RerunLogger
 
             self.rerun = RerunLogger(self.out_dir / "planefuse.rrd", stack)
+            if self.resumed:
+                self._relog_finished_steps()
+
+    def _relog_finished_steps(self) -> None:
+        """A resumed run's recording starts anew: log the kept steps again from the folder."""
+        times = self.times_s()
+        dets, tracks = self.detections_table(), self.tracks_table()
+        for step, t in enumerate(times):
+            self.rerun.set_time(step, float(t))
+            self.rerun.log_occupancy(self._occ[step])
+            d = dets["step"] == step
+            self.rerun.log_detections(np.stack([dets["x_m"][d], dets["y_m"][d]], axis=-1))
+            k = tracks["step"] == step
+            self.rerun.log_tracks(tracks["track_id"][k], np.stack([tracks["x_m"][k], tracks["y_m"][k]], axis=-1))
 
     # -- construction from a configuration -------------------------------------------------------------------------
     @classmethod
@@ -395,12 +410,24 @@ class OutputWriter:
         self._write_state("running")
 
     def load_checkpoint(self) -> dict[str, np.ndarray] | None:
-        """The filter state saved with the last finished chunk of a resumed run (None on a fresh run)."""
+        """The state saved with the last finished chunk of a resumed run (None on a fresh run, or when the
+        checkpoint is missing or of another step).
+
+        Raises
+        ------
+        ValueError
+            The checkpoint file cannot be read (it names the file).
+        """
         p = self.out_dir / "checkpoint.npz"
         if not self.resumed or not p.exists():
             return None
-        with np.load(p) as z:
-            state = {k: z[k] for k in z.files}
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                state = {k: z[k] for k in z.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+            raise ValueError(f"{p}: cannot read the checkpoint (corrupt file?): {exc}") from None
+        if "step" not in state:
+            raise ValueError(f"{p}: the checkpoint has no 'step' entry")
         if int(state.pop("step")) != self.resume_step:
             return None
         return state

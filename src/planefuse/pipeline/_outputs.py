@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import time
+import warnings
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
 
@@ -11,9 +13,9 @@ import numpy as np
 
 from ..io import Recording
 from ..outputs import OutputWriter, progress_steps
-from ..tracking import TrackerOutput
 from ..viz import FigureInputs
-from ._system import SystemParams, SystemResult, evaluate_system, run_system, stack_for_recording
+from ._streams import ModalityReport
+from ._system import SystemParams, SystemResult, SystemRun, evaluate_steps, stack_for_recording
 
 __all__ = ["run_to_folder"]
 
@@ -31,21 +33,20 @@ def _params_text(params: SystemParams) -> str:
     return json.dumps(plain(params), indent=1, sort_keys=True, default=repr)
 
 
-def _figure_inputs(rec: Recording, result: SystemResult) -> FigureInputs:
+def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) -> FigureInputs:
     cams = rec.cameras
     images = {}
     for c in cams:
         cs = rec.camera(c.name)
         if len(cs):
             images[c.name] = cs.frame(len(cs) // 2)
-    rep = result.report
+    rep = report
     laser = np.concatenate([p.reshape(-1, 3) for p in rep.laser_points_world]) if rep.laser_points_world else None
     sal = np.stack(rep.sound_saliency) if rep.sound_saliency else None
     gt = None
     if rec.groundtruth is not None and rec.groundtruth.people is not None:
         p = rec.groundtruth.people
-        times = np.array([o.time_s for o in result.outputs])
-        idx = np.array([p.index_at(t) for t in times], dtype=int)
+        idx = np.array([p.index_at(t) for t in times_s], dtype=int)
         T, P = len(idx), len(p.person_ids)
         gt = {"step": np.repeat(np.arange(T), P), "track_id": np.tile(p.person_ids, T),
               "x_m": p.xy_m[idx, :, 0].ravel(), "y_m": p.xy_m[idx, :, 1].ravel()}
@@ -55,11 +56,11 @@ def _figure_inputs(rec: Recording, result: SystemResult) -> FigureInputs:
                         ground_truth=gt)
 
 
-def _log_modalities(logger, rec: Recording, result: SystemResult, camera_every_s: float = 1.0) -> None:
+def _log_modalities(logger, rec: Recording, report: ModalityReport, step_times: np.ndarray,
+                    camera_every_s: float = 1.0) -> None:
     """Add the cameras (poses, a frame every ``camera_every_s``), laser points and sound wedges to the rerun
     recording (occupancy, detections and tracks are logged by the writer at every output step)."""
     logger.log_cameras(rec.cameras)
-    step_times = np.array([o.time_s for o in result.outputs])
 
     def step_of(t: float) -> int:
         return int(np.argmin(np.abs(step_times - t))) if len(step_times) else 0
@@ -73,7 +74,7 @@ def _log_modalities(logger, rec: Recording, result: SystemResult, camera_every_s
             t = float(cs.times_s[i])
             logger.set_time(step_of(t), t)
             logger.log_camera_image(cam.name, cs.frame(i))
-    rep = result.report
+    rep = report
     for t, pts in zip(rep.laser_points_times_s, rep.laser_points_world):
         logger.set_time(step_of(t), t)
         logger.log_laser("laser", pts)
@@ -90,6 +91,44 @@ def _log_modalities(logger, rec: Recording, result: SystemResult, camera_every_s
                 logger.log_sound_wedge(name, rep.T_world_head[:3, 3], a - half, a + half)
 
 
+def _start(rec: Recording, params: SystemParams, stack, out: OutputWriter) -> SystemRun:
+    """The run to continue: from the writer's checkpoint when it resumes, else from the start (a resumed
+    folder without a usable checkpoint is recomputed from the start; its finished chunks are not rewritten)."""
+    if not out.resumed:
+        return SystemRun(rec, params, stack)
+    try:
+        state = out.load_checkpoint()
+        if state is not None:
+            run = SystemRun(rec, params, stack, checkpoint=state)
+            if run.n_outputs == out.resume_step:
+                return run
+            why = f"it is at step {run.n_outputs}, the finished chunks end at step {out.resume_step}"
+        else:
+            why = "there is none for the last finished chunk"
+    except ValueError as exc:
+        why = str(exc)
+    warnings.warn(f"{out.out_dir / 'checkpoint.npz'}: cannot resume from the checkpoint ({why}); recomputing "
+                  f"from the start, the first {out.resume_step} finished steps are kept", stacklevel=3)
+    return SystemRun(rec, params, stack)
+
+
+def _steps_from_tables(out: OutputWriter):
+    """Per-step detections and tracks read back from the writer (the whole run, resumed or not)."""
+    times = out.times_s()
+    steps = np.arange(len(times))
+
+    def per_step(table: dict, *cols: str) -> list[np.ndarray]:
+        order = np.argsort(table["step"], kind="stable")
+        bounds = np.searchsorted(table["step"][order], np.append(steps, len(times)))
+        rows = np.stack([table[c][order] for c in cols], axis=-1).reshape(-1, len(cols))
+        return [rows[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
+
+    det_xy = per_step(out.detections_table(), "x_m", "y_m")
+    tracks = [(float(t), rows[:, 0].astype(np.int64), rows[:, 1:3])
+              for t, rows in zip(times, per_step(out.tracks_table(), "track_id", "x_m", "y_m"))]
+    return times, det_xy, tracks
+
+
 def run_to_folder(
     rec: Recording,
     params: SystemParams,
@@ -104,17 +143,23 @@ def run_to_folder(
     config_text: str | None = None,
     stack=None,
 ) -> tuple[SystemResult, dict]:
-    """Run :func:`run_system` on ``rec`` and write occupancy (zarr), detections, tracks (CSV + MOTChallenge),
-    ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into ``out_dir``.
+    """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
+    (CSV + MOTChallenge), ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into
+    ``out_dir``.
 
-    Outputs are written atomically; Ctrl-C leaves the steps written so far valid and readable. A re-run with
-    the same parameters into the same folder keeps the finished chunks (they are recomputed by the filter,
-    whose state depends on the whole past, but not rewritten).
+    Outputs are written atomically, one chunk of ``chunk_steps`` output steps at a time, each with a
+    checkpoint of the run's state; Ctrl-C or a kill leaves the steps written so far valid and readable. A
+    re-run with the same parameters into the same folder resumes after the last finished chunk: it
+    restores the checkpoint and computes only the steps that follow (the cameras' background models
+    replay the frames already seen, which is all of the past it repeats), and its outputs are identical
+    to an uninterrupted run's. Metrics and figures are computed from the folder's outputs, so they cover
+    the whole run.
 
     Returns
     -------
     (SystemResult, dict)
-        The result and the metrics (empty without ground truth).
+        The result and the metrics (empty without ground truth). The output steps are not kept in memory
+        (``result.outputs`` is empty): read them from the folder.
     """
     stack = stack if stack is not None else stack_for_recording(rec, params)
     text = config_text if config_text is not None else _params_text(params)
@@ -124,27 +169,30 @@ def run_to_folder(
         out_dir, stack, config_hash=digest, chunk_steps=chunk_steps, config_text=text, animation=animation,
         figures=figures, report=report, rerun=rerun,
     ) as out:
-        step = 0
-        with progress.step("register + filter + track", total=n_steps, unit="steps",
-                           completed=0) as advance:
-
-            def on_output(o: TrackerOutput) -> None:
-                nonlocal step
+        run = _start(rec, params, stack, out)
+        t0 = time.perf_counter()
+        with progress.step("register + filter + track", total=max(n_steps, run.n_outputs), unit="steps",
+                           completed=run.n_outputs) as advance:
+            for o in run.outputs():
+                step = run.n_outputs - 1
                 if step >= out.resume_step:
                     out.write_detections(step, o.detections)
                     out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_mps)
-                    out.write_occupancy(step, o.time_s, o.occupancy)
-                step += 1
+                    out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict)
                 advance(1)
-
-            result = run_system(rec, params, stack, on_output=on_output)
+        result = SystemResult(stack, [], run.report, time.perf_counter() - t0)
+        out.flush("running")  # the last, partial chunk: the tables below cover every step
+        times, det_xy, tracks = _steps_from_tables(out)
         if out.rerun is not None:
-            _log_modalities(out.rerun, rec, result)
+            _log_modalities(out.rerun, rec, run.report, times)
         metrics = {}
         if rec.groundtruth is not None and rec.groundtruth.people is not None:
             with progress.step("evaluate", total=1, unit="runs") as advance:
-                metrics = evaluate_system(rec, result, params.threshold_m)
+                metrics = evaluate_steps(rec, times, det_xy, tracks, run.report, result.elapsed_s,
+                                         params.threshold_m)
+                metrics["resumed_at_step"] = run.resumed_at_step
                 advance(1)
             out.write_metrics(metrics)
-        out.finish(_figure_inputs(rec, result), progress=progress)
+        result.metrics = metrics
+        out.finish(_figure_inputs(rec, run.report, times), progress=progress)
     return result, metrics

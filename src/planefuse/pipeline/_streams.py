@@ -1,27 +1,31 @@
 """Every modality of a recording turned into time-stamped :class:`~planefuse.grid.Evidence` on the plane stack.
 
-Each generator reads its stream lazily (chunk by chunk) and yields evidence in
-time order; :func:`merged_evidence` interleaves them by time stamp, which is what
-the Bayesian Occupancy Filter consumes (seed eq. 7: one product of sensor models
-per fused time step).
+Each sensor is an :class:`EvidenceSource`: its messages' time stamps, read cheaply from the recording, each
+with the computation that turns it into evidence. :class:`MergedEvidence` interleaves the sources by time
+stamp (what the Bayesian Occupancy Filter consumes, seed eq. 7: one product of sensor models per fused time
+step) and computes a message only when it is taken, so it knows exactly how many messages each source has
+given: a resumed run starts every source there (``start``) instead of recomputing the past.
 """
 
 from __future__ import annotations
 
 import heapq
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._state import StateDict, get, pack_ragged, strings, unpack_ragged
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..io import Recording
 
 if TYPE_CHECKING:
     from ..vision import CameraReport
 
-__all__ = ["ModalityReport", "camera_evidence", "laser_evidence", "sound_evidence", "merged_evidence"]
+__all__ = ["EvidenceSource", "MergedEvidence", "ModalityReport", "camera_evidence", "camera_source",
+           "laser_evidence", "laser_sources", "merged_evidence", "sound_evidence", "sound_sources"]
 
 
 @dataclass
@@ -51,22 +55,177 @@ class ModalityReport:
         """Frames missing at those instants, over all cameras (see ``camera.missing_frames``)."""
         return self.camera.n_missing if self.camera is not None else 0
 
+    def state_dict(self) -> StateDict:
+        """Everything reported so far, as arrays (see :mod:`planefuse._state`)."""
+        cams = self.camera_detections
+        xy, n_det = pack_ragged([d.xy_m for d in cams], (2,))
+        conf, _ = pack_ragged([d.confidence for d in cams], ())
+        height, _ = pack_ragged([d.height_m for d in cams], ())
+        pts, n_pts = pack_ragged(self.laser_points_world, (3,))
+        cam = self.camera
+        missing = [] if cam is None else [(n, t) for n, ts in cam.missing_frames.items() for t in ts]
+        sal = self.sound_saliency
+        return {
+            "has_camera": np.asarray(cam is not None),
+            "camera_instants": np.asarray(0 if cam is None else cam.instants, dtype=np.int64),
+            "camera_missing_name": strings([n for n, _ in missing]),
+            "camera_missing_time_s": np.array([t for _, t in missing], dtype=float),
+            "camera_blind": strings([] if cam is None else cam.blind_cameras),
+            "camera_det_time_s": np.array([d.time_s for d in cams], dtype=float),
+            "camera_det_source": strings([d.source for d in cams]),
+            "camera_det_count": n_det, "camera_det_xy_m": xy, "camera_det_confidence": conf,
+            "camera_det_height_m": height,
+            "n_laser_scans": np.asarray(self.n_laser_scans, dtype=np.int64),
+            "n_laser_invalid_beams": np.asarray(self.n_laser_invalid_beams, dtype=np.int64),
+            "laser_points_count": n_pts, "laser_points_world": pts,
+            "laser_points_times_s": np.array(self.laser_points_times_s, dtype=float),
+            "n_sound_blocks": np.asarray(self.n_sound_blocks, dtype=np.int64),
+            "sound_times_s": np.array(self.sound_times_s, dtype=float),
+            "sound_map_azimuth_rad": np.array(self.sound_map_azimuth_rad, dtype=float),
+            "sound_saliency": np.stack(sal) if sal else np.zeros((0, 0)),
+            "sound_azimuth_grid_rad": (np.zeros(0) if self.sound_azimuth_grid_rad is None
+                                       else np.asarray(self.sound_azimuth_grid_rad)),
+            "T_world_head": np.zeros((0, 4)) if self.T_world_head is None else np.asarray(self.T_world_head),
+        }
 
-def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityReport) -> Iterator[Evidence]:
-    """Background subtraction (primed with the empty-scene image where the stream has one), registration
-    on every plane and multi-view fusion (planefuse.vision)."""
+    def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
+        """Restore what :meth:`state_dict` saved."""
+        from ..vision import CameraReport
+
+        def g(key):
+            return get(state, key, "modality report")
+
+        self.camera = None
+        if bool(g("has_camera")):
+            missing: dict[str, list[float]] = {}
+            for n, t in zip(g("camera_missing_name"), g("camera_missing_time_s")):
+                missing.setdefault(str(n), []).append(float(t))
+            self.camera = CameraReport(int(g("camera_instants")), missing, [str(n) for n in g("camera_blind")])
+        counts = g("camera_det_count")
+        self.camera_detections = [
+            GroundDetections(float(t), xy, c, h, str(s)) for t, s, xy, c, h in zip(
+                g("camera_det_time_s"), g("camera_det_source"), unpack_ragged(g("camera_det_xy_m"), counts),
+                unpack_ragged(g("camera_det_confidence"), counts), unpack_ragged(g("camera_det_height_m"), counts))
+        ]
+        self.n_laser_scans = int(g("n_laser_scans"))
+        self.n_laser_invalid_beams = int(g("n_laser_invalid_beams"))
+        self.laser_points_world = unpack_ragged(g("laser_points_world"), g("laser_points_count"))
+        self.laser_points_times_s = [float(t) for t in g("laser_points_times_s")]
+        self.n_sound_blocks = int(g("n_sound_blocks"))
+        self.sound_times_s = [float(t) for t in g("sound_times_s")]
+        self.sound_map_azimuth_rad = [float(a) for a in g("sound_map_azimuth_rad")]
+        self.sound_saliency = list(g("sound_saliency"))
+        grid, T = g("sound_azimuth_grid_rad"), g("T_world_head")
+        self.sound_azimuth_grid_rad = grid if grid.size else None
+        self.T_world_head = T if T.size else None
+
+
+@dataclass
+class EvidenceSource:
+    """One sensor's messages in time order, each computed only when taken.
+
+    Attributes
+    ----------
+    name : str
+        Source name (unique in a run: ``"cameras"``, ``"laser:<name>"``, ``"sound:<name>"``).
+    items : iterator of (float, callable)
+        ``(time_s, compute)`` per message: the stamp [s] (cheap to read) and the function that computes the
+        :class:`~planefuse.grid.Evidence` with that stamp. Messages must be computed in order.
+    start : int
+        Messages of the recording skipped at the start (a resumed run).
+    """
+
+    name: str
+    items: Iterator[tuple[float, Callable[[], Evidence]]]
+    start: int = 0
+
+    def evidence(self) -> Iterator[Evidence]:
+        """The messages, computed one after the other."""
+        return (compute() for _, compute in self.items)
+
+
+class MergedEvidence:
+    """Interleave sources by time stamp (ties in source order), computing a message only when it is taken.
+
+    Attributes
+    ----------
+    consumed : dict of str -> int
+        Messages each source has given so far, counted from the start of the recording (skipped ones
+        included): where a resumed run starts it.
+    n_computed : int
+        Messages computed by this object (not counting skipped ones).
+    """
+
+    def __init__(self, sources: Iterable[EvidenceSource]) -> None:
+        self.sources = list(sources)
+        names = [s.name for s in self.sources]
+        if len(set(names)) != len(names):
+            raise ValueError(f"evidence sources must have unique names, got {names}")
+        self.consumed = {s.name: int(s.start) for s in self.sources}
+        self.n_computed = 0
+
+    def __iter__(self) -> Iterator[Evidence]:
+        heap: list[tuple[float, int, Callable[[], Evidence]]] = []
+        for i, src in enumerate(self.sources):
+            self._advance(heap, i)
+        while heap:
+            t, i, compute = heapq.heappop(heap)
+            src = self.sources[i]
+            ev = compute()
+            if ev.time_s != t:
+                raise ValueError(f"source {src.name!r}: message announced at t={t!r} s was computed with "
+                                 f"time_s={ev.time_s!r}")
+            self.consumed[src.name] += 1
+            self.n_computed += 1
+            yield ev
+            self._advance(heap, i)
+
+    def _advance(self, heap: list, i: int) -> None:
+        item = next(self.sources[i].items, None)
+        if item is not None:
+            heapq.heappush(heap, (float(item[0]), i, item[1]))
+
+    def state_dict(self) -> StateDict:
+        """``source``: names, ``consumed``: messages given by each."""
+        return {"source": strings(list(self.consumed)),
+                "consumed": np.array(list(self.consumed.values()), dtype=np.int64)}
+
+
+def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
+    """Inverse of :meth:`MergedEvidence.state_dict`: source name -> messages already given."""
+    return {str(n): int(c) for n, c in zip(get(state, "source", "sources"), get(state, "consumed", "sources"))}
+
+
+def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
+                  start: int = 0) -> EvidenceSource:
+    """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
+    the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
+
+    With ``start > 0`` the first ``start`` instants are not computed, but their frames still update the
+    background models (:func:`planefuse.vision.camera_detections` ``replay``), so that what follows is
+    exactly what an uninterrupted run computes.
+    """
     from ..vision import CameraReport, camera_detections, lookups_from_cameras, recording_frames
 
     cams = rec.cameras
     names = [c.name for c in cams]
-    lookups = lookups_from_cameras(cams, stack)
-    report.camera = CameraReport()
-    # empty-scene calibration plates prime the background models (no ghosts of people already in view)
-    backgrounds = [_background_or_none(rec.camera(n)) for n in names]
-    for ev, det in camera_detections(recording_frames(rec), lookups, stack, params,
-                                     names=names, report=report.camera, backgrounds=backgrounds):
-        report.camera_detections.append(det)
-        yield ev
+    if report.camera is None:
+        report.camera = CameraReport()
+    replay = start if params.foreground is not None else 0
+    times = np.asarray(rec.camera(names[0]).times_s, dtype=float)[start:]
+
+    def messages() -> Iterator[Evidence]:
+        lookups = lookups_from_cameras(cams, stack)
+        # empty-scene calibration plates prime the background models (no ghosts of people already in view)
+        backgrounds = [_background_or_none(rec.camera(n)) for n in names]
+        instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
+                                     names=names, report=report.camera, backgrounds=backgrounds, replay=replay)
+        for ev, det in instants:
+            report.camera_detections.append(det)
+            yield ev
+
+    gen = messages()
+    return EvidenceSource("cameras", ((float(t), partial(next, gen)) for t in times), start)
 
 
 def _background_or_none(stream) -> np.ndarray | None:
@@ -77,57 +236,95 @@ def _background_or_none(stream) -> np.ndarray | None:
         return None
 
 
-def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityReport,
-                   keep_points_every: int = 40) -> Iterator[Evidence]:
-    """Every scan of every laser registered with free space on every plane (planefuse.laser).
+def laser_sources(rec: Recording, stack: PlaneStack, model, report: ModalityReport,
+                  start: Mapping[str, int] | None = None, keep_points_every: int = 40) -> list[EvidenceSource]:
+    """One source per laser: every scan registered with free space on every plane (planefuse.laser).
 
     The recording format writes NaN for "no return within range"; such beams free space up to the
-    maximum range (``scans_from_arrays(nan_is_no_return=True)``).
+    maximum range (``scans_from_arrays(nan_is_no_return=True)``). ``start`` maps a source name to the
+    scans to skip. Every ``keep_points_every``-th scan's points are kept in ``report`` for the figures.
     """
     from ..laser import LaserRegistrar, scans_from_arrays
     from ..sim import tilting_unit_from_model
 
+    def register(registrar, scan) -> Evidence:
+        reg = registrar.register(scan)
+        report.n_laser_scans += 1
+        report.n_laser_invalid_beams += reg.n_invalid
+        if report.n_laser_scans % keep_points_every == 1:
+            report.laser_points_world.append(reg.points_world)
+            report.laser_points_times_s.append(scan.time_s)
+        return reg.evidence
+
+    def items(ls, registrar, first: int):
+        sc = registrar.unit.scanner
+        for chunk in ls.chunks(start=first):
+            for scan in scans_from_arrays(chunk.times_s, chunk.angles_rad, chunk.ranges_m, chunk.tilt_rad,
+                                          ls.T_world_base, sc.range_min_m, sc.range_max_m):
+                yield scan.time_s, partial(register, registrar, scan)
+
+    out = []
     for name in rec.lasers:
         ls = rec.laser(name)
-        unit = tilting_unit_from_model(ls.model)
-        registrar = LaserRegistrar(stack, unit, model, sensor=name)
-        sc = unit.scanner
-        for chunk in ls.chunks():
-            scans = scans_from_arrays(chunk.times_s, chunk.angles_rad, chunk.ranges_m, chunk.tilt_rad,
-                                      ls.T_world_base, sc.range_min_m, sc.range_max_m)
-            for scan in scans:
-                reg = registrar.register(scan)
-                report.n_laser_scans += 1
-                report.n_laser_invalid_beams += reg.n_invalid
-                if report.n_laser_scans % keep_points_every == 1:
-                    report.laser_points_world.append(reg.points_world)
-                    report.laser_points_times_s.append(scan.time_s)
-                yield reg.evidence
+        key = f"laser:{name}"
+        first = int((start or {}).get(key, 0))
+        registrar = LaserRegistrar(stack, tilting_unit_from_model(ls.model), model, sensor=name)
+        out.append(EvidenceSource(key, items(ls, registrar, first), first))
+    return out
+
+
+def sound_sources(rec: Recording, stack: PlaneStack, report: ModalityReport, block_s: float = 0.5, model=None,
+                  start: Mapping[str, int] | None = None) -> list[EvidenceSource]:
+    """One source per binaural head: Bayesian localisation per block of ``block_s`` [s], registered as a
+    wedge on every plane (planefuse.audio). A last block shorter than half a block is not used. ``start``
+    maps a source name to the blocks to skip."""
+    from ..audio import default_sensor_model, evidence_from_saliency, localize
+
+    def compute(name, au, m, t, x) -> Evidence:
+        loc = localize(x, float(au.fs_hz), m)
+        report.n_sound_blocks += 1
+        report.sound_times_s.append(t)
+        report.sound_map_azimuth_rad.append(loc.map_azimuth_rad)
+        report.sound_saliency.append(loc.saliency)
+        report.sound_azimuth_grid_rad = loc.azimuth_rad
+        report.T_world_head = au.T_world_head
+        return evidence_from_saliency(loc.saliency, loc.azimuth_rad, au.T_world_head, stack, t, sensor=name)
+
+    def items(name, au, m, n: int, first: int):
+        for t0, x in au.blocks(n, start=first * n):
+            if len(x) < n // 2:
+                continue
+            t = t0 + 0.5 * len(x) / au.fs_hz
+            yield t, partial(compute, name, au, m, t, x)
+
+    out = []
+    for name in rec.audio:
+        au = rec.binaural(name)
+        m = model if model is not None else default_sensor_model(float(au.fs_hz))
+        key = f"sound:{name}"
+        first = int((start or {}).get(key, 0))
+        out.append(EvidenceSource(key, items(name, au, m, int(round(block_s * au.fs_hz)), first), first))
+    return out
+
+
+def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityReport) -> Iterator[Evidence]:
+    """The cameras' evidence (:func:`camera_source`) as one time-ordered stream."""
+    return camera_source(rec, stack, params, report).evidence()
+
+
+def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityReport,
+                   keep_points_every: int = 40) -> Iterator[Evidence]:
+    """Every laser's evidence (:func:`laser_sources`) as one time-ordered stream."""
+    return iter(MergedEvidence(laser_sources(rec, stack, model, report, keep_points_every=keep_points_every)))
 
 
 def sound_evidence(rec: Recording, stack: PlaneStack, report: ModalityReport, block_s: float = 0.5,
                    model=None) -> Iterator[Evidence]:
-    """Bayesian binaural localisation per block, registered as a wedge on every plane (planefuse.audio)."""
-    from ..audio import default_sensor_model, evidence_from_saliency, localize
-
-    for name in rec.audio:
-        au = rec.binaural(name)
-        m = model if model is not None else default_sensor_model(float(au.fs_hz))
-        n = int(round(block_s * au.fs_hz))
-        for t0, x in au.blocks(n):
-            if len(x) < n // 2:
-                continue
-            loc = localize(x, float(au.fs_hz), m)
-            t = t0 + 0.5 * len(x) / au.fs_hz
-            report.n_sound_blocks += 1
-            report.sound_times_s.append(t)
-            report.sound_map_azimuth_rad.append(loc.map_azimuth_rad)
-            report.sound_saliency.append(loc.saliency)
-            report.sound_azimuth_grid_rad = loc.azimuth_rad
-            report.T_world_head = au.T_world_head
-            yield evidence_from_saliency(loc.saliency, loc.azimuth_rad, au.T_world_head, stack, t, sensor=name)
+    """Every binaural head's evidence (:func:`sound_sources`) as one time-ordered stream."""
+    return iter(MergedEvidence(sound_sources(rec, stack, report, block_s, model)))
 
 
-def merged_evidence(*streams: Iterator[Evidence]) -> Iterator[Evidence]:
-    """Interleave time-ordered evidence streams by time stamp."""
+def merged_evidence(*streams: Iterable[Evidence]) -> Iterator[Evidence]:
+    """Interleave time-ordered evidence streams by time stamp (each message computed before it is compared;
+    :class:`MergedEvidence` computes them only when taken)."""
     return heapq.merge(*streams, key=lambda e: e.time_s)

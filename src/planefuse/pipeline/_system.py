@@ -3,20 +3,25 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .._state import StateDict, get, sub_state, with_prefix
 from ..audio import lateral_from_azimuth
 from ..eval import detection_scores, tracking_metrics
 from ..grid import PlaneStack
 from ..io import Recording
-from ..tracking import ClusterParams, TrackerOutput, TrackingParams, track_evidence
-from ._streams import ModalityReport, camera_evidence, laser_evidence, merged_evidence, sound_evidence
+from ..tracking import ClusterParams, EvidenceTracker, TrackerOutput, TrackingParams
+from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
+                       laser_sources, sound_sources)
 
-__all__ = ["SystemParams", "SystemResult", "run_system", "evaluate_system", "stack_for_recording",
-           "system_laser_model"]
+__all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system", "evaluate_steps",
+           "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT"]
+
+#: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
+CHECKPOINT_FORMAT = 1
 
 
 @dataclass(frozen=True)
@@ -106,6 +111,103 @@ def stack_for_recording(rec: Recording, params: SystemParams, wall_margin_m: flo
     return PlaneStack.from_extent(heights, (x0 + m, x1 - m), (y0 + m, y1 - m), params.cell_size_m)
 
 
+class SystemRun:
+    """One run of the whole system on a recording, which can be checkpointed and resumed exactly.
+
+    Every enabled modality is an :class:`~planefuse.pipeline.EvidenceSource`; their messages are merged by
+    time stamp and pushed, one at a time, into an :class:`~planefuse.tracking.EvidenceTracker` (one BOF per
+    plane, clustering, tracker). :meth:`state_dict`, taken while an output is handled, holds all the state
+    the rest of the run depends on: the messages each source has given, the held evidence, the filter of
+    every plane, the tracks and what the modalities reported so far. ``SystemRun(rec, params,
+    checkpoint=state)`` starts every source where that state left it and continues with exactly the outputs
+    the uninterrupted run would have given. The only past work a resumed run repeats is updating the
+    cameras' background models with the frames already seen (OpenCV cannot save them), which is what makes
+    the resumed outputs identical.
+
+    Parameters
+    ----------
+    rec : Recording
+    params : SystemParams
+    stack : PlaneStack, optional
+        Default: :func:`stack_for_recording`.
+    checkpoint : mapping, optional
+        A :meth:`state_dict` of a run with the same recording, parameters and stack.
+
+    Attributes
+    ----------
+    report : ModalityReport
+        What the modalities produced so far (restored from the checkpoint).
+    resumed_at_step : int
+        Index of the first output step this object computes (0 on a fresh run).
+    """
+
+    def __init__(self, rec: Recording, params: SystemParams = SystemParams(), stack: PlaneStack | None = None,
+                 checkpoint: Mapping[str, np.ndarray] | None = None) -> None:
+        self.rec, self.params = rec, params
+        self.stack = stack if stack is not None else stack_for_recording(rec, params)
+        self.report = ModalityReport()
+        consumed: dict[str, int] = {}
+        if checkpoint is not None:
+            version = int(get(checkpoint, "format", "run"))
+            if version != CHECKPOINT_FORMAT:
+                raise ValueError(f"checkpoint format {version} is not this version's ({CHECKPOINT_FORMAT})")
+            self.report.load_state_dict(sub_state(checkpoint, "report"))
+            consumed = consumed_from_state(sub_state(checkpoint, "sources"))
+        sources = self._sources(consumed)
+        if not sources:
+            raise ValueError("no enabled modality has a stream in this recording")
+        if checkpoint is not None and set(consumed) != {s.name for s in sources}:
+            raise ValueError(f"checkpoint has sources {sorted(consumed)}, this run has "
+                             f"{sorted(s.name for s in sources)}")
+        self.evidence = MergedEvidence(sources)
+        tp = replace(params.tracking, output_period_s=params.output_period_s)
+        if not params.use_filter:
+            # "no filter" ablation: the grid forgets everything between fused steps
+            tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6))
+        self.tracker = EvidenceTracker(self.stack, tp)
+        if checkpoint is not None:
+            self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
+        self.resumed_at_step = self.tracker.n_outputs
+
+    def _sources(self, consumed: Mapping[str, int]) -> list[EvidenceSource]:
+        rec, params, stack, report = self.rec, self.params, self.stack, self.report
+        out = []
+        if params.cameras and rec.camera_streams:
+            from ..vision import CameraParams
+
+            out.append(camera_source(rec, stack, params.camera_params or CameraParams(), report,
+                                     start=consumed.get("cameras", 0)))
+        if params.laser and rec.lasers:
+            out += laser_sources(rec, stack, params.laser_model or system_laser_model(), report, start=consumed)
+        if params.sound and rec.audio:
+            model = None
+            if params.sound_model_path is not None:
+                from ..audio import BinauralSensorModel
+
+                model = BinauralSensorModel.load(params.sound_model_path)
+            out += sound_sources(rec, stack, report, params.sound_block_s, model, start=consumed)
+        return out
+
+    @property
+    def n_outputs(self) -> int:
+        """Output steps given so far, counted from the start of the recording (the next step's index)."""
+        return self.tracker.n_outputs
+
+    def outputs(self) -> Iterator[TrackerOutput]:
+        """The remaining output steps, in order."""
+        yield from self.tracker.drain()  # batches a checkpoint left ready but unprocessed
+        for ev in self.evidence:
+            yield from self.tracker.push(ev)
+        yield from self.tracker.flush()
+
+    def state_dict(self) -> StateDict:
+        """The run's state as arrays (:mod:`planefuse._state`); complete while an output is handled."""
+        return {"format": np.asarray(CHECKPOINT_FORMAT),
+                **with_prefix("sources", self.evidence.state_dict()),
+                **with_prefix("tracker", self.tracker.state_dict()),
+                **with_prefix("report", self.report.state_dict())}
+
+
 def run_system(
     rec: Recording,
     params: SystemParams = SystemParams(),
@@ -123,36 +225,19 @@ def run_system(
         Default: :func:`stack_for_recording`.
     on_output : callable, optional
         Called with every :class:`TrackerOutput` (progress, writers).
+
+    See Also
+    --------
+    SystemRun : the same run step by step, with checkpoints (what ``run_to_folder`` resumes from).
     """
-    from ..vision import CameraParams
-
-    stack = stack if stack is not None else stack_for_recording(rec, params)
-    report = ModalityReport()
-    streams = []
-    if params.cameras and rec.camera_streams:
-        streams.append(camera_evidence(rec, stack, params.camera_params or CameraParams(), report))
-    if params.laser and rec.lasers:
-        streams.append(laser_evidence(rec, stack, params.laser_model or system_laser_model(), report))
-    if params.sound and rec.audio:
-        model = None
-        if params.sound_model_path is not None:
-            from ..audio import BinauralSensorModel
-
-            model = BinauralSensorModel.load(params.sound_model_path)
-        streams.append(sound_evidence(rec, stack, report, params.sound_block_s, model))
-    if not streams:
-        raise ValueError("no enabled modality has a stream in this recording")
-    tp = replace(params.tracking, output_period_s=params.output_period_s)
-    if not params.use_filter:
-        # "no filter" ablation: the grid forgets everything between fused steps
-        tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6))
+    run = SystemRun(rec, params, stack)
     t0 = time.perf_counter()
     outputs = []
-    for out in track_evidence(stack, merged_evidence(*streams), tp):
+    for out in run.outputs():
         outputs.append(out)
         if on_output is not None:
             on_output(out)
-    return SystemResult(stack, outputs, report, time.perf_counter() - t0)
+    return SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0)
 
 
 def _gt_frames(rec: Recording, times_s: np.ndarray):
@@ -163,32 +248,63 @@ def _gt_frames(rec: Recording, times_s: np.ndarray):
 
 def evaluate_system(rec: Recording, result: SystemResult, threshold_m: float = 0.5) -> dict:
     """MODA/MODP/precision/recall of the filtered detections, MOTA/IDF1 of the tracks, the cameras-only
-    detection scores and the sound azimuth error, against the recording's ground truth."""
+    detection scores and the sound azimuth error, against the recording's ground truth
+    (:func:`evaluate_steps` on ``result.outputs``)."""
+    outs = result.outputs
+    return evaluate_steps(rec, np.array([o.time_s for o in outs]), [o.detections.xy_m for o in outs],
+                          [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outs], result.report,
+                          result.elapsed_s, threshold_m)
+
+
+def evaluate_steps(rec: Recording, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarray],
+                   tracks: Sequence[tuple[float, np.ndarray, np.ndarray]], report: ModalityReport,
+                   elapsed_s: float, threshold_m: float = 0.5) -> dict:
+    """The metrics of :func:`evaluate_system` from the output steps alone (e.g. read back from a run folder).
+
+    Parameters
+    ----------
+    rec : Recording
+        With people ground truth.
+    times_s : ndarray, shape (T,)
+        Output step times [s].
+    detections_xy_m : sequence of ndarray (N_t, 2)
+        Filtered detections per step, world XY [m].
+    tracks : sequence of (time_s, ids (M_t,), xy_m (M_t, 2))
+        Reported tracks per step.
+    report : ModalityReport
+    elapsed_s : float
+        Computing time of the run [s] (reported as is).
+    threshold_m : float
+        Match distance [m].
+    """
     if rec.groundtruth is None or rec.groundtruth.people is None:
         raise ValueError("recording has no people ground truth to evaluate against")
+    times_s = np.asarray(times_s, dtype=float)
+    if not (len(times_s) == len(detections_xy_m) == len(tracks)):
+        raise ValueError(f"times_s ({len(times_s)}), detections_xy_m ({len(detections_xy_m)}) and tracks "
+                         f"({len(tracks)}) must have one entry per step")
     gt = rec.groundtruth.people
     # skip the first second: the background model and the filter are still learning
     warm = gt.times_s[0] + 1.0
-    outs = [o for o in result.outputs if o.time_s >= warm and o.time_s <= gt.times_s[-1] + 1e-9]
-    times = np.array([o.time_s for o in outs])
-    gt_frames = list(_gt_frames(rec, times))
-    det = detection_scores(((g[2], o.detections.xy_m) for g, o in zip(gt_frames, outs)), threshold_m)
-    mot = tracking_metrics(gt_frames, [o.tracks for o in outs], max_distance_m=threshold_m)
+    keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
+    gt_frames = list(_gt_frames(rec, times_s[keep]))
+    det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), threshold_m)
+    mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], max_distance_m=threshold_m)
     m = {
         "moda": det.moda, "modp": det.modp, "precision": det.precision, "recall": det.recall,
         "mota": mot["mota"], "motp_m": mot.get("motp_m", float("nan")), "idf1": mot["idf1"],
-        "id_switches": int(mot.get("num_switches", 0)), "n_eval_steps": len(outs),
-        "n_people": int(len(gt.person_ids)), "elapsed_s": result.elapsed_s,
-        "n_camera_frames": result.report.n_camera_frames,
-        "n_missing_camera_frames": result.report.n_missing_camera_frames,
-        "n_laser_scans": result.report.n_laser_scans, "n_sound_blocks": result.report.n_sound_blocks,
+        "id_switches": int(mot.get("num_switches", 0)), "n_eval_steps": len(keep),
+        "n_people": int(len(gt.person_ids)), "elapsed_s": elapsed_s,
+        "n_camera_frames": report.n_camera_frames,
+        "n_missing_camera_frames": report.n_missing_camera_frames,
+        "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
     }
-    cams = [d for d in result.report.camera_detections if d.time_s >= warm]
+    cams = [d for d in report.camera_detections if d.time_s >= warm]
     if cams:
         cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), threshold_m)
         m.update(camera_only_moda=cd.moda, camera_only_modp=cd.modp)
     snd = rec.groundtruth.sound
-    rep = result.report
+    rep = report
     if snd is not None and rep.n_sound_blocks:
         errs = []
         for t, az in zip(rep.sound_times_s, rep.sound_map_azimuth_rad):

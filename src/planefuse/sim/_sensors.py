@@ -70,13 +70,15 @@ def laser_stream(scene: Scene, spec: LaserSpec, times_s: np.ndarray, seed: int) 
     T = spec.T_world_base()
     times_s = np.asarray(times_s, dtype=float)
 
-    def generate(max_scans: int) -> Iterator[LaserScans]:
-        for k, a in enumerate(range(0, len(times_s), max_scans)):
+    def generate(max_scans: int, start: int = 0) -> Iterator[LaserScans]:
+        # chunks keep their boundaries (and random streams) whatever ``start``: a resumed run sees the same scans
+        for a in range(start - start % max_scans, len(times_s), max_scans):
             t = times_s[a : a + max_scans]
             rng = np.random.default_rng([seed, 6, a])
             scans = simulate_nodding_sweep(unit, T, scene, t, rng, scan_duration_s=SCAN_DURATION_S)
-            yield LaserScans(t, unit.scanner.angles_rad, np.stack([s.ranges_m for s in scans]),
-                             np.stack([s.tilt_rad for s in scans]))
+            chunk = LaserScans(t, unit.scanner.angles_rad, np.stack([s.ranges_m for s in scans]),
+                               np.stack([s.tilt_rad for s in scans]))
+            yield chunk if a >= start else chunk.slice(start - a, len(chunk))
 
     return LaserStream(spec.name, T, spec.rate_hz, len(times_s), _model_of(unit), generate=generate)
 

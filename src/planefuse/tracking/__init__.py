@@ -19,7 +19,7 @@ from ._bof import (
 )
 from ._bof_numpy import bof_predict_numpy, bof_update_numpy
 from ._clustering import ClusterParams, Clusters, cluster_occupancy, column_log_odds
-from ._pipeline import TrackerOutput, TrackingParams, track_evidence
+from ._pipeline import EvidenceTracker, TrackerOutput, TrackingParams, track_evidence
 from ._synthetic import evidence_from_people
 from ._tracker import MultiPersonTracker, TrackerParams, Tracks
 
@@ -46,6 +46,7 @@ __all__ = [
     "column_log_odds",
     "evidence_from_people",
     "track_evidence",
+    "EvidenceTracker",
     "transition_probabilities",
     "velocity_grid_mps",
 ]

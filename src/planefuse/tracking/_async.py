@@ -12,12 +12,13 @@ kept in :attr:`AsyncEvidenceBuffer.late` and a :class:`LateEvidenceWarning` is i
 from __future__ import annotations
 
 import heapq
-import itertools
 import warnings
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from .._state import StateDict, float_or_none, get, optional_float, strings
 from ..grid import Evidence
 
 __all__ = ["AsyncEvidenceBuffer", "EvidenceBatch", "LateEvidenceWarning"]
@@ -69,7 +70,7 @@ class AsyncEvidenceBuffer:
         self.merge_tolerance_s = float(merge_tolerance_s)
         self.shape = None if shape is None else tuple(int(s) for s in shape)
         self._heap: list[tuple[float, int, Evidence]] = []
-        self._counter = itertools.count()
+        self._next_seq = 0
         self._newest_s = -np.inf
         self.released_until_s: float = -np.inf
         self.late: list[Evidence] = []
@@ -84,8 +85,8 @@ class AsyncEvidenceBuffer:
         """Number of messages held in the buffer."""
         return len(self._heap)
 
-    def push(self, evidence: Evidence) -> list[EvidenceBatch]:
-        """Add one message; return the batches that became ready, in time order."""
+    def add(self, evidence: Evidence) -> bool:
+        """Hold one message without releasing anything; False (and a warning) if it arrived too late."""
         if not isinstance(evidence, Evidence):
             raise ValueError(f"evidence must be a planefuse.grid.Evidence, got {type(evidence).__name__}")
         if self.shape is not None and evidence.log_odds.shape != self.shape:
@@ -97,26 +98,90 @@ class AsyncEvidenceBuffer:
             warnings.warn(
                 f"Evidence from {evidence.sensor!r} at t={t:.6f} s arrived after the filter reached "
                 f"t={self.released_until_s:.6f} s (older than the {self.window_s} s window); not fused "
-                f"({self.n_late} late so far)", LateEvidenceWarning, stacklevel=2)
-            return []
-        heapq.heappush(self._heap, (t, next(self._counter), evidence))
+                f"({self.n_late} late so far)", LateEvidenceWarning, stacklevel=3)
+            return False
+        heapq.heappush(self._heap, (t, self._next_seq, evidence))
+        self._next_seq += 1
         self._newest_s = max(self._newest_s, t)
-        return self._release(self._newest_s - self.window_s)
+        return True
+
+    def ready(self, final: bool = False) -> Iterator[EvidenceBatch]:
+        """Release the batches that are ready (all of them if ``final``), one at a time and in time order.
+
+        A batch leaves the buffer only when it is taken, so the buffer's state (:meth:`state_dict`) is
+        consistent between any two batches.
+        """
+        until = np.inf if final else self._newest_s - self.window_s
+        while (batch := self._pop_batch(until)) is not None:
+            yield batch
+
+    def push(self, evidence: Evidence) -> list[EvidenceBatch]:
+        """Add one message; return the batches that became ready, in time order."""
+        self.add(evidence)
+        return list(self.ready())
 
     def flush(self) -> list[EvidenceBatch]:
         """Release everything still held, in time order."""
-        return self._release(np.inf)
+        return list(self.ready(final=True))
 
-    def _release(self, until_s: float) -> list[EvidenceBatch]:
-        out: list[EvidenceBatch] = []
-        while self._heap and self._heap[0][0] <= until_s:
-            t0 = self._heap[0][0]
-            group = []
-            while self._heap and self._heap[0][0] <= t0 + self.merge_tolerance_s:
-                group.append(heapq.heappop(self._heap)[2])
-            # a message at the time already released is one more measurement of that instant (dt = 0)
-            t_batch = max(t0, self.released_until_s)
-            log_odds = np.sum([e.log_odds for e in group], axis=0, dtype=np.float32)
-            out.append(EvidenceBatch(t_batch, tuple(e.sensor for e in group), log_odds))
-            self.released_until_s = t_batch
-        return out
+    def _pop_batch(self, until_s: float) -> EvidenceBatch | None:
+        if not self._heap or self._heap[0][0] > until_s:
+            return None
+        t0 = self._heap[0][0]
+        group = []
+        while self._heap and self._heap[0][0] <= t0 + self.merge_tolerance_s:
+            group.append(heapq.heappop(self._heap)[2])
+        # a message at the time already released is one more measurement of that instant (dt = 0)
+        t_batch = max(t0, self.released_until_s)
+        log_odds = np.sum([e.log_odds for e in group], axis=0, dtype=np.float32)
+        self.released_until_s = t_batch
+        return EvidenceBatch(t_batch, tuple(e.sensor for e in group), log_odds)
+
+    # -- checkpoint ------------------------------------------------------------------------------------------------
+    def state_dict(self) -> StateDict:
+        """Held and late messages and the clock, as arrays (see :mod:`planefuse._state`)."""
+        held = sorted(self._heap, key=lambda item: item[:2])
+        return {
+            **_pack_evidence("held", [e for _, _, e in held]),
+            "held_seq": np.array([s for _, s, _ in held], dtype=np.int64),
+            **_pack_evidence("late", self.late),
+            "next_seq": np.asarray(self._next_seq),
+            "newest_s": optional_float(None if self._newest_s == -np.inf else self._newest_s),
+            "released_until_s": optional_float(None if self.released_until_s == -np.inf else self.released_until_s),
+        }
+
+    def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
+        """Restore what :meth:`state_dict` saved."""
+        held = _unpack_evidence("held", state, self.shape)
+        seq = get(state, "held_seq", "evidence buffer")
+        if len(seq) != len(held):
+            raise ValueError(f"evidence buffer state: {len(held)} held messages but {len(seq)} sequence numbers")
+        self._heap = [(float(e.time_s), int(s), e) for s, e in zip(seq, held)]
+        heapq.heapify(self._heap)
+        self.late = _unpack_evidence("late", state, self.shape)
+        self._next_seq = int(get(state, "next_seq", "evidence buffer"))
+        newest = float_or_none(get(state, "newest_s", "evidence buffer"))
+        released = float_or_none(get(state, "released_until_s", "evidence buffer"))
+        self._newest_s = -np.inf if newest is None else newest
+        self.released_until_s = -np.inf if released is None else released
+
+
+def _pack_evidence(name: str, items: list[Evidence]) -> StateDict:
+    return {
+        f"{name}_time_s": np.array([e.time_s for e in items], dtype=float),
+        f"{name}_sensor": strings([e.sensor for e in items]),
+        f"{name}_log_odds": (np.stack([e.log_odds for e in items]) if items
+                             else np.zeros((0, 0, 0, 0), np.float32)),
+    }
+
+
+def _unpack_evidence(name: str, state: Mapping[str, np.ndarray], shape) -> list[Evidence]:
+    times = get(state, f"{name}_time_s", "evidence buffer")
+    sensors = get(state, f"{name}_sensor", "evidence buffer")
+    log_odds = get(state, f"{name}_log_odds", "evidence buffer")
+    if not (len(times) == len(sensors) == len(log_odds)):
+        raise ValueError(f"evidence buffer state: {name} messages disagree in number ({len(times)} times, "
+                         f"{len(sensors)} sensors, {len(log_odds)} grids)")
+    if len(times) and shape is not None and log_odds.shape[1:] != tuple(shape):
+        raise ValueError(f"evidence buffer state: {name} grids have shape {log_odds.shape[1:]}, expected {shape}")
+    return [Evidence(float(t), str(s), g) for t, s, g in zip(times, sensors, log_odds)]

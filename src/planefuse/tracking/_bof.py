@@ -65,6 +65,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from .._state import StateDict, float_or_none, get_shaped, optional_float
 from ..grid import PlaneStack
 
 __all__ = [
@@ -481,6 +482,21 @@ class BayesianOccupancyFilter:
     def occupancy(self) -> np.ndarray:
         """``P(occ)`` per cell, shape (L, ny, nx)."""
         return self.state.occupancy
+
+    def state_dict(self) -> StateDict:
+        """The filter state as arrays (see :mod:`planefuse._state`): ``occ_v``, ``free``, ``residual_cells``,
+        ``time_s`` (NaN before the first update)."""
+        st = self.state
+        return {"occ_v": st.occ_v.copy(), "free": st.free.copy(), "residual_cells": st.residual_cells.copy(),
+                "time_s": optional_float(st.time_s)}
+
+    def load_state_dict(self, state) -> None:
+        """Restore what :meth:`state_dict` saved; shapes must match this filter's planes and velocities."""
+        st = self.state
+        st.occ_v = get_shaped(state, "occ_v", st.occ_v.shape, "filter").astype(np.float32, copy=True)
+        st.free = get_shaped(state, "free", st.free.shape, "filter").astype(np.float32, copy=True)
+        st.residual_cells = get_shaped(state, "residual_cells", st.residual_cells.shape, "filter").astype(float)
+        st.time_s = float_or_none(get_shaped(state, "time_s", (), "filter"))
 
     @property
     def velocity_mps(self) -> np.ndarray:

@@ -8,18 +8,19 @@ log-odds) and, at each output step, clusters the filtered planes and advances th
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._state import StateDict, float_or_none, get, optional_float, strings, sub_state, with_prefix
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
 from ._tracker import MultiPersonTracker, TrackerParams, Tracks
 
-__all__ = ["TrackerOutput", "TrackingParams", "track_evidence"]
+__all__ = ["EvidenceTracker", "TrackerOutput", "TrackingParams", "track_evidence"]
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,93 @@ class TrackerOutput:
     n_late: int
 
 
+class EvidenceTracker:
+    """Filter and track evidence pushed one message at a time, with a state that can be checkpointed.
+
+    ``push(evidence)`` holds the message in the re-ordering buffer and returns an iterator over the
+    :class:`TrackerOutput` it makes ready; batches leave the buffer one at a time as that iterator is
+    consumed, so :meth:`state_dict` taken at any output (or between messages) is the complete state: the
+    held messages, the filter of every plane, the tracks and the output clock. A tracker restored with
+    :meth:`load_state_dict` and fed the messages that follow gives exactly the outputs the original would
+    have given (call :meth:`drain` first: batches made ready before the checkpoint may still be held).
+
+    Parameters
+    ----------
+    stack : PlaneStack
+        The planes; every evidence must have ``log_odds.shape == stack.shape``.
+    params : TrackingParams, optional
+    """
+
+    def __init__(self, stack: PlaneStack, params: TrackingParams | None = None) -> None:
+        self.stack = stack
+        self.params = params if params is not None else TrackingParams()
+        self.buffer = AsyncEvidenceBuffer(self.params.window_s, self.params.merge_tolerance_s, shape=stack.shape)
+        self.bof = BayesianOccupancyFilter(stack, self.params.bof)
+        self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m)
+        self.next_output_s: float | None = None
+        self.sensors: list[str] = []
+        #: outputs given so far (the index of the next output step)
+        self.n_outputs = 0
+
+    def push(self, evidence: Evidence) -> Iterator[TrackerOutput]:
+        """Hold ``evidence``; iterate the result to process what became ready."""
+        self.buffer.add(evidence)
+        return self.drain()
+
+    def drain(self) -> Iterator[TrackerOutput]:
+        """Process the batches the buffer can release now."""
+        for batch in self.buffer.ready():
+            yield from self._process(batch)
+
+    def flush(self) -> Iterator[TrackerOutput]:
+        """Process everything still held (end of the stream)."""
+        for batch in self.buffer.ready(final=True):
+            yield from self._process(batch)
+
+    def _process(self, batch: EvidenceBatch) -> Iterator[TrackerOutput]:
+        params, stack = self.params, self.stack
+        self.bof.predict_to(batch.time_s)
+        self.bof.update(batch.log_odds)
+        self.sensors.extend(s for s in batch.sensors if s not in self.sensors)
+        period = params.output_period_s
+        if period is not None and self.next_output_s is not None and batch.time_s < self.next_output_s - 1e-9:
+            return
+        if period is not None:
+            nxt = batch.time_s + period if self.next_output_s is None else self.next_output_s
+            while nxt <= batch.time_s + 1e-9:
+                nxt += period
+            self.next_output_s = nxt
+        occ, vel = self.bof.state.moments()
+        clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster)
+        tracks = self.tracker.step(clusters)
+        sensors = tuple(self.sensors)
+        self.sensors.clear()
+        self.n_outputs += 1
+        # the state is complete here (checkpoints are taken while the output is handled)
+        yield TrackerOutput(batch.time_s, sensors, occ, vel, clusters, clusters.to_ground_detections(), tracks,
+                            self.buffer.n_late)
+
+    def state_dict(self) -> StateDict:
+        """The whole state as arrays under ``buffer.``, ``bof.``, ``tracker.`` (see :mod:`planefuse._state`)."""
+        return {
+            **with_prefix("buffer", self.buffer.state_dict()),
+            **with_prefix("bof", self.bof.state_dict()),
+            **with_prefix("tracker", self.tracker.state_dict()),
+            "next_output_s": optional_float(self.next_output_s),
+            "sensors": strings(self.sensors),
+            "n_outputs": np.asarray(self.n_outputs, dtype=np.int64),
+        }
+
+    def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
+        """Restore what :meth:`state_dict` saved (same planes and parameters)."""
+        self.buffer.load_state_dict(sub_state(state, "buffer"))
+        self.bof.load_state_dict(sub_state(state, "bof"))
+        self.tracker.load_state_dict(sub_state(state, "tracker"))
+        self.next_output_s = float_or_none(get(state, "next_output_s", "evidence tracker"))
+        self.sensors = [str(s) for s in get(state, "sensors", "evidence tracker")]
+        self.n_outputs = int(get(state, "n_outputs", "evidence tracker"))
+
+
 def track_evidence(
     stack: PlaneStack, evidence: Iterable[Evidence], params: TrackingParams | None = None
 ) -> Iterator[TrackerOutput]:
@@ -103,35 +191,12 @@ def track_evidence(
         ``params.window_s``; older ones are counted in ``n_late`` and warned about).
     params : TrackingParams, optional
         Parameters.
+
+    See Also
+    --------
+    EvidenceTracker : the same, one message at a time, with checkpoints.
     """
-    params = params if params is not None else TrackingParams()
-    buffer = AsyncEvidenceBuffer(params.window_s, params.merge_tolerance_s, shape=stack.shape)
-    bof = BayesianOccupancyFilter(stack, params.bof)
-    tracker = MultiPersonTracker(params.tracker, stack.extent_m)
-    next_output_s: float | None = None
-    sensors: list[str] = []
-
-    def process(batch: EvidenceBatch) -> Iterator[TrackerOutput]:
-        nonlocal next_output_s
-        bof.predict_to(batch.time_s)
-        bof.update(batch.log_odds)
-        sensors.extend(s for s in batch.sensors if s not in sensors)
-        period = params.output_period_s
-        if period is not None and next_output_s is not None and batch.time_s < next_output_s - 1e-9:
-            return
-        if period is not None:
-            next_output_s = batch.time_s + period if next_output_s is None else next_output_s
-            while next_output_s <= batch.time_s + 1e-9:
-                next_output_s += period
-        occ, vel = bof.state.moments()
-        clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster)
-        tracks = tracker.step(clusters)
-        yield TrackerOutput(batch.time_s, tuple(sensors), occ, vel, clusters, clusters.to_ground_detections(),
-                            tracks, buffer.n_late)
-        sensors.clear()
-
+    tracker = EvidenceTracker(stack, params)
     for ev in evidence:
-        for batch in buffer.push(ev):
-            yield from process(batch)
-    for batch in buffer.flush():
-        yield from process(batch)
+        yield from tracker.push(ev)
+    yield from tracker.flush()

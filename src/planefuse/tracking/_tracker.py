@@ -24,12 +24,12 @@ confidence is the last cluster confidence times ``0.5 ** misses``.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from .._state import StateDict, float_or_none, get, optional_float
 from ._clustering import Clusters
 
 __all__ = ["MultiPersonTracker", "TrackerParams", "Tracks"]
@@ -151,7 +151,7 @@ class MultiPersonTracker:
         self.extent_m = extent_m
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
-        self._ids = itertools.count(1)
+        self._next_id = 1
 
     def _associate(self, tracks: list[_Track], pred: np.ndarray, clusters: Clusters, free: np.ndarray):
         """Hungarian matching of ``tracks`` to the still-free clusters; returns (track_idx, cluster_idx) pairs."""
@@ -206,9 +206,10 @@ class MultiPersonTracker:
             near = np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1)
             if near.size and near.min() < p.birth_exclusion_m:
                 continue  # a second mode of someone already tracked, not a new person
-            alive.append(_Track(next(self._ids), clusters.xy_m[ci].copy(), clusters.velocity_mps[ci].copy(),
+            alive.append(_Track(self._next_id, clusters.xy_m[ci].copy(), clusters.velocity_mps[ci].copy(),
                                 float(clusters.height_m[ci]), float(clusters.confidence[ci]),
                                 confirmed=p.confirm_hits <= 1))
+            self._next_id += 1
         self.tracks = alive
         return self.reported()
 
@@ -239,6 +240,47 @@ class MultiPersonTracker:
             return True
         x0, x1, y0, y1 = self.extent_m
         return bool(x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1)
+
+    # -- checkpoint ------------------------------------------------------------------------------------------------
+    _TRACK_FIELDS = ("id", "xy", "v", "height", "confidence", "hits", "misses", "confirmed", "shared_s")
+
+    def state_dict(self) -> StateDict:
+        """Every track (tentative ones included), the clock and the next identity, as arrays.
+
+        The per-step scratch of a track (prediction, matched cluster) is not saved: :meth:`step` sets it
+        before use.
+        """
+        tr = self.tracks
+        return {
+            "time_s": optional_float(self.time_s),
+            "next_id": np.asarray(self._next_id, dtype=np.int64),
+            "id": np.array([t.id for t in tr], dtype=np.int64),
+            "xy": np.array([t.xy for t in tr], dtype=float).reshape(-1, 2),
+            "v": np.array([t.v for t in tr], dtype=float).reshape(-1, 2),
+            "height": np.array([t.height for t in tr], dtype=float),
+            "confidence": np.array([t.confidence for t in tr], dtype=float),
+            "hits": np.array([t.hits for t in tr], dtype=np.int64),
+            "misses": np.array([t.misses for t in tr], dtype=np.int64),
+            "confirmed": np.array([t.confirmed for t in tr], dtype=bool),
+            "shared_s": np.array([t.shared_s for t in tr], dtype=float),
+        }
+
+    def load_state_dict(self, state) -> None:
+        """Restore what :meth:`state_dict` saved."""
+        cols = {k: get(state, k, "tracker") for k in self._TRACK_FIELDS}
+        n = len(cols["id"])
+        if any(len(c) != n for c in cols.values()):
+            raise ValueError(f"tracker state: track fields disagree in length "
+                             f"({ {k: len(c) for k, c in cols.items()} })")
+        self.tracks = [
+            _Track(int(cols["id"][i]), cols["xy"][i].astype(float), cols["v"][i].astype(float),
+                   float(cols["height"][i]), float(cols["confidence"][i]), hits=int(cols["hits"][i]),
+                   misses=int(cols["misses"][i]), confirmed=bool(cols["confirmed"][i]),
+                   shared_s=float(cols["shared_s"][i]))
+            for i in range(n)
+        ]
+        self.time_s = float_or_none(get(state, "time_s", "tracker"))
+        self._next_id = int(get(state, "next_id", "tracker"))
 
     def reported(self) -> Tracks:
         """Confirmed tracks with at most ``max_coast_report`` consecutive misses."""

@@ -243,16 +243,18 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 
-def recording_frames(recording, *, masks: bool = False) -> Iterator[tuple[float, list[np.ndarray | None]]]:
+def recording_frames(recording, *, masks: bool = False,
+                     start: int = 0) -> Iterator[tuple[float, list[np.ndarray | None]]]:
     """Synchronised frames of a :class:`planefuse.io.Recording` (simulated or read from disk).
 
     Instants are the first camera's frame times; another camera contributes its
     frame nearest in time when that is within half of its own frame period, else
     ``None`` (a missing frame, which :func:`camera_detections` reports).
     ``masks=True`` yields the exact foreground masks (uint8 0/255) instead of the images.
+    ``start`` skips the first instants (their frames are not read).
     """
     streams = [recording.camera(c.name) for c in recording.cameras]
-    for t in np.asarray(streams[0].times_s):
+    for t in np.asarray(streams[0].times_s)[int(start):]:
         imgs: list[np.ndarray | None] = []
         for s in streams:
             j = int(np.argmin(np.abs(s.times_s - t))) if len(s) else -1

@@ -124,6 +124,7 @@ class BackgroundSubtractor:
         self._open = _kernel(params.open_px)
         self._rate = params.learning_rate
         self._close = _kernel(params.close_px)
+        self._n_learned = 0
 
     def prime(self, empty_frame, n_frames: int = 30) -> None:
         """Initialise the background model with an image of the empty scene (calibration plate).
@@ -150,7 +151,7 @@ class BackgroundSubtractor:
             raise ValueError(f"{self.name}: n_frames must be >= 1, got {n_frames}")
         img = self._check(empty_frame)
         for i in range(int(n_frames)):
-            self._model.apply(img, learningRate=1.0 if i == 0 else -1.0)
+            self._learn(img, 1.0 if i == 0 else -1.0)
         if self.params.learning_rate < 0:
             self._rate = 1.0 / self.params.history
 
@@ -164,6 +165,19 @@ class BackgroundSubtractor:
         if img.dtype != np.uint8:
             raise ValueError(f"{self.name}: frame must be uint8, got {img.dtype}")
         return img
+
+    def update(self, frame) -> None:
+        """Update the background model with ``frame`` as :meth:`apply` does, without computing the foreground
+        (replaying the frames before a resumed run's first one)."""
+        self._learn(self._check(frame), self._rate)
+
+    def _learn(self, img: np.ndarray, rate: float) -> np.ndarray:
+        # OpenCV's KNN model draws its update times from the global cv::theRNG, which every model and
+        # process shares: seeding it with the model's own frame count makes the masks a function of the
+        # frames alone (reproducible, and exactly replayed by a resumed run).
+        cv2.setRNGSeed(self._n_learned)
+        self._n_learned += 1
+        return self._model.apply(img, learningRate=rate)
 
     def apply(self, frame) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.
@@ -179,7 +193,7 @@ class BackgroundSubtractor:
             Foreground likelihood in ``[floor, ceiling]``.
         """
         img = self._check(frame)
-        mask = self._model.apply(img, learningRate=self._rate)
+        mask = self._learn(img, self._rate)
         # Clean the hard decision (foreground only) before softening it.
         hard = np.where(mask == _CV_FOREGROUND, np.uint8(255), np.uint8(0))
         if self._open is not None:

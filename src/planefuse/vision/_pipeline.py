@@ -105,6 +105,7 @@ def camera_detections(
     names: Sequence[str] | None = None,
     report: CameraReport | None = None,
     backgrounds: Sequence[np.ndarray | None] | None = None,
+    replay: int = 0,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -128,6 +129,10 @@ def camera_detections(
         One empty-scene image per camera (``None`` where a camera has none) that
         primes its background model (:meth:`BackgroundSubtractor.prime`); ignored
         without ``params.foreground``.
+    replay : int
+        The first ``replay`` instants only update the background models: nothing is registered, fused,
+        yielded or reported for them. A run resumed after ``replay`` instants gets the exact background
+        models (OpenCV cannot save them) and so the exact outputs of an uninterrupted run.
 
     Yields
     ------
@@ -159,11 +164,16 @@ def camera_detections(
             for sub, bg in zip(subtractors, backgrounds):
                 if bg is not None:
                     sub.prime(bg)
-    for time_s, images in frames:
+    for i, (time_s, images) in enumerate(frames):
         images = list(images)
         if len(images) != fusion.n_cameras:
             raise ValueError(f"instant t={time_s}: expected {fusion.n_cameras} images (None for missing), "
                              f"got {len(images)}")
+        if i < replay:
+            for sub, img in zip(subtractors or (), images):
+                if img is not None:
+                    sub.update(img)
+            continue
         fgs: list[np.ndarray | None] = []
         for c, img in enumerate(images):
             if img is None:

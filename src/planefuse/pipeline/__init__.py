@@ -2,20 +2,47 @@
 
 from ._config import system_params_from_config
 from ._outputs import run_to_folder
-from ._streams import ModalityReport, camera_evidence, laser_evidence, merged_evidence, sound_evidence
-from ._system import SystemParams, SystemResult, evaluate_system, run_system, stack_for_recording, system_laser_model
+from ._streams import (
+    EvidenceSource,
+    MergedEvidence,
+    ModalityReport,
+    camera_evidence,
+    camera_source,
+    laser_evidence,
+    laser_sources,
+    merged_evidence,
+    sound_evidence,
+    sound_sources,
+)
+from ._system import (
+    SystemParams,
+    SystemResult,
+    SystemRun,
+    evaluate_steps,
+    evaluate_system,
+    run_system,
+    stack_for_recording,
+    system_laser_model,
+)
 
 __all__ = [
+    "EvidenceSource",
+    "MergedEvidence",
     "ModalityReport",
     "SystemParams",
     "SystemResult",
+    "SystemRun",
     "camera_evidence",
+    "camera_source",
+    "evaluate_steps",
     "evaluate_system",
     "laser_evidence",
+    "laser_sources",
     "merged_evidence",
     "run_system",
     "run_to_folder",
     "sound_evidence",
+    "sound_sources",
     "stack_for_recording",
     "system_laser_model",
     "system_params_from_config",

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import csv
+import functools
 import zipfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -65,7 +66,7 @@ class CameraStream:
     times_s : ndarray, shape (F,)
         Frame times on the recording clock [s].
     get : callable ``i -> (image, mask or None)``
-        Produces frame ``i`` (renders it, or reads its files).
+        Produces frame ``i`` (renders it, or reads its files); the mask may be a function that reads it.
     has_masks : bool
     rate_hz : float
         Nominal frame rate.
@@ -120,12 +121,12 @@ class CameraStream:
         """Ground-truth label mask ``i`` (H, W) uint8: 0 background, ``pid + 1`` for person ``pid``."""
         if not self.has_masks:
             raise ValueError(f"{self.name}: this stream has no ground-truth masks")
-        return self._item(i)[1]
+        return _resolve(self._item(i)[1])
 
     def __iter__(self) -> Iterator[CameraFrame]:
         for i in range(len(self)):
             img, mask = self._item(i)
-            yield CameraFrame(i, float(self.times_s[i]), img, mask)
+            yield CameraFrame(i, float(self.times_s[i]), img, _resolve(mask))
 
     @classmethod
     def from_files(cls, root: Path, entry: CameraEntry) -> CameraStream:
@@ -158,7 +159,8 @@ class CameraStream:
 
         def get(i: int) -> tuple:
             img = _read_png(base / images[i], cv2.IMREAD_COLOR)
-            mask = _read_png(base / masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
+            # masks are read only when asked for (the pipeline never needs them)
+            mask = functools.partial(_read_png, base / masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
             return img, mask
 
         bg = None
@@ -171,6 +173,11 @@ class CameraStream:
                 return _read_png(bg_path, cv2.IMREAD_COLOR)
 
         return cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps, bg)
+
+
+def _resolve(mask):
+    """A mask, or the function that reads it (file-backed streams read masks on demand)."""
+    return mask() if callable(mask) else mask
 
 
 def _read_png(path: Path, flags: int) -> np.ndarray:

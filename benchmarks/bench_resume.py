@@ -64,9 +64,9 @@ def main() -> None:
     simulate(default_scene_config(duration_s=args.duration_s, seed=args.seed)).write(tmp / "rec", image_format="jpg")
     rec = read_recording(tmp / "rec")
     run(rec, tmp / "warm", args.chunk_steps)  # numba compilation, file caches
-    base = float(np.median([run(rec, tmp / "base", args.chunk_steps) for _ in range(args.repeats)]))
-    n_steps = zarr.open_group(tmp / "base" / "occupancy.zarr", mode="r")["time_s"].shape[0]
-    ck = tmp / "base" / "checkpoint.npz"
+    base = float(np.median([run(rec, tmp / f"base-{r}", args.chunk_steps) for r in range(args.repeats)]))
+    n_steps = zarr.open_group(tmp / "base-0" / "occupancy.zarr", mode="r")["time_s"].shape[0]
+    ck = tmp / "base-0" / "checkpoint.npz"
     print(f"{args.duration_s:g} s scene, {n_steps} output steps, chunks of {args.chunk_steps}; "
           f"checkpoint.npz {ck.stat().st_size / 1e6:.1f} MB")
     print(f"uninterrupted run: {base:.2f} s")
@@ -83,7 +83,7 @@ def main() -> None:
         t = float(np.median(times))
         resumed = (stop // args.chunk_steps) * args.chunk_steps
         print(f"| step {stop} ({f:.0%}) | {resumed} | {t:.2f} | {t / base:.2f} | {1 - resumed / n_steps:.2f} "
-              f"| {same(tmp / 'base', out)} |")
+              f"| {same(tmp / 'base-0', out)} |")
 
 
 if __name__ == "__main__":

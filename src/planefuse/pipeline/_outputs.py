@@ -170,6 +170,9 @@ def run_to_folder(
         figures=figures, report=report, rerun=rerun,
     ) as out:
         run = _start(rec, params, stack, out)
+        if run.resumed_at_step:
+            progress.message(f"resuming {out.out_dir} after step {run.resumed_at_step - 1} (the finished chunks "
+                             "are kept; only the cameras' background models replay the frames seen so far)")
         t0 = time.perf_counter()
         with progress.step("register + filter + track", total=max(n_steps, run.n_outputs), unit="steps",
                            completed=run.n_outputs) as advance:

@@ -331,3 +331,22 @@ def test_killed_run_resumes_to_the_same_outputs(recording_dir, tmp_path):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["resumed_at_step"] == 3 * state["n_chunks_done"]
     _same_outputs(ref, out)
+
+
+def test_a_changed_recording_is_not_resumed(recording_dir, tmp_path, monkeypatch):
+    """Same parameters, same source text and duration, but another manifest: start afresh."""
+    import shutil
+
+    other = tmp_path / "other"
+    shutil.copytree(recording_dir, other)
+    with open(other / "scene.yaml", "a", encoding="utf-8") as f:
+        f.write("# edited\n")
+    out = tmp_path / "out"
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 6)
+        with pytest.raises(KeyboardInterrupt):
+            _run(read_recording(recording_dir), out)
+    _, metrics = _run(read_recording(other), out)
+    assert metrics["resumed_at_step"] == 0
+    _, metrics = _run(read_recording(other), out)  # the same recording again: resumed
+    assert metrics["resumed_at_step"] > 0

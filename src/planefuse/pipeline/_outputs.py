@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import Recording
+from ..io import MANIFEST_NAME, Recording
 from ..outputs import OutputWriter, progress_steps
 from ..viz import FigureInputs
 from ._streams import ModalityReport
@@ -31,6 +31,18 @@ def _params_text(params: SystemParams) -> str:
         return o if isinstance(o, (int, float, str, bool, type(None))) else repr(o)
 
     return json.dumps(plain(params), indent=1, sort_keys=True, default=repr)
+
+
+def _recording_fingerprint(rec: Recording) -> str:
+    """What identifies the recording for resuming: its source and duration, plus its manifest (read from disk)
+    or its simulation configuration (in memory), so that a changed recording is not resumed."""
+    parts = [repr(rec.source), repr(rec.duration_s)]
+    manifest = None if rec.root is None else Path(rec.root) / MANIFEST_NAME
+    if manifest is not None and manifest.is_file():
+        parts.append(hashlib.sha256(manifest.read_bytes()).hexdigest())
+    elif rec.provenance is not None:
+        parts.append(json.dumps(rec.provenance, sort_keys=True, default=repr))
+    return "\n".join(parts)
 
 
 def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) -> FigureInputs:
@@ -163,7 +175,7 @@ def run_to_folder(
     """
     stack = stack if stack is not None else stack_for_recording(rec, params)
     text = config_text if config_text is not None else _params_text(params)
-    digest = hashlib.sha256((text + repr(rec.source) + repr(rec.duration_s)).encode()).hexdigest()[:16]
+    digest = hashlib.sha256((text + _recording_fingerprint(rec)).encode()).hexdigest()[:16]
     n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1
     with progress_steps(progress_mode) as progress, OutputWriter(
         out_dir, stack, config_hash=digest, chunk_steps=chunk_steps, config_text=text, animation=animation,

@@ -172,10 +172,10 @@ class BackgroundSubtractor:
         self._learn(self._check(frame), self._rate)
 
     def _learn(self, img: np.ndarray, rate: float) -> np.ndarray:
-        # OpenCV's KNN model draws its update times from the global cv::theRNG, which every model and
-        # process shares: seeding it with the model's own frame count makes the masks a function of the
-        # frames alone (reproducible, and exactly replayed by a resumed run).
-        cv2.setRNGSeed(self._n_learned)
+        # OpenCV's KNN model draws its per-pixel update phases (randu) from cv::theRNG, which every model
+        # in the thread shares: seeding it from the model's own frame count makes the masks a function of
+        # the frames alone (reproducible, and exactly replayed by a resumed run).
+        cv2.setRNGSeed(_frame_seed(self._n_learned))
         self._n_learned += 1
         return self._model.apply(img, learningRate=rate)
 
@@ -203,6 +203,12 @@ class BackgroundSubtractor:
         cleaned = np.where(hard == 255, np.uint8(_CV_FOREGROUND), np.where(mask == _CV_SHADOW, _CV_SHADOW, 0))
         like = self._lut[cleaned.astype(np.uint8)]
         return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling)
+
+
+def _frame_seed(n: int) -> int:
+    """A well-spread 31-bit seed for frame ``n`` (numpy's SeedSequence hash): OpenCV's multiply-with-carry
+    generator seeded with consecutive small integers gives correlated draws."""
+    return int(np.random.SeedSequence(n).generate_state(1, np.uint32)[0]) & 0x7FFFFFFF
 
 
 def _kernel(side_px: int):

@@ -215,7 +215,8 @@ def _same_outputs(a: Path, b: Path) -> None:
     assert ma == mb
 
 
-def _interrupt_at(monkeypatch, step: int) -> None:
+def _run_interrupted(rec, out: Path, monkeypatch, step: int) -> None:
+    """``_run`` stopped by Ctrl-C when it is about to write output ``step``."""
     original = OutputWriter.write_occupancy
 
     def write(self, k, *a, **kw):
@@ -223,7 +224,10 @@ def _interrupt_at(monkeypatch, step: int) -> None:
             raise KeyboardInterrupt
         return original(self, k, *a, **kw)
 
-    monkeypatch.setattr(OutputWriter, "write_occupancy", write)
+    with monkeypatch.context() as m:
+        m.setattr(OutputWriter, "write_occupancy", write)
+        with pytest.raises(KeyboardInterrupt):
+            _run(rec, out)
 
 
 @pytest.fixture(scope="module")
@@ -236,10 +240,7 @@ def reference(recording_dir, tmp_path_factory):
 def test_interrupted_run_resumes_where_it_stopped(recording_dir, reference, tmp_path, monkeypatch):
     rec = read_recording(recording_dir)
     out = tmp_path / "out"
-    with monkeypatch.context() as m:
-        _interrupt_at(m, 10)
-        with pytest.raises(KeyboardInterrupt):
-            _run(rec, out)
+    _run_interrupted(rec, out, monkeypatch, 10)
     state = json.loads((out / "run_state.json").read_text())
     assert state["status"] == "interrupted" and state["n_chunks_done"] == 2
 
@@ -261,10 +262,7 @@ def test_interrupted_run_resumes_where_it_stopped(recording_dir, reference, tmp_
 def test_unusable_checkpoint_recomputes_from_the_start(recording_dir, reference, tmp_path, monkeypatch):
     rec = read_recording(recording_dir)
     out = tmp_path / "out"
-    with monkeypatch.context() as m:
-        _interrupt_at(m, 6)
-        with pytest.raises(KeyboardInterrupt):
-            _run(rec, out)
+    _run_interrupted(rec, out, monkeypatch, 6)
     (out / "checkpoint.npz").write_bytes(b"not a zip file")
     with pytest.warns(UserWarning, match="checkpoint.npz: cannot resume.*corrupt"):
         _, metrics = _run(rec, out)
@@ -342,10 +340,7 @@ def test_a_changed_recording_is_not_resumed(recording_dir, tmp_path, monkeypatch
     with open(other / "scene.yaml", "a", encoding="utf-8") as f:
         f.write("# edited\n")
     out = tmp_path / "out"
-    with monkeypatch.context() as m:
-        _interrupt_at(m, 6)
-        with pytest.raises(KeyboardInterrupt):
-            _run(read_recording(recording_dir), out)
+    _run_interrupted(read_recording(recording_dir), out, monkeypatch, 6)
     _, metrics = _run(read_recording(other), out)
     assert metrics["resumed_at_step"] == 0
     _, metrics = _run(read_recording(other), out)  # the same recording again: resumed

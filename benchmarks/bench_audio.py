@@ -8,25 +8,22 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("MKL_NUM_THREADS", "1")
+import _single_thread  # noqa: F401  (before numpy)
 
-import dataclasses  # noqa: E402
-import time  # noqa: E402
+import dataclasses
+import time
 
-import numpy as np  # noqa: E402
-import pyroomacoustics as pra  # noqa: E402
+import numpy as np
+import pyroomacoustics as pra
 
-from planefuse.audio import (  # noqa: E402
+from planefuse.audio import (
     HEAD_RADIUS_M,
     SphericalHead,
     default_sensor_model,
     localize,
     speech_like_signal,
 )
-from planefuse.audio._evaluate import SweepScene, sweep_recordings  # noqa: E402
+from planefuse.audio._evaluate import SweepScene, sweep_recordings
 
 FS = 16000.0
 DURATION_S = 10.0

@@ -13,16 +13,14 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+import _single_thread  # noqa: F401  (before numpy)
 
-import time  # noqa: E402
+import time
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from planefuse.grid import PlaneStack  # noqa: E402
-from planefuse.laser import (  # noqa: E402
+from planefuse.grid import PlaneStack
+from planefuse.laser import (
     CELL_FREE,
     CELL_OCCUPIED,
     LaserRegistrar,

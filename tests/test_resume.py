@@ -101,6 +101,27 @@ def test_checkpoint_of_other_planes_is_refused_naming_the_entry():
         EvidenceTracker(STACK).load_state_dict(state)
 
 
+def test_kill_between_checkpoint_and_commit_record_still_resumes(tmp_path):
+    """The checkpoint of the chunk the commit record names survives the next chunk's checkpoint."""
+    occ = np.zeros(STACK.shape, np.float32)
+
+    def write(out, steps):
+        for k in steps:
+            out.write_occupancy(k, 0.1 * k, occ, checkpoint=lambda: {"acc": np.array(k)})
+
+    with OutputWriter(tmp_path, STACK, config_hash="h", chunk_steps=3) as out:
+        write(out, range(6))
+    # as if killed after chunk 2's checkpoint was written but before run_state.json recorded the chunk
+    state = json.loads((tmp_path / "run_state.json").read_text())
+    (tmp_path / "run_state.json").write_text(json.dumps({**state, "n_chunks_done": 1}))
+    with OutputWriter(tmp_path, STACK, config_hash="h", chunk_steps=3) as out:
+        assert out.resume_step == 3
+        assert int(out.load_checkpoint()["acc"]) == 2  # state after step 2, from checkpoint.prev.npz
+        write(out, range(3, 6))
+    with OutputWriter(tmp_path, STACK, config_hash="h", chunk_steps=3) as out:
+        assert out.resume_step == 6 and int(out.load_checkpoint()["acc"]) == 5
+
+
 # -- sources seek ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def sim():

@@ -10,6 +10,8 @@ Layout of ``out_dir``::
     detections_mot.txt  MOTChallenge rows (see :func:`mot_rows`)
     tracks_mot.txt      MOTChallenge rows
     checkpoint.npz      the run's state at the last finished chunk (optional; what a re-run resumes from)
+    checkpoint.prev.npz the one before (kept so that a kill between a checkpoint and the commit record
+                        still leaves a checkpoint matching the record)
     metrics.json
     figures/*.png, animation.gif|mp4, report.html, planefuse.rrd
 
@@ -27,6 +29,7 @@ import contextlib
 import csv
 import io
 import json
+import os
 import shutil
 import zipfile
 from collections.abc import Callable, Mapping
@@ -46,9 +49,11 @@ __all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "re
 DETECTION_COLUMNS = ("step", "time_s", "x_m", "y_m", "height_m", "confidence", "source")
 TRACK_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
 STATE_FILE = "run_state.json"
+CHECKPOINT_FILE = "checkpoint.npz"
+PREVIOUS_CHECKPOINT_FILE = "checkpoint.prev.npz"
 _OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
-          "checkpoint.npz", "metrics.json", "figures", "report.html", "animation.gif", "animation.mp4",
-          "planefuse.rrd", "config.yaml", STATE_FILE)
+          CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE, "metrics.json", "figures", "report.html", "animation.gif",
+          "animation.mp4", "planefuse.rrd", "config.yaml", STATE_FILE)
 
 
 def mot_rows(steps, ids, xy_m, confidence, person_radius_m: float) -> np.ndarray:
@@ -404,33 +409,41 @@ class OutputWriter:
 
     def _commit(self, checkpoint: Callable[[], Mapping[str, np.ndarray]] | None) -> None:
         if checkpoint is not None:
-            with atomic_open(self.out_dir / "checkpoint.npz", "wb") as f:
-                np.savez(f, step=self._steps_written, **dict(checkpoint()))
+            state = dict(checkpoint())
+            current, previous = self.out_dir / CHECKPOINT_FILE, self.out_dir / PREVIOUS_CHECKPOINT_FILE
+            # the checkpoint of the chunk run_state.json still names is kept until the record moves on, so
+            # that a kill between the two writes leaves a checkpoint matching the record either way
+            if current.exists():
+                os.replace(current, previous)
+            with atomic_open(current, "wb") as f:
+                np.savez(f, step=self._steps_written, **state)
         self.n_chunks_done = self._steps_written // self.chunk_steps
         self._write_state("running")
 
     def load_checkpoint(self) -> dict[str, np.ndarray] | None:
-        """The state saved with the last finished chunk of a resumed run (None on a fresh run, or when the
-        checkpoint is missing or of another step).
+        """The state saved with the last finished chunk of a resumed run (None on a fresh run, or when no
+        checkpoint of that chunk is there).
 
         Raises
         ------
         ValueError
-            The checkpoint file cannot be read (it names the file).
+            A checkpoint file cannot be read (it names the file).
         """
-        p = self.out_dir / "checkpoint.npz"
-        if not self.resumed or not p.exists():
+        if not self.resumed:
             return None
-        try:
-            with np.load(p, allow_pickle=False) as z:
-                state = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise ValueError(f"{p}: cannot read the checkpoint (corrupt file?): {exc}") from None
-        if "step" not in state:
-            raise ValueError(f"{p}: the checkpoint has no 'step' entry")
-        if int(state.pop("step")) != self.resume_step:
-            return None
-        return state
+        for p in (self.out_dir / CHECKPOINT_FILE, self.out_dir / PREVIOUS_CHECKPOINT_FILE):
+            if not p.exists():
+                continue
+            try:
+                with np.load(p, allow_pickle=False) as z:
+                    state = {k: z[k] for k in z.files}
+            except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+                raise ValueError(f"{p}: cannot read the checkpoint (corrupt file?): {exc}") from None
+            if "step" not in state:
+                raise ValueError(f"{p}: the checkpoint has no 'step' entry")
+            if int(state.pop("step")) == self.resume_step:
+                return state
+        return None
 
     def flush(self, status: str = "interrupted") -> None:
         """Write the steps buffered so far (a partial chunk) so all files are valid; the chunk stays unfinished."""

@@ -183,8 +183,8 @@ def run_to_folder(
     ) as out:
         run = _start(rec, params, stack, out)
         if run.resumed_at_step:
-            progress.message(f"resuming {out.out_dir} after step {run.resumed_at_step - 1} (the finished chunks "
-                             "are kept; only the cameras' background models replay the frames seen so far)")
+            progress.message(f"resuming {out.out_dir} at step {run.resumed_at_step} from its checkpoint (the "
+                             "finished chunks are kept, not recomputed)")
         t0 = time.perf_counter()
         with progress.step("register + filter + track", total=max(n_steps, run.n_outputs), unit="steps",
                            completed=run.n_outputs) as advance:

@@ -122,6 +122,40 @@ def test_kill_between_checkpoint_and_commit_record_still_resumes(tmp_path):
         assert out.resume_step == 6 and int(out.load_checkpoint()["acc"]) == 5
 
 
+def test_modality_report_round_trips_through_a_checkpoint():
+    from planefuse.grid import GroundDetections
+    from planefuse.pipeline import ModalityReport
+    from planefuse.vision import CameraReport
+
+    rep = ModalityReport(
+        camera=CameraReport(12, {"cam1": [0.4, 0.8], "cam3": [0.8]}, ["cam2"]),
+        camera_detections=[GroundDetections(0.0, np.zeros((0, 2)), []),
+                           GroundDetections(0.04, [[1.0, 2.0], [3.0, 4.5]], [0.9, 0.7], [1.7, np.nan], "cameras")],
+        n_laser_scans=41, n_laser_invalid_beams=7,
+        laser_points_world=[np.arange(6.0).reshape(2, 3), np.zeros((0, 3))], laser_points_times_s=[0.0, 1.0],
+        n_sound_blocks=2, sound_times_s=[0.25, 0.75], sound_map_azimuth_rad=[0.1, np.nan],
+        sound_saliency=[np.full(5, 0.2), np.arange(5.0)], sound_azimuth_grid_rad=np.linspace(-1, 1, 5),
+        T_world_head=np.eye(4))
+    back = ModalityReport()
+    back.load_state_dict(_through_file(rep.state_dict()))
+    assert back.camera == rep.camera and back.n_missing_camera_frames == 3
+    for a, b in zip(rep.camera_detections, back.camera_detections, strict=True):
+        assert a.time_s == b.time_s and a.source == b.source
+        np.testing.assert_array_equal(a.xy_m, b.xy_m)
+        np.testing.assert_array_equal(a.confidence, b.confidence)
+        np.testing.assert_array_equal(a.height_m, b.height_m)
+    for a, b in zip(rep.laser_points_world, back.laser_points_world, strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(np.stack(back.sound_saliency), np.stack(rep.sound_saliency))
+    np.testing.assert_array_equal(back.sound_map_azimuth_rad, rep.sound_map_azimuth_rad)
+    assert (back.n_laser_scans, back.n_laser_invalid_beams, back.n_sound_blocks) == (41, 7, 2)
+    assert back.laser_points_times_s == [0.0, 1.0] and back.sound_times_s == [0.25, 0.75]
+    np.testing.assert_array_equal(back.T_world_head, np.eye(4))
+    empty = ModalityReport()
+    empty.load_state_dict(_through_file(ModalityReport().state_dict()))
+    assert empty.camera is None and empty.T_world_head is None and empty.sound_azimuth_grid_rad is None
+
+
 # -- sources seek ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def sim():

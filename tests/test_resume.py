@@ -400,3 +400,24 @@ def test_a_changed_recording_is_not_resumed(recording_dir, tmp_path, monkeypatch
     assert metrics["resumed_at_step"] == 0
     _, metrics = _run(read_recording(other), out)  # the same recording again: resumed
     assert metrics["resumed_at_step"] > 0
+
+
+def test_resumed_rerun_recording_covers_the_whole_run(recording_dir, tmp_path, monkeypatch):
+    """The .rrd of a resumed run logs the kept steps again, then the computed ones."""
+    pytest.importorskip("rerun")
+    from rerun.chunk import RrdReader
+
+    rec = read_recording(recording_dir)
+    out = tmp_path / "out"
+    _run_interrupted(rec, out, monkeypatch, 10)
+    _, metrics = _run(rec, out, rerun=True)
+    assert metrics["resumed_at_step"] == 8
+    steps: dict[str, set[int]] = {}
+    for chunk in RrdReader(str(out / "planefuse.rrd")).stream():
+        batch = chunk.to_record_batch()
+        if "step" in batch.schema.names:
+            steps.setdefault(chunk.entity_path, set()).update(batch.column("step").to_pylist())
+    n = zarr.open_group(out / "occupancy.zarr", mode="r")["time_s"].shape[0]
+    for path in ("/planes/z_0.10m", "/planes/z_1.50m", "/world/detections", "/world/tracks"):
+        assert steps[path] == set(range(n)), path
+    assert min(steps["/world/laser/laser"]) < 8 and min(steps["/world/sound/front"]) < 8

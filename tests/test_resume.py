@@ -400,6 +400,8 @@ def test_a_changed_recording_is_not_resumed(recording_dir, tmp_path, monkeypatch
     assert metrics["resumed_at_step"] == 0
     _, metrics = _run(read_recording(other), out)  # the same recording again: resumed
     assert metrics["resumed_at_step"] > 0
+    _, metrics = _run(read_recording(other), out, resume=False)  # `planefuse run --fresh`
+    assert metrics["resumed_at_step"] == 0
 
 
 def test_resumed_rerun_recording_covers_the_whole_run(recording_dir, tmp_path, monkeypatch):

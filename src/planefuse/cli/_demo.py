@@ -18,6 +18,8 @@ def demo(
     seed: int = typer.Option(1, help="Scene seed."),
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
     rerun: bool = typer.Option(False, "--rerun", help="Also write planefuse.rrd for the rerun viewer."),
+    fresh: bool = typer.Option(False, "--fresh", help="Start afresh in an --out folder holding an interrupted "
+                               "demo of the same scene (default: resume it)."),
 ) -> None:
     """Simulate the default scene (cameras+IMU, nodding laser, binaural head), register every modality on
     the plane stack, filter with one BOF per plane, track people, evaluate against ground truth and write
@@ -29,7 +31,7 @@ def demo(
     t0 = time.perf_counter()
     rec = simulate(default_scene_config(duration_s=duration_s, seed=seed))
     _, metrics = run_to_folder(rec, SystemParams(), out, progress_mode="quiet" if quiet else "rich",
-                               rerun=rerun)
+                               rerun=rerun, resume=not fresh)
     metrics["wall_time_s"] = time.perf_counter() - t0
     _print_summary(metrics, out)
 

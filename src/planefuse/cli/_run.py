@@ -16,9 +16,14 @@ def run(
     quiet: bool = typer.Option(False, "--quiet", help="No progress output."),
     log_json: bool = typer.Option(False, "--log-json", help="Progress as JSON lines on stderr (for scripts)."),
     rerun: bool = typer.Option(False, "--rerun", help="Also write planefuse.rrd (overrides outputs.rerun)."),
+    fresh: bool = typer.Option(False, "--fresh", help="Start afresh: do not resume the finished chunks of an "
+                               "interrupted run of the same configuration in outputs.out_dir."),
 ) -> None:
     """Register every modality of the configured recording on the planes, filter, track, evaluate (when the
-    recording has ground truth) and write occupancy, detections, tracks, metrics, figures and report.html."""
+    recording has ground truth) and write occupancy, detections, tracks, metrics, figures and report.html.
+
+    An interrupted run (Ctrl-C, kill) re-run with the same configuration resumes after its last finished
+    chunk and ends with the same files as an uninterrupted run; --fresh starts afresh."""
     from ..config import ConfigError, config_hash, load_config
     from ..io import read_recording
     from ..outputs import progress_mode
@@ -42,7 +47,7 @@ def run(
             rec, params, out.out_dir, progress_mode=progress_mode(quiet, log_json), animation=out.animation,
             figures=out.figures, report=out.report, rerun=out.rerun or rerun, chunk_steps=out.chunk_steps,
             config_text=yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False) + f"# {config_hash(cfg)}\n",
-            stack=cfg.planes.to_stack(),
+            stack=cfg.planes.to_stack(), resume=not fresh,
         )
     except KeyboardInterrupt:
         console.print(f"interrupted: outputs so far are in {out.out_dir}; re-run to resume")

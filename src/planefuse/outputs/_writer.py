@@ -140,6 +140,9 @@ class OutputWriter:
     rerun : bool
         Log occupancy, detections and tracks to ``planefuse.rrd`` as they are written; the
         :class:`~planefuse.viz.RerunLogger` is :attr:`rerun` for the pipeline's own logging.
+    resume : bool
+        False: start afresh even where a previous run of the same configuration left finished chunks
+        (they are deleted).
 
     Attributes
     ----------
@@ -164,6 +167,7 @@ class OutputWriter:
         report: bool = True,
         figure_dpi: int = 100,
         rerun: bool = False,
+        resume: bool = True,
     ):
         if int(chunk_steps) < 1:
             raise ValueError(f"chunk_steps must be >= 1, got {chunk_steps}")
@@ -184,7 +188,7 @@ class OutputWriter:
 
         state = self._read_state()
         self.resumed = bool(
-            state and self.write_zarr and state.get("config_hash") == self.config_hash
+            resume and state and self.write_zarr and state.get("config_hash") == self.config_hash
             and state.get("chunk_steps") == self.chunk_steps and state.get("n_chunks_done", 0) > 0
             and (self.out_dir / "occupancy.zarr").exists()
         )

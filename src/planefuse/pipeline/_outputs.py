@@ -154,6 +154,7 @@ def run_to_folder(
     chunk_steps: int = 25,
     config_text: str | None = None,
     stack=None,
+    resume: bool = True,
 ) -> tuple[SystemResult, dict]:
     """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
     (CSV + MOTChallenge), ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into
@@ -164,8 +165,8 @@ def run_to_folder(
     re-run with the same parameters into the same folder resumes after the last finished chunk: it
     restores the checkpoint and computes only the steps that follow (the cameras' background models
     replay the frames already seen, which is all of the past it repeats), and its outputs are identical
-    to an uninterrupted run's. Metrics and figures are computed from the folder's outputs, so they cover
-    the whole run.
+    to an uninterrupted run's (``resume=False`` starts afresh instead). Metrics and figures are computed
+    from the folder's outputs, so they cover the whole run.
 
     Returns
     -------
@@ -179,7 +180,7 @@ def run_to_folder(
     n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1
     with progress_steps(progress_mode) as progress, OutputWriter(
         out_dir, stack, config_hash=digest, chunk_steps=chunk_steps, config_text=text, animation=animation,
-        figures=figures, report=report, rerun=rerun,
+        figures=figures, report=report, rerun=rerun, resume=resume,
     ) as out:
         run = _start(rec, params, stack, out)
         if run.resumed_at_step:

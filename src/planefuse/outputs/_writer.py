@@ -44,7 +44,7 @@ import zarr
 from ..grid import GroundDetections, PlaneStack
 from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
 
-__all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table"]
+__all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table", "rows_by_step"]
 
 DETECTION_COLUMNS = ("step", "time_s", "x_m", "y_m", "height_m", "confidence", "source")
 TRACK_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
@@ -83,6 +83,21 @@ def mot_rows(steps, ids, xy_m, confidence, person_radius_m: float) -> np.ndarray
     out[:, 7:9] = xy
     out[:, 9] = -1
     return out
+
+
+def rows_by_step(table: Mapping[str, np.ndarray], n_steps: int, *columns: str) -> list[np.ndarray]:
+    """The rows of a detections/tracks table (column arrays with a ``step`` column) grouped by step.
+
+    Returns
+    -------
+    list of ndarray, shape (N_k, len(columns)), float
+        One array per step ``0 .. n_steps - 1`` with the given columns of that step's rows (empty where the
+        step has none).
+    """
+    order = np.argsort(table["step"], kind="stable")
+    bounds = np.searchsorted(table["step"][order], np.arange(n_steps + 1))
+    rows = np.stack([np.asarray(table[c], dtype=float)[order] for c in columns], axis=-1).reshape(-1, len(columns))
+    return [rows[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def read_table(path: Path | str) -> dict[str, np.ndarray]:
@@ -198,6 +213,7 @@ class OutputWriter:
             self._clear()
         self._dets = _Table(DETECTION_COLUMNS)
         self._tracks = _Table(TRACK_COLUMNS)
+        self._tables_dirty = True  # the files do not hold these (empty or truncated) tables yet
         self._open_zarr()
         if self.resumed:
             for table, name in ((self._dets, "detections.csv"), (self._tracks, "tracks.csv")):
@@ -221,14 +237,13 @@ class OutputWriter:
     def _relog_finished_steps(self) -> None:
         """A resumed run's recording starts anew: log the kept steps again from the folder."""
         times = self.times_s()
-        dets, tracks = self.detections_table(), self.tracks_table()
-        for step, t in enumerate(times):
+        dets = rows_by_step(self.detections_table(), len(times), "x_m", "y_m")
+        tracks = rows_by_step(self.tracks_table(), len(times), "track_id", "x_m", "y_m")
+        for step, (t, d, tr) in enumerate(zip(times, dets, tracks)):
             self.rerun.set_time(step, float(t))
             self.rerun.log_occupancy(self._occ[step])
-            d = dets["step"] == step
-            self.rerun.log_detections(np.stack([dets["x_m"][d], dets["y_m"][d]], axis=-1))
-            k = tracks["step"] == step
-            self.rerun.log_tracks(tracks["track_id"][k], np.stack([tracks["x_m"][k], tracks["y_m"][k]], axis=-1))
+            self.rerun.log_detections(d)
+            self.rerun.log_tracks(tr[:, 0].astype(np.int64), tr[:, 1:3])
 
     # -- construction from a configuration -------------------------------------------------------------------------
     @classmethod
@@ -347,6 +362,7 @@ class OutputWriter:
         for (x, y), h, c in zip(detections.xy_m, detections.height_m, detections.confidence):
             self._dets.rows.append((int(step), float(detections.time_s), float(x), float(y), float(h), float(c),
                                     detections.source))
+            self._tables_dirty = True
 
     def write_tracks(self, step: int, time_s: float, track_ids, xy_m, velocity_m_s=None) -> None:
         """Record the confirmed tracks at ``step``.
@@ -372,6 +388,7 @@ class OutputWriter:
             self.rerun.log_tracks(ids, xy)
         for i, p, vv in zip(ids, xy, v):
             self._tracks.rows.append((int(step), float(time_s), int(i), *map(float, p), *map(float, vv)))
+            self._tables_dirty = True
 
     def _check_open_step(self, step: int) -> None:
         if int(step) < self._steps_written:
@@ -400,6 +417,8 @@ class OutputWriter:
         self._write_tables()
 
     def _write_tables(self) -> None:
+        if not self._tables_dirty:
+            return  # flush, finish and chunk commits may follow each other without new rows
         atomic_write_text(self.out_dir / "detections.csv", self._dets.csv_text())
         atomic_write_text(self.out_dir / "tracks.csv", self._tracks.csv_text())
         for name, table, id_col in (("detections_mot.txt", self._dets, None), ("tracks_mot.txt", self._tracks, 2)):
@@ -410,6 +429,7 @@ class OutputWriter:
             with atomic_open(self.out_dir / name, "w") as f:
                 np.savetxt(f, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"],
                            delimiter=",")
+        self._tables_dirty = False
 
     def _commit(self, checkpoint: Callable[[], Mapping[str, np.ndarray]] | None) -> None:
         if checkpoint is not None:

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import MANIFEST_NAME, Recording
-from ..outputs import OutputWriter, progress_steps
+from ..outputs import OutputWriter, progress_steps, rows_by_step
 from ..viz import FigureInputs
 from ._streams import ModalityReport
 from ._system import SystemParams, SystemResult, SystemRun, evaluate_steps, stack_for_recording
@@ -127,17 +127,9 @@ def _start(rec: Recording, params: SystemParams, stack, out: OutputWriter) -> Sy
 def _steps_from_tables(out: OutputWriter):
     """Per-step detections and tracks read back from the writer (the whole run, resumed or not)."""
     times = out.times_s()
-    steps = np.arange(len(times))
-
-    def per_step(table: dict, *cols: str) -> list[np.ndarray]:
-        order = np.argsort(table["step"], kind="stable")
-        bounds = np.searchsorted(table["step"][order], np.append(steps, len(times)))
-        rows = np.stack([table[c][order] for c in cols], axis=-1).reshape(-1, len(cols))
-        return [rows[a:b] for a, b in zip(bounds[:-1], bounds[1:])]
-
-    det_xy = per_step(out.detections_table(), "x_m", "y_m")
+    det_xy = rows_by_step(out.detections_table(), len(times), "x_m", "y_m")
     tracks = [(float(t), rows[:, 0].astype(np.int64), rows[:, 1:3])
-              for t, rows in zip(times, per_step(out.tracks_table(), "track_id", "x_m", "y_m"))]
+              for t, rows in zip(times, rows_by_step(out.tracks_table(), len(times), "track_id", "x_m", "y_m"))]
     return times, det_xy, tracks
 
 

@@ -152,8 +152,6 @@ class MergedEvidence:
     consumed : dict of str -> int
         Messages each source has given so far, counted from the start of the recording (skipped ones
         included): where a resumed run starts it.
-    n_computed : int
-        Messages computed by this object (not counting skipped ones).
     """
 
     def __init__(self, sources: Iterable[EvidenceSource]) -> None:
@@ -162,7 +160,11 @@ class MergedEvidence:
         if len(set(names)) != len(names):
             raise ValueError(f"evidence sources must have unique names, got {names}")
         self.consumed = {s.name: int(s.start) for s in self.sources}
-        self.n_computed = 0
+
+    @property
+    def n_computed(self) -> int:
+        """Messages computed by this object (the skipped ones not counted)."""
+        return sum(self.consumed.values()) - sum(int(s.start) for s in self.sources)
 
     def __iter__(self) -> Iterator[Evidence]:
         heap: list[tuple[float, int, Callable[[], Evidence]]] = []
@@ -176,7 +178,6 @@ class MergedEvidence:
                 raise ValueError(f"source {src.name!r}: message announced at t={t!r} s was computed with "
                                  f"time_s={ev.time_s!r}")
             self.consumed[src.name] += 1
-            self.n_computed += 1
             yield ev
             self._advance(heap, i)
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._state import StateDict, float_or_none, get, optional_float, strings
+from .._state import StateDict, get, strings
 from ..grid import Evidence
 
 __all__ = ["AsyncEvidenceBuffer", "EvidenceBatch", "LateEvidenceWarning"]
@@ -146,8 +146,8 @@ class AsyncEvidenceBuffer:
             "held_seq": np.array([s for _, s, _ in held], dtype=np.int64),
             **_pack_evidence("late", self.late),
             "next_seq": np.asarray(self._next_seq),
-            "newest_s": optional_float(None if self._newest_s == -np.inf else self._newest_s),
-            "released_until_s": optional_float(None if self.released_until_s == -np.inf else self.released_until_s),
+            "newest_s": np.asarray(self._newest_s),  # -inf before the first message
+            "released_until_s": np.asarray(self.released_until_s),
         }
 
     def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
@@ -160,10 +160,8 @@ class AsyncEvidenceBuffer:
         heapq.heapify(self._heap)
         self.late = _unpack_evidence("late", state, self.shape)
         self._next_seq = int(get(state, "next_seq", "evidence buffer"))
-        newest = float_or_none(get(state, "newest_s", "evidence buffer"))
-        released = float_or_none(get(state, "released_until_s", "evidence buffer"))
-        self._newest_s = -np.inf if newest is None else newest
-        self.released_until_s = -np.inf if released is None else released
+        self._newest_s = float(get(state, "newest_s", "evidence buffer"))
+        self.released_until_s = float(get(state, "released_until_s", "evidence buffer"))
 
 
 def _pack_evidence(name: str, items: list[Evidence]) -> StateDict:

@@ -1,7 +1,9 @@
 """The whole system on several seeds of the default scene: the tuned defaults against a faster-forgetting
 filter and no temporal filter. Prints a Markdown table.
 
-Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10]``
+Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10] [--probe]``
+
+``--probe`` scores instead the clustering / tracker variants of the probe in docs/results.md.
 
 The defaults were tuned on seed 1; the other seeds are held out. Scores as in
 :func:`planefuse.pipeline.evaluate_system` (first second skipped, 0.5 m match distance).
@@ -24,6 +26,14 @@ CONFIGS = {
                                                                                    decay_rate_hz=5.0))),
     "no filter": SystemParams(use_filter=False),
 }
+_T = _BASE.tracking
+PROBE = {
+    "defaults": _BASE,
+    "min_separation_m 0.6": replace(_BASE, tracking=replace(_T, cluster=replace(_T.cluster, min_separation_m=0.6))),
+    "min_separation_m 0.6, velocity_gain 0.2": replace(_BASE, tracking=replace(
+        _T, cluster=replace(_T.cluster, min_separation_m=0.6), tracker=replace(_T.tracker, velocity_gain=0.2))),
+    "column threshold 2.5": replace(_BASE, tracking=replace(_T, cluster=replace(_T.cluster, threshold=2.5))),
+}
 KEYS = ("moda", "precision", "recall", "mota", "idf1")
 
 
@@ -31,14 +41,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1,2,3,4,5,6")
     ap.add_argument("--duration-s", type=float, default=10.0)
+    ap.add_argument("--probe", action="store_true", help="the clustering / tracker variants instead")
     args = ap.parse_args()
+    configs = PROBE if args.probe else CONFIGS
     seeds = [int(s) for s in args.seeds.split(",")]
     print("| seed | configuration | MODA | precision | recall | MOTA | IDF1 | ID switches |")
     print("|---|---|---|---|---|---|---|---|")
-    scores: dict[str, list[dict]] = {name: [] for name in CONFIGS}
+    scores: dict[str, list[dict]] = {name: [] for name in configs}
     for seed in seeds:
         rec = simulate(default_scene_config(duration_s=args.duration_s, seed=seed))
-        for name, params in CONFIGS.items():
+        for name, params in configs.items():
             m = evaluate_system(rec, run_system(rec, params))
             scores[name].append(m)
             print(f"| {seed} | {name} | " + " | ".join(f"{m[k]:.3f}" for k in KEYS) + f" | {m['id_switches']} |",

@@ -90,10 +90,12 @@ def reference_predict(occ_v, free, dt, params: BOFParams):
 
 
 def reference_update(occ_v, free, log_odds):
-    """Seed eq. 7 with the documented clip of the summed log-odds to +-30, float64."""
+    """Seed eq. 7 with the documented clips (summed log-odds to +-30, posterior log-odds to +-60), float64."""
     lam = np.clip(np.asarray(log_odds, float), -30.0, 30.0)
     occ = occ_v.astype(float).sum(axis=1)
     f = free.astype(float)
+    posterior = np.clip(np.log(occ / f) + lam, -60.0, 60.0)
+    lam = posterior - np.log(occ / f)
     z = np.exp(lam) * occ + f
     return occ_v.astype(float) * (np.exp(lam) / z)[:, None], f / z
 
@@ -213,3 +215,17 @@ def test_a_saturated_cell_is_revised_by_contrary_evidence(sign):
     np.testing.assert_allclose(s.occupancy, params.prior_occupancy, rtol=1e-4)
     np.testing.assert_allclose(s.occ_v / s.occupancy[:, None], 1.0 / params.n_velocities, rtol=1e-4)
 
+
+def test_repeated_saturating_updates_without_prediction_stay_revisable():
+    """Regression: four updates of +-30 in a row (no prediction between them, e.g. evidence stamped at the
+    same time) used to underflow the other hypothesis to exactly 0 in float32, and no later update could
+    revise the cell; the posterior log-odds are now bounded to +-60."""
+    params = BOFParams(n_velocities_per_axis=3)
+    for sign in (1.0, -1.0):
+        s = bof_initial_state(TINY, params)
+        for _ in range(6):
+            bof_update(s, np.full(TINY.shape, sign * 1e4, np.float32))
+        assert s.occupancy.min() > 0 and s.free.min() > 0
+        for _ in range(3):
+            bof_update(s, np.full(TINY.shape, -sign * 1e4, np.float32))
+        assert (s.occupancy < 0.5).all() if sign > 0 else (s.occupancy > 0.5).all()

@@ -52,8 +52,10 @@ With ``Lambda(c) = sum_i log P(Z_i|occ)/P(Z_i|free)`` (the sum of the sensors' l
     P(occ, v_k | Z) = P(occ, v_k) e^Lambda / (e^Lambda P(occ) + P(free)),
     P(free | Z)     = P(free) / (e^Lambda P(occ) + P(free)),
 
-``Lambda`` is clipped to ``+-MAX_UPDATE_LOG_ODDS = 30`` per update so that, in float32, neither hypothesis
-of a cell underflows to exactly 0 and a later update can always revise it. The update leaves the velocity
+``Lambda`` is clipped to ``+-MAX_UPDATE_LOG_ODDS = 30`` per update, and so that the cell's posterior log-odds
+stay within ``+-MAX_POSTERIOR_LOG_ODDS = 60`` (an update never pushes them further out): in float32 neither
+hypothesis of a cell underflows to exactly 0, even after many saturating updates with no prediction between
+them, and a later update can always revise it. The update leaves the velocity
 distribution of the occupied mass unchanged (the sensors see no velocity); velocities are observed through
 the motion of the occupied mass over successive updates.
 """
@@ -82,6 +84,8 @@ __all__ = [
 
 #: Bound on the summed log-odds of one update (see the module docstring).
 MAX_UPDATE_LOG_ODDS = 30.0
+#: Bound on a cell's posterior log-odds that an update may reach (see the module docstring).
+MAX_POSTERIOR_LOG_ODDS = 60.0
 
 
 @dataclass(frozen=True)
@@ -283,7 +287,7 @@ def _predict_kernel(occ_v, free, oy, ox, ty, tx, bilinear, p_app, p_dis, prior, 
 
 
 @numba.njit(cache=True, fastmath=True)
-def _update_kernel(occ_v, free, log_odds, max_log_odds):  # pragma: no cover - numba
+def _update_kernel(occ_v, free, log_odds, max_log_odds, max_posterior):  # pragma: no cover - numba
     L, K, ny, nx = occ_v.shape
     for l in range(L):
         s_occ = np.zeros((ny, nx), np.float32)
@@ -296,6 +300,9 @@ def _update_kernel(occ_v, free, log_odds, max_log_odds):  # pragma: no cover - n
                 lam = min(max(log_odds[l, iy, ix], -max_log_odds), max_log_odds)
                 f = free[l, iy, ix]
                 so = s_occ[iy, ix]
+                if so > 0 and f > 0:
+                    prior = np.log(so) - np.log(f)
+                    lam = min(max(lam, min(-max_posterior - prior, 0.0)), max(max_posterior - prior, 0.0))
                 # scale occupied by e^lam and free by 1 (or occupied by 1 and free by e^-lam): no overflow
                 if lam >= 0:
                     e = np.float32(np.exp(-lam))
@@ -428,7 +435,8 @@ def bof_update(state: BOFState, evidence_log_odds) -> BOFState:
         raise ValueError(f"evidence_log_odds must have shape {state.free.shape}, got {lo.shape}")
     if not np.isfinite(lo).all():
         raise ValueError("evidence_log_odds has NaN/inf (use 0 for unknown cells)")
-    _update_kernel(state.occ_v, state.free, np.ascontiguousarray(lo), np.float32(MAX_UPDATE_LOG_ODDS))
+    _update_kernel(state.occ_v, state.free, np.ascontiguousarray(lo), np.float32(MAX_UPDATE_LOG_ODDS),
+                   np.float32(MAX_POSTERIOR_LOG_ODDS))
     return state
 
 

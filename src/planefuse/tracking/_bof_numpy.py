@@ -8,7 +8,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._bof import MAX_UPDATE_LOG_ODDS, BOFParams, BOFState, _motion_offsets, _velocity_mixing, transition_probabilities
+from ._bof import (
+    MAX_POSTERIOR_LOG_ODDS,
+    MAX_UPDATE_LOG_ODDS,
+    BOFParams,
+    BOFState,
+    _motion_offsets,
+    _velocity_mixing,
+    transition_probabilities,
+)
 
 __all__ = ["bof_predict_numpy", "bof_update_numpy"]
 
@@ -56,6 +64,9 @@ def bof_update_numpy(state: BOFState, evidence_log_odds) -> BOFState:
     lo = np.clip(np.asarray(evidence_log_odds, dtype=np.float64), -MAX_UPDATE_LOG_ODDS, MAX_UPDATE_LOG_ODDS)
     so = state.occ_v.sum(axis=1, dtype=np.float64)
     f = state.free.astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        prior = np.where((so > 0) & (f > 0), np.log(so) - np.log(f), 0.0)
+    lo = np.clip(lo, np.minimum(-MAX_POSTERIOR_LOG_ODDS - prior, 0.0), np.maximum(MAX_POSTERIOR_LOG_ODDS - prior, 0.0))
     # divide numerator and denominator by max(1, e^lam) to avoid overflow
     e_occ = np.exp(np.minimum(lo, 0.0))
     e_free = np.exp(-np.maximum(lo, 0.0))

@@ -41,10 +41,8 @@ def random_camera(rng, dist=DIST0, name="cam") -> PinholeCamera:
     c = np.array([rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(2.0, 5.0)])
     target = np.array([rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), 0.0])
     T = T_world_cam_look_at(c, target)
-    # add a random roll about the optical axis
-    roll = rotation_from_roll_pitch_yaw(0, 0, rng.uniform(-0.3, 0.3))
-    T[:3, :3] = T[:3, :3] @ np.array([[np.cos(0.2), -np.sin(0.2), 0], [np.sin(0.2), np.cos(0.2), 0], [0, 0, 1]])
-    del roll
+    # a random roll about the optical axis (the camera's z axis)
+    T[:3, :3] = T[:3, :3] @ rotation_from_roll_pitch_yaw(0.0, 0.0, rng.uniform(-0.3, 0.3))
     return PinholeCamera(CameraIntrinsics(K0, 360, 288, dist), T, name)
 
 

@@ -1,20 +1,49 @@
-"""Shared fixtures: seeded RNG, real-data location, random cameras."""
+"""Shared fixtures: seeded RNG, real-data location, random cameras.
+
+Real data: every test that reads ``../shared/data`` goes through :func:`shared_data`, which fails a test not
+marked ``realdata`` (so ``-m "not realdata"`` really excludes real data) and skips with a reason where the
+data are absent -- unless ``PLANEFUSE_REQUIRE_SHARED_DATA=1`` (set by ``.ci/run`` on CI), where absence is a
+failure: a CI machine without ``../shared`` must not turn the real-data tests into quiet skips.
+"""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+REQUIRE_ENV = "PLANEFUSE_REQUIRE_SHARED_DATA"
+
+_current_item: pytest.Item | None = None
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    # before any fixture of the test (module-scoped ones included) is set up
+    global _current_item
+    _current_item = item
+
+
+def pytest_runtest_teardown(item: pytest.Item) -> None:
+    global _current_item
+    _current_item = None
 
 
 def shared_data(name: str) -> Path:
-    """Path of ``../shared/data/<name>``; skip the test with a reason if it is absent."""
+    """Path of ``../shared/data/<name>`` for a test marked ``realdata``; skip with a reason where absent
+    (fail instead when ``PLANEFUSE_REQUIRE_SHARED_DATA=1``)."""
+    item = _current_item
+    if item is not None and item.get_closest_marker("realdata") is None:
+        pytest.fail(f"{item.nodeid} reads ../shared/data/{name} but is not marked @pytest.mark.realdata",
+                    pytrace=False)
     p = SHARED_DATA / name
     if not p.exists():
-        pytest.skip(f"real data {p} is absent (../shared/data not beside the checkout)")
+        msg = f"real data {p} is absent (../shared/data not beside the checkout)"
+        if os.environ.get(REQUIRE_ENV) == "1":
+            pytest.fail(f"{msg}; {REQUIRE_ENV}=1 requires it", pytrace=False)
+        pytest.skip(msg)
     return p
 
 

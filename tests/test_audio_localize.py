@@ -170,6 +170,7 @@ def _cmu(name: str, seconds: float) -> np.ndarray:
     return x[: int(seconds * FS), 0]
 
 
+@pytest.mark.realdata
 def test_spherical_head_sweep_beats_pyroomacoustics(model):
     speech = _cmu("cmu_arctic_us_aew_a0001.wav", 1.5)
     az = np.deg2rad(SWEEP_DEG)
@@ -181,6 +182,7 @@ def test_spherical_head_sweep_beats_pyroomacoustics(model):
         assert mae["planefuse Bayes"] <= v, mae
 
 
+@pytest.mark.realdata
 @pytest.mark.parametrize("which", ["kemar", "ku100"])
 def test_measured_hrir_sweep(which):
     if which == "kemar":

@@ -100,6 +100,7 @@ def test_two_sources_with_start_times():
     assert _lead_s(rec.signal[int(0.52 * FS) : int(0.8 * FS)]) > 200e-6
 
 
+@pytest.mark.realdata
 def test_measured_hrirs_ear_order_left_leads_and_is_louder():
     sofa = MeasuredHrirs.from_sofa(shared_data("hrtf_sofa") / "MIT_KEMAR_normal_pinna.sofa", FS)
     ku = MeasuredHrirs.from_ku100_npz(shared_data("hrir_ku100_circular") / "ku100_circular.npz", FS)

@@ -57,6 +57,7 @@ def test_simulated_people_found_from_their_legs(rng):
     assert np.all(to_wall < 0.05)
 
 
+@pytest.mark.realdata
 def test_leg_detection_on_labelled_real_scans_f1_at_0p3m():
     """positive_1_extracted.bag: labels are leg-cluster centroids within +-15 deg and 5 m (SOURCE.md);
     detections are evaluated in that same window."""
@@ -70,6 +71,7 @@ def test_leg_detection_on_labelled_real_scans_f1_at_0p3m():
     assert scores.n_gt == sum(len(t) for t in labels)
 
 
+@pytest.mark.realdata
 def test_intel_map_walls_are_sharp_and_pose_errors_blur_them():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -91,6 +93,7 @@ def test_intel_map_walls_are_sharp_and_pose_errors_blur_them():
         atol=1e-9)
 
 
+@pytest.mark.realdata
 @pytest.mark.parametrize("i", [1, 2, 3, 4])
 def test_camera_laser_points_lie_on_the_checkerboard(i):
     d = shared_data("lrf3d_camera_lcct")

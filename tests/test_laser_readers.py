@@ -67,6 +67,7 @@ def test_carmen_bad_inputs(tmp_path):
         read_carmen_log(corrupt)
 
 
+@pytest.mark.realdata
 def test_intel_log_reports_its_four_backward_time_stamps():
     path = shared_data("lrf2d_carmen") / "intel-corrected.log.gz"
     with pytest.warns(NonMonotonicTimeWarning):
@@ -152,6 +153,7 @@ def test_rosbag_round_trip_laserscan_pointcloud2_and_bad_inputs(tmp_path):
         read_rosbag(tmp_path / "missing.bag", "/scan")
 
 
+@pytest.mark.realdata
 def test_leg_tracker_demo_bag_reads_every_beam():
     bag = shared_data("lrf2d_people_leg_tracker") / "demo_stationary_simple_environment.bag"
     t, scans = read_rosbag(bag, "/scan")
@@ -164,11 +166,18 @@ def test_leg_tracker_demo_bag_reads_every_beam():
     assert counts[:, 2].sum() > 0  # range 0.0 = no return below range_min: classified invalid, not an obstacle
 
 
-def test_xyz_reader(tmp_path):
+@pytest.mark.realdata
+def test_xyz_reader_on_the_lcct_target():
     p = read_xyz(shared_data("lrf3d_camera_lcct") / "laser_target1.xyz")
     assert p.shape[1] == 3 and 24_000 < len(p) < 27_000
     r = np.linalg.norm(p, axis=1)
     assert 1.3 < r.min() and r.max() < 2.3  # SOURCE.md: range 1.37-2.28 m
+
+
+def test_xyz_reader_bad_inputs(tmp_path):
+    good = tmp_path / "good.xyz"
+    good.write_text("1 2 3\n4.5 -5 6e-1\n")
+    np.testing.assert_array_equal(read_xyz(good), [[1, 2, 3], [4.5, -5, 0.6]])
     bad = tmp_path / "bad.xyz"
     bad.write_text("1 2 3\n4 5\n")
     with pytest.raises(ValueError, match="cannot read XYZ cloud"):
@@ -178,9 +187,13 @@ def test_xyz_reader(tmp_path):
         read_xyz(bad)
 
 
-def test_transform_yaml(tmp_path):
+@pytest.mark.realdata
+def test_transform_yaml_of_the_lcct_calibration():
     T = read_transform_yaml(shared_data("lrf3d_camera_lcct") / "T_camera_laser_stageII.yaml")
     np.testing.assert_allclose(T[:3, 3], [-0.194578, 0.032626, -0.093925])
+
+
+def test_transform_yaml_bad_inputs(tmp_path):
     bad = tmp_path / "b.yaml"
     bad.write_text("t: [1, 2, 3]\n")
     with pytest.raises(ValueError, match="cannot read R and t"):

@@ -26,6 +26,7 @@ from planefuse.vision import (
 )
 
 
+@pytest.mark.realdata
 def test_epfl_terrace_people_from_boxes():
     seq = load_epfl_sequence(shared_data("epfl_pom"), "terrace1")
     assert seq.names == [f"terrace1-c{i}" for i in range(4)]
@@ -55,6 +56,7 @@ def test_epfl_terrace_people_from_boxes():
     assert s1.n_gt > 100 and s1.moda > 0.75 and s1.precision > 0.9
 
 
+@pytest.mark.realdata
 def test_wildtrack_lookup_matches_opencv_projection():
     root = shared_data("wildtrack")
     rig = load_wildtrack_rig(root)
@@ -109,6 +111,7 @@ def test_simulated_scene_exact_masks_multiplane():
     assert moda[4] >= 0.9 and moda[4] > moda[1]
 
 
+@pytest.mark.realdata
 def test_cli_epfl_runs(tmp_path):
     import json
 
@@ -124,6 +127,7 @@ def test_cli_epfl_runs(tmp_path):
     assert [s["threshold_m"] for s in scores] == [0.5, 1.0] and scores[0]["frames"] == 11
 
 
+@pytest.mark.realdata
 def test_cli_wildtrack_on_frames_with_a_missing_one(tmp_path):
     """The WILDTRACK path end to end: real calibration, frames in Image_subsets/C*/, one frame missing."""
     from typer.testing import CliRunner

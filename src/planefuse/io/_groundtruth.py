@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..grid import GroundDetections
+from ._paths import resolve_inside
 from ._timestamps import read_csv_chunks, write_csv
 
 __all__ = ["PeopleTruth", "SoundTruth", "GroundTruth", "PEOPLE_COLUMNS", "BODY_COLUMNS", "SOUND_COLUMNS"]
@@ -168,7 +169,7 @@ class GroundTruth:
         def table(rel: str | None, cols: list[str], timed: bool) -> np.ndarray | None:
             if rel is None:
                 return None
-            path = root / rel
+            path = resolve_inside(root, rel, "groundtruth file")
             parts = []
             last = -np.inf
             for rows, line in read_csv_chunks(path, cols):

@@ -12,6 +12,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..geometry import check_transform
+from ._paths import check_name
 from ._yaml import load_yaml_model
 
 __all__ = [
@@ -35,6 +36,11 @@ Matrix = list[list[float]]
 
 class _Entry(BaseModel):
     model_config = ConfigDict(extra="forbid")
+
+    @field_validator("name", check_fields=False)
+    @classmethod
+    def _name(cls, v: str) -> str:
+        return check_name(v, "sensor name")  # it becomes a file name (figures, cameras/<name>/)
 
 
 def _rigid(v: Matrix, what: str) -> Matrix:

@@ -22,6 +22,7 @@ import soundfile as sf
 
 from ..geometry import CameraIntrinsics, PinholeCamera
 from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
+from ._paths import resolve_inside
 from ._timestamps import Gap, TimeChecker, read_csv_chunks
 
 __all__ = [
@@ -131,7 +132,7 @@ class CameraStream:
     @classmethod
     def from_files(cls, root: Path, entry: CameraEntry) -> CameraStream:
         """Open a recorded camera: reads ``times_file`` now (checking timestamps), images on demand."""
-        path = root / entry.times_file
+        path = resolve_inside(root, entry.times_file, f"times_file of camera {entry.name!r}")
         if not path.is_file():
             raise ValueError(f"{path}: file not found (missing stream of camera {entry.name!r})")
         times, images, masks = [], [], []
@@ -148,24 +149,24 @@ class CameraStream:
                     times.append(float(row[0]))
                 except ValueError:
                     raise ValueError(f"{path}:{line}: time_s {row[0]!r} is not a number") from None
-                images.append(row[1])
-                masks.append(row[2] if len(row) > 2 else None)
+                rel = Path(entry.times_file).parent  # frame files are relative to the times file's folder
+                images.append(resolve_inside(root, rel / row[1], f"{path}:{line}: image_file"))
+                masks.append(resolve_inside(root, rel / row[2], f"{path}:{line}: mask_file") if len(row) > 2 else None)
         checker = TimeChecker(str(path), entry.rate_hz)
         checker.check(np.array(times), first_line=2)  # one row per line after the header
         if len(times) != entry.n_frames:
             raise ValueError(f"{path}: manifest says n_frames = {entry.n_frames}, file lists {len(times)} (truncated?)")
         has_masks = len(header) > 2
-        base = path.parent
 
         def get(i: int) -> tuple:
-            img = _read_png(base / images[i], cv2.IMREAD_COLOR)
+            img = _read_png(images[i], cv2.IMREAD_COLOR)
             # masks are read only when asked for (the pipeline never needs them)
-            mask = functools.partial(_read_png, base / masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
+            mask = functools.partial(_read_png, masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
             return img, mask
 
         bg = None
         if entry.background_file is not None:
-            bg_path = root / entry.background_file
+            bg_path = resolve_inside(root, entry.background_file, f"background_file of camera {entry.name!r}")
             if not bg_path.is_file():
                 raise ValueError(f"{bg_path}: file not found (background of camera {entry.name!r})")
 
@@ -249,7 +250,7 @@ class ImuStream:
 
     @classmethod
     def from_entry(cls, root: Path, e: ImuEntry) -> ImuStream:
-        path = root / e.file
+        path = resolve_inside(root, e.file, f"file of imu {e.name!r}")
         if not path.is_file():
             raise ValueError(f"{path}: file not found (missing stream of imu {e.name!r})")
         return cls(e.name, e.attached_to, np.asarray(e.T_cam_imu, dtype=float), e.rate_hz, e.n_samples,
@@ -368,7 +369,7 @@ class LaserStream:
 
     @classmethod
     def from_entry(cls, root: Path, e: LaserEntry) -> LaserStream:
-        paths = [root / f for f in e.files]
+        paths = [resolve_inside(root, f, f"files of laser {e.name!r}") for f in e.files]
         for p in paths:
             if not p.is_file():
                 raise ValueError(f"{p}: file not found (missing stream of laser {e.name!r})")
@@ -465,7 +466,7 @@ class AudioStream:
 
     @classmethod
     def from_entry(cls, root: Path, e: BinauralEntry) -> AudioStream:
-        path = root / e.file
+        path = resolve_inside(root, e.file, f"file of binaural head {e.name!r}")
         if not path.is_file():
             raise ValueError(f"{path}: file not found (missing stream of binaural head {e.name!r})")
         s = cls(e.name, np.asarray(e.T_world_head, dtype=float), e.fs_hz, e.start_time_s, e.n_samples,

@@ -42,6 +42,7 @@ import yaml
 import zarr
 
 from ..grid import GroundDetections, PlaneStack
+from ..io._paths import check_name
 from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
 
 __all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table", "rows_by_step"]
@@ -533,7 +534,7 @@ class OutputWriter:
                                self.tracks_table(), self.metrics, inputs, dpi=self.figure_dpi, progress=progress)
         if self.figures:
             for name, png in figs.items():
-                p = self.out_dir / "figures" / f"{name}.png"
+                p = self.out_dir / "figures" / f"{check_name(name, 'figure name')}.png"
                 atomic_write_bytes(p, png)
                 written[name] = p
         if self.animation != "none" and self._steps_written:

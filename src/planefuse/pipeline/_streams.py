@@ -206,14 +206,14 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     background models (:func:`planefuse.vision.camera_detections` ``replay``), so that what follows is
     exactly what an uninterrupted run computes.
     """
-    from ..vision import CameraReport, camera_detections, lookups_from_cameras, recording_frames
+    from ..vision import CameraReport, camera_detections, camera_instants, lookups_from_cameras, recording_frames
 
     cams = rec.cameras
     names = [c.name for c in cams]
     if report.camera is None:
         report.camera = CameraReport()
     replay = start if params.foreground is not None else 0
-    times = np.asarray(rec.camera(names[0]).times_s, dtype=float)[start:]
+    times = camera_instants(rec)[start:]
 
     def messages() -> Iterator[Evidence]:
         lookups = lookups_from_cameras(cams, stack)

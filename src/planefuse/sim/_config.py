@@ -11,9 +11,10 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..geometry import CameraIntrinsics, PinholeCamera, T_world_cam_look_at, transform_from_rotation_translation
+from ..io._paths import check_name
 from ..io._yaml import load_yaml_model
 
 __all__ = [
@@ -35,6 +36,11 @@ PositiveFloat = Annotated[float, Field(gt=0)]
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+    @field_validator("name", check_fields=False)
+    @classmethod
+    def _name(cls, v: str) -> str:
+        return check_name(v, "sensor name")  # it becomes a file name in the written recording
 
 
 class CameraSpec(_Model):

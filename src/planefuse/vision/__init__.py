@@ -2,6 +2,7 @@
 
 from ._datasets import (
     EpflSequence,
+    camera_instants,
     epfl_box_frames,
     epfl_ground_truth,
     epfl_lookups,
@@ -46,6 +47,7 @@ __all__ = [
     "person_score_map",
     "read_epfl_detections",
     "read_mot_detections",
+    "camera_instants",
     "recording_frames",
     "wildtrack_frames",
 ]

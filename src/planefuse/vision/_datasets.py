@@ -36,6 +36,7 @@ __all__ = [
     "image_folder_frames",
     "load_epfl_sequence",
     "read_epfl_detections",
+    "camera_instants",
     "recording_frames",
     "wildtrack_frames",
 ]
@@ -243,18 +244,37 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 
+def camera_instants(recording) -> np.ndarray:
+    """The synchronised camera instants of a recording [s], shape (T,), increasing.
+
+    The union of all cameras' frame times, whatever the cameras' order: times closer than half the shortest
+    frame period are one instant (taken at its earliest frame time). A frame dropped by one camera is thus
+    still an instant of the others, and a missing frame of the camera that lacks it.
+    """
+    streams = [recording.camera(c.name) for c in recording.cameras]
+    times = np.sort(np.concatenate([np.asarray(s.times_s, dtype=float) for s in streams] or [np.zeros(0)]))
+    if times.size == 0:
+        return times
+    tol_s = 0.5 / max(s.rate_hz for s in streams)
+    starts = [times[0]]
+    for t in times[1:]:
+        if t - starts[-1] > tol_s:
+            starts.append(t)
+    return np.asarray(starts)
+
+
 def recording_frames(recording, *, masks: bool = False,
                      start: int = 0) -> Iterator[tuple[float, list[np.ndarray | None]]]:
     """Synchronised frames of a :class:`planefuse.io.Recording` (simulated or read from disk).
 
-    Instants are the first camera's frame times; another camera contributes its
-    frame nearest in time when that is within half of its own frame period, else
-    ``None`` (a missing frame, which :func:`camera_detections` reports).
+    Instants are :func:`camera_instants` (the union of all cameras' frame times); each camera contributes
+    its frame nearest in time when that is within half of its own frame period, else ``None`` (a missing
+    frame, which :func:`camera_detections` counts on that camera).
     ``masks=True`` yields the exact foreground masks (uint8 0/255) instead of the images.
     ``start`` skips the first instants (their frames are not read).
     """
     streams = [recording.camera(c.name) for c in recording.cameras]
-    for t in np.asarray(streams[0].times_s)[int(start):]:
+    for t in camera_instants(recording)[int(start):]:
         imgs: list[np.ndarray | None] = []
         for s in streams:
             j = int(np.argmin(np.abs(s.times_s - t))) if len(s) else -1

@@ -1,0 +1,72 @@
+"""Names and paths that come from data: one rule for every manifest path and every name that becomes a file name.
+
+* :func:`check_name` -- a sensor (or figure) name is ``[A-Za-z0-9][A-Za-z0-9_.-]*``, at most 64 characters: no
+  ``/``, no ``..``, nothing a file system or a shell reads specially.
+* :func:`resolve_inside` -- a relative path from a manifest (or a CSV inside a recording), resolved and checked to
+  lie inside its folder. Absolute paths, ``..`` that climbs out and symbolic links that point out are refused.
+
+This module sits at the bottom of the library (it imports nothing from planefuse), so every layer may call it.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path, PurePosixPath, PureWindowsPath
+
+__all__ = ["NAME_PATTERN", "check_name", "resolve_inside"]
+
+NAME_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
+
+
+def check_name(name: str, what: str = "name") -> str:
+    """Return ``name`` if it is safe as a file name, else raise ``ValueError`` naming ``what``.
+
+    Parameters
+    ----------
+    name : str
+        E.g. a camera's name, used in ``figures/camera_<name>.png`` and ``cameras/<name>/``.
+    what : str
+        What the name belongs to, for the error message (e.g. ``"camera name"``).
+    """
+    if not isinstance(name, str) or not NAME_PATTERN.fullmatch(name) or ".." in name:
+        raise ValueError(f"{what} {name!r} must match {NAME_PATTERN.pattern} (letters, digits, '_', '-', '.'; "
+                         "no '/', no '..'; at most 64 characters)")
+    return name
+
+
+def resolve_inside(folder: str | Path, relpath: str | Path, what: str) -> Path:
+    """``folder / relpath`` resolved, checked to lie inside ``folder``.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder the path is relative to (a recording folder).
+    relpath : str or Path
+        A relative path read from data (manifest field, CSV cell).
+    what : str
+        The field it came from, named in the error (e.g. ``"times_file of camera 'cam0'"``).
+
+    Returns
+    -------
+    Path
+        The resolved absolute path (it need not exist; callers check that and say what is missing).
+
+    Raises
+    ------
+    ValueError
+        If ``relpath`` is empty, absolute (POSIX or Windows form), or resolves outside ``folder`` -- through ``..``
+        or through a symbolic link. The message names ``what`` and the offending path, never the content of the
+        file it points to.
+    """
+    rel = str(relpath)
+    if not rel.strip():
+        raise ValueError(f"{what}: empty path")
+    if "\x00" in rel:
+        raise ValueError(f"{what}: path {rel!r} contains a NUL byte")
+    if PurePosixPath(rel).is_absolute() or PureWindowsPath(rel).is_absolute() or PureWindowsPath(rel).drive:
+        raise ValueError(f"{what}: path {rel!r} must be relative to the recording folder {folder}")
+    base = Path(folder).resolve()
+    target = (base / rel).resolve()
+    if not target.is_relative_to(base):
+        raise ValueError(f"{what}: path {rel!r} points outside the recording folder {folder}")
+    return target

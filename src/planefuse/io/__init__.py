@@ -26,8 +26,10 @@ from ._streams import (
     LaserScans,
     LaserStream,
     camera_from_entry,
+    ignore_mask_from_entry,
 )
 from ._timestamps import Gap
+from ._video import VideoFrames, video_info
 from ._yaml import load_yaml_model
 
 __all__ = [
@@ -58,6 +60,9 @@ __all__ = [
     "LaserScans",
     "LaserStream",
     "camera_from_entry",
+    "ignore_mask_from_entry",
+    "VideoFrames",
+    "video_info",
     "Gap",
     "load_yaml_model",
 ]

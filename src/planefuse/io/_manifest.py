@@ -29,7 +29,7 @@ __all__ = [
 ]
 
 MANIFEST_NAME = "scene.yaml"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 
 Matrix = list[list[float]]
 
@@ -53,7 +53,10 @@ def _rigid(v: Matrix, what: str) -> Matrix:
 
 class CameraEntry(_Entry):
     """A camera: pinhole intrinsics with OpenCV distortion, pose ``T_world_cam`` (camera x right, y down,
-    z forward), frames as PNG files listed with their times in ``times_file``."""
+    z forward), and its frames: image files listed with their times in ``times_file``, or a video file
+    (format version 2) whose frames are timed by ``times_file`` (``time_s,frame_index``) or, without one,
+    by ``start_time_s + k / rate_hz``. Pixels that are not scene evidence (a watermark, a TV, a privacy zone)
+    are given by ``ignore_rects_px`` and/or ``ignore_mask_file``."""
 
     type: Literal["camera"]
     name: str
@@ -64,8 +67,14 @@ class CameraEntry(_Entry):
     T_world_cam: Matrix
     rate_hz: float = Field(gt=0)
     n_frames: int = Field(ge=0)
-    times_file: str = Field(description="CSV: time_s,image_file[,mask_file] relative to the recording")
+    times_file: str | None = Field(None, description="CSV: time_s,image_file[,mask_file] (image frames) or "
+                                   "time_s,frame_index (video frames), relative to the recording")
+    video_file: str | None = Field(None, description="video (mp4/avi/mkv...) holding the frames (format 2)")
+    start_time_s: float = Field(0.0, description="time of video frame 0 when there is no times_file [s]")
     background_file: str | None = Field(None, description="image of the empty scene (optional)")
+    ignore_rects_px: list[tuple[int, int, int, int]] = Field(
+        [], description="pixel rectangles (u_min, v_min, u_max, v_max), max exclusive, that are not evidence")
+    ignore_mask_file: str | None = Field(None, description="8-bit image, non-zero = pixel not evidence")
 
     @field_validator("K")
     @classmethod
@@ -86,6 +95,20 @@ class CameraEntry(_Entry):
     def _t(cls, v: Matrix) -> Matrix:
         return _rigid(v, "T_world_cam")
 
+    @field_validator("ignore_rects_px")
+    @classmethod
+    def _rects(cls, v: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:
+        for r in v:
+            if not (0 <= r[0] < r[2] and 0 <= r[1] < r[3]):
+                raise ValueError(f"ignore rectangle {list(r)} must be (u_min, v_min, u_max, v_max) with "
+                                 "0 <= u_min < u_max and 0 <= v_min < v_max [px]")
+        return v
+
+    @model_validator(mode="after")
+    def _frames(self) -> CameraEntry:
+        if self.times_file is None and self.video_file is None:
+            raise ValueError(f"camera {self.name!r} needs a times_file (image frames) or a video_file")
+        return self
 
 class ImuEntry(_Entry):
     """An IMU rigidly attached to camera ``attached_to``; CSV columns
@@ -162,7 +185,7 @@ class RecordingManifest(_Entry):
     """Top level of ``scene.yaml``."""
 
     format: Literal["planefuse-recording"] = "planefuse-recording"
-    format_version: Literal[1] = FORMAT_VERSION
+    format_version: Literal[1, 2] = FORMAT_VERSION
     duration_s: float = Field(ge=0)
     planes_heights_m: list[float] = [0.0, 0.5, 1.0, 1.5]
     room_xy_m: tuple[float, float, float, float] | None = None
@@ -178,6 +201,10 @@ class RecordingManifest(_Entry):
         if dup:
             raise ValueError(f"sensor names must be unique, repeated: {dup}")
         cams = {s.name for s in self.sensors if s.type == "camera"}
+        if self.format_version < 2:
+            for s in self.sensors:
+                if s.type == "camera" and (s.video_file or s.ignore_rects_px or s.ignore_mask_file):
+                    raise ValueError(f"camera {s.name!r}: video_file and ignore regions need format_version 2")
         for s in self.sensors:
             if s.type == "imu" and s.attached_to not in cams:
                 raise ValueError(f"imu {s.name!r} is attached_to {s.attached_to!r}, which is not a camera here {sorted(cams)}")

@@ -285,13 +285,18 @@ def _write_camera(root: Path, name: str, cs: CameraStream, masks: bool, image_fo
         bg_rel = f"cameras/{name}/background.png"
         if not cv2.imwrite(str(root / bg_rel), cs.background(), _PNG):
             raise ValueError(f"{root / bg_rel}: could not write the image")
+    ignore_rel = None
+    if cs.ignore_mask is not None:
+        ignore_rel = f"cameras/{name}/ignore.png"
+        if not cv2.imwrite(str(root / ignore_rel), cs.ignore_mask.astype(np.uint8) * 255, _PNG):
+            raise ValueError(f"{root / ignore_rel}: could not write the image")
     header = "time_s,image_file,mask_file" if masks else "time_s,image_file"
     (base / "times.csv").write_text(header + "\n" + "".join(r + "\n" for r in rows))
     cam = cs.camera
     return CameraEntry(type="camera", name=name, width_px=cam.intrinsics.width_px, height_px=cam.intrinsics.height_px,
                        K=_matrix(cam.K), dist=cam.intrinsics.dist.tolist(), T_world_cam=_matrix(cam.T_world_cam),
                        rate_hz=cs.rate_hz, n_frames=len(rows), times_file=f"cameras/{name}/times.csv",
-                       background_file=bg_rel)
+                       background_file=bg_rel, ignore_mask_file=ignore_rel)
 
 
 def read_recording(path: str | Path) -> Recording:

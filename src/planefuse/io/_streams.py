@@ -24,6 +24,7 @@ from ..geometry import CameraIntrinsics, PinholeCamera
 from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
 from ._paths import resolve_inside
 from ._timestamps import Gap, TimeChecker, read_csv_chunks
+from ._video import VideoFrames
 
 __all__ = [
     "CameraFrame",
@@ -35,6 +36,7 @@ __all__ = [
     "AudioStream",
     "IMU_COLUMNS",
     "camera_from_entry",
+    "ignore_mask_from_entry",
 ]
 
 IMU_COLUMNS = ["time_s", "gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s", "accel_x_m_s2", "accel_y_m_s2", "accel_z_m_s2"]
@@ -75,6 +77,12 @@ class CameraStream:
         Gaps found in the time stamps.
     get_background : callable ``() -> image``, optional
         An image of the empty scene (a "background plate"), if the recording has one.
+
+    Attributes
+    ----------
+    ignore_mask : ndarray, shape (height_px, width_px), bool, or None
+        Pixels that are not scene evidence (watermark, privacy zone...): the camera's sensor model treats
+        the cells they see as unobserved. None when every pixel counts.
     """
 
     def __init__(self, camera: PinholeCamera, times_s, get: Callable[[int], tuple], has_masks: bool,
@@ -88,6 +96,7 @@ class CameraStream:
         self.gaps = gaps or []
         self._cache: tuple[int, tuple] | None = None
         self._get_background = get_background
+        self.ignore_mask: np.ndarray | None = None
 
     @property
     def has_background(self) -> bool:
@@ -131,39 +140,17 @@ class CameraStream:
 
     @classmethod
     def from_files(cls, root: Path, entry: CameraEntry) -> CameraStream:
-        """Open a recorded camera: reads ``times_file`` now (checking timestamps), images on demand."""
-        path = resolve_inside(root, entry.times_file, f"times_file of camera {entry.name!r}")
-        if not path.is_file():
-            raise ValueError(f"{path}: file not found (missing stream of camera {entry.name!r})")
-        times, images, masks = [], [], []
-        with open(path, newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header not in (["time_s", "image_file"], ["time_s", "image_file", "mask_file"]):
-                raise ValueError(f"{path}:1: header must be 'time_s,image_file[,mask_file]', got {header}")
-            for row in reader:
-                line = reader.line_num
-                if len(row) != len(header):
-                    raise ValueError(f"{path}:{line}: expected {len(header)} fields, got {len(row)} (truncated?)")
-                try:
-                    times.append(float(row[0]))
-                except ValueError:
-                    raise ValueError(f"{path}:{line}: time_s {row[0]!r} is not a number") from None
-                rel = Path(entry.times_file).parent  # frame files are relative to the times file's folder
-                images.append(resolve_inside(root, rel / row[1], f"{path}:{line}: image_file"))
-                masks.append(resolve_inside(root, rel / row[2], f"{path}:{line}: mask_file") if len(row) > 2 else None)
-        checker = TimeChecker(str(path), entry.rate_hz)
+        """Open a recorded camera: reads ``times_file`` now (checking timestamps), images on demand
+        (image files, or frames decoded from ``video_file``)."""
+        if entry.video_file is not None:
+            times, get, has_masks, source = _video_frames(root, entry)
+        else:
+            times, get, has_masks, source = _image_frames(root, entry)
+        checker = TimeChecker(source, entry.rate_hz)
         checker.check(np.array(times), first_line=2)  # one row per line after the header
         if len(times) != entry.n_frames:
-            raise ValueError(f"{path}: manifest says n_frames = {entry.n_frames}, file lists {len(times)} (truncated?)")
-        has_masks = len(header) > 2
-
-        def get(i: int) -> tuple:
-            img = _read_png(images[i], cv2.IMREAD_COLOR)
-            # masks are read only when asked for (the pipeline never needs them)
-            mask = functools.partial(_read_png, masks[i], cv2.IMREAD_UNCHANGED) if has_masks else None
-            return img, mask
-
+            raise ValueError(f"{source}: manifest says n_frames = {entry.n_frames}, file lists {len(times)} "
+                             "(truncated?)")
         bg = None
         if entry.background_file is not None:
             bg_path = resolve_inside(root, entry.background_file, f"background_file of camera {entry.name!r}")
@@ -173,7 +160,89 @@ class CameraStream:
             def bg() -> np.ndarray:
                 return _read_png(bg_path, cv2.IMREAD_COLOR)
 
-        return cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps, bg)
+        stream = cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps, bg)
+        stream.ignore_mask = ignore_mask_from_entry(root, entry)
+        return stream
+
+
+def ignore_mask_from_entry(root: Path, entry: CameraEntry) -> np.ndarray | None:
+    """The camera's ignored pixels (height_px, width_px) bool from its rectangles and mask file, or None."""
+    if not entry.ignore_rects_px and entry.ignore_mask_file is None:
+        return None
+    mask = np.zeros((entry.height_px, entry.width_px), dtype=bool)
+    for u0, v0, u1, v1 in entry.ignore_rects_px:
+        mask[v0:v1, u0:u1] = True
+    if entry.ignore_mask_file is not None:
+        path = resolve_inside(root, entry.ignore_mask_file, f"ignore_mask_file of camera {entry.name!r}")
+        img = _read_png(path, cv2.IMREAD_GRAYSCALE)
+        if img.shape != mask.shape:
+            raise ValueError(f"{path}: ignore mask of camera {entry.name!r} is "
+                             f"{img.shape[1]}x{img.shape[0]} px, the camera {entry.width_px}x{entry.height_px} px")
+        mask |= img > 0
+    return mask
+
+
+def _read_times(path: Path, headers: list[list[str]], what: str) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of a camera's times CSV, every row as long as the header."""
+    if not path.is_file():
+        raise ValueError(f"{path}: file not found (missing stream of camera {what!r})")
+    with open(path, newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header not in headers:
+            raise ValueError(f"{path}:1: header must be {' or '.join(','.join(h) for h in headers)}, got {header}")
+        rows = []
+        for row in reader:
+            if len(row) != len(header):
+                raise ValueError(f"{path}:{reader.line_num}: expected {len(header)} fields, got {len(row)} "
+                                 "(truncated?)")
+            rows.append(row)
+    return header, rows
+
+
+def _number(path: Path, line: int, name: str, text: str, kind=float):
+    try:
+        return kind(text)
+    except ValueError:
+        raise ValueError(f"{path}:{line}: {name} {text!r} is not a{'n integer' if kind is int else ' number'}") from None
+
+
+def _image_frames(root: Path, entry: CameraEntry):
+    path = resolve_inside(root, entry.times_file, f"times_file of camera {entry.name!r}")
+    header, rows = _read_times(path, [["time_s", "image_file"], ["time_s", "image_file", "mask_file"]], entry.name)
+    times = [_number(path, k + 2, "time_s", r[0]) for k, r in enumerate(rows)]
+    rel = Path(entry.times_file).parent  # frame files are relative to the times file's folder
+    images = [resolve_inside(root, rel / r[1], f"{path}:{k + 2}: image_file") for k, r in enumerate(rows)]
+    masks = [resolve_inside(root, rel / r[2], f"{path}:{k + 2}: mask_file") for k, r in enumerate(rows)] \
+        if len(header) > 2 else None
+
+    def get(i: int) -> tuple:
+        img = _read_png(images[i], cv2.IMREAD_COLOR)
+        # masks are read only when asked for (the pipeline never needs them)
+        mask = functools.partial(_read_png, masks[i], cv2.IMREAD_UNCHANGED) if masks else None
+        return img, mask
+
+    return times, get, masks is not None, str(path)
+
+
+def _video_frames(root: Path, entry: CameraEntry):
+    video = resolve_inside(root, entry.video_file, f"video_file of camera {entry.name!r}")
+    if entry.times_file is not None:
+        path = resolve_inside(root, entry.times_file, f"times_file of camera {entry.name!r}")
+        _, rows = _read_times(path, [["time_s", "frame_index"]], entry.name)
+        times = [_number(path, k + 2, "time_s", r[0]) for k, r in enumerate(rows)]
+        index = [_number(path, k + 2, "frame_index", r[1], int) for k, r in enumerate(rows)]
+        source = str(path)
+    else:
+        index = list(range(entry.n_frames))
+        times = [entry.start_time_s + k / entry.rate_hz for k in index]
+        source = str(video)
+    frames = VideoFrames(video, index, times, entry.name, entry.width_px, entry.height_px)
+
+    def get(i: int) -> tuple:
+        return frames(i), None
+
+    return times, get, False, source
 
 
 def _resolve(mask):

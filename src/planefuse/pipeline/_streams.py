@@ -216,7 +216,7 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     times = camera_instants(rec)[start:]
 
     def messages() -> Iterator[Evidence]:
-        lookups = lookups_from_cameras(cams, stack)
+        lookups = lookups_from_cameras(cams, stack, ignore_masks=[rec.camera(n).ignore_mask for n in names])
         # empty-scene calibration plates prime the background models (no ghosts of people already in view)
         backgrounds = [_background_or_none(rec.camera(n)) for n in names]
         instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,

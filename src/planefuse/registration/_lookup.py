@@ -97,6 +97,26 @@ class ImagePlaneLookup:
         uv[w <= 0] = np.nan
         return cls._from_pixels(uv.reshape(stack.shape + (2,)), width_px, height_px, stack)
 
+    def without_pixels(self, ignore_mask) -> "ImagePlaneLookup":
+        """This lookup with the cells seen through ignored pixels made unseen (sentinel).
+
+        Parameters
+        ----------
+        ignore_mask : ndarray, shape (height_px, width_px), bool
+            Pixels that are not scene evidence (watermark, privacy zone...).
+
+        Returns
+        -------
+        ImagePlaneLookup
+            Cells whose pixel is ignored are unobserved: a sensor model built on it says nothing about them.
+        """
+        mask = np.asarray(ignore_mask)
+        if mask.shape != (self.height_px, self.width_px):
+            raise ValueError(f"ignore_mask must have shape ({self.height_px}, {self.width_px}), got {mask.shape}")
+        padded = np.append(mask.reshape(-1).astype(bool), False)  # the sentinel stays the sentinel
+        idx = np.where(padded[self.pixel_index], np.int32(self.sentinel), self.pixel_index)
+        return ImagePlaneLookup(idx.astype(np.int32), self.width_px, self.height_px, self.stack)
+
     def gather(self, image, fill: float = np.nan, out=None) -> np.ndarray:
         """Register one image on every plane: ``out[l, iy, ix] = image[pixel seeing the cell]``.
 

@@ -19,7 +19,8 @@ __all__ = ["CameraParams", "CameraReport", "camera_detections", "lookups_from_ca
 
 
 def lookups_from_cameras(cameras: Sequence[PinholeCamera], stack: PlaneStack,
-                         route: str = "camera") -> list[ImagePlaneLookup]:
+                         route: str = "camera",
+                         ignore_masks: Sequence[np.ndarray | None] | None = None) -> list[ImagePlaneLookup]:
     """One image -> plane-stack lookup per calibrated camera.
 
     Parameters
@@ -33,21 +34,30 @@ def lookups_from_cameras(cameras: Sequence[PinholeCamera], stack: PlaneStack,
         the IMU attitude (seed eq. 1); these ignore lens distortion, so frames
         must be undistorted first. Planes at or above a camera raise
         ``ValueError``.
+    ignore_masks : sequence of (ndarray (height_px, width_px) bool or None), optional
+        Per camera, pixels that are not scene evidence: the cells they see are unobserved by that camera
+        (:meth:`ImagePlaneLookup.without_pixels`), so its sensor model gives them no evidence either way.
 
     Returns
     -------
     list of ImagePlaneLookup
     """
-    if route == "camera":
-        return [ImagePlaneLookup.from_camera(cam, stack) for cam in cameras]
-    if route not in ("projection", "imu"):
+    if route not in ("camera", "projection", "imu"):
         raise ValueError(f"route must be 'camera', 'projection' or 'imu', got {route!r}")
+    if ignore_masks is not None and len(ignore_masks) != len(cameras):
+        raise ValueError(f"ignore_masks: expected {len(cameras)} entries (None where absent), got {len(ignore_masks)}")
     out = []
-    for cam in cameras:
-        H_image_plane = np.stack([np.linalg.inv(H_plane_image_calibrated(cam, h, route=route))
-                                  for h in stack.heights_m])
-        out.append(ImagePlaneLookup.from_homographies(H_image_plane, cam.intrinsics.width_px,
-                                                      cam.intrinsics.height_px, stack))
+    for c, cam in enumerate(cameras):
+        if route == "camera":
+            lk = ImagePlaneLookup.from_camera(cam, stack)
+        else:
+            H_image_plane = np.stack([np.linalg.inv(H_plane_image_calibrated(cam, h, route=route))
+                                      for h in stack.heights_m])
+            lk = ImagePlaneLookup.from_homographies(H_image_plane, cam.intrinsics.width_px,
+                                                    cam.intrinsics.height_px, stack)
+        if ignore_masks is not None and ignore_masks[c] is not None:
+            lk = lk.without_pixels(ignore_masks[c])
+        out.append(lk)
     return out
 
 

@@ -1,5 +1,6 @@
-"""Calibration loaders: OpenCV YAML/XML camera files, WILDTRACK XML, EPFL POM ground homographies."""
+"""Calibration loaders: OpenCV YAML/XML camera files, WILDTRACK XML, EPFL POM ground homographies, Bouguet .mat."""
 
+from ._bouguet import BouguetBoardView, BouguetCalibration, load_bouguet_calibration
 from ._epfl import (
     H_WORLD_TOPVIEW_TERRACE,
     EpflBoxes,
@@ -12,6 +13,9 @@ from ._filestorage import load_opencv_camera, load_opencv_intrinsics, save_openc
 from ._wildtrack import WILDTRACK_CAMERAS, load_wildtrack_camera, load_wildtrack_rig
 
 __all__ = [
+    "BouguetBoardView",
+    "BouguetCalibration",
+    "load_bouguet_calibration",
     "H_WORLD_TOPVIEW_TERRACE",
     "EpflBoxes",
     "EpflGroundHomography",

@@ -2,8 +2,15 @@
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import NoReturn
+
 import typer
 from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
 
 from .. import __version__
 
@@ -14,6 +21,9 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_show_locals=False,
+    # Help texts are shown verbatim: with rich markup "[m]", "[s]", "[deg]", "[dB]" would be read as style tags
+    # and vanish. _register() gives every sub-application the same mode.
+    rich_markup_mode=None,
 )
 console = Console()
 
@@ -33,8 +43,40 @@ def _root(
     """planefuse command line."""
 
 
+def units_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[object]],
+                right: bool = True) -> Table:
+    """A rich table whose title, headers and cells are printed verbatim (units like ``[m]`` are not markup).
+
+    Cells wrap (they are never cut) so that the table fits the terminal; the first column is left-aligned,
+    the others right-aligned when ``right``.
+    """
+    table = Table(title=escape(title))
+    for i, col in enumerate(columns):
+        table.add_column(escape(col), justify="right" if right and i else "left", overflow="fold")
+    for row in rows:
+        table.add_row(*(escape(str(v)) for v in row))
+    return table
+
+
+def exit_with_error(message: str, code: int = 2) -> NoReturn:
+    """Print ``error: MESSAGE`` on one line (markup-free) and exit with ``code``."""
+    console.print(f"[red]error:[/red] {escape(' '.join(str(message).split()))}", soft_wrap=True, highlight=False)
+    raise typer.Exit(code)
+
+
+def write_json(path: Path, obj) -> None:
+    """Write ``obj`` as indented JSON to ``path`` (atomically) and say so."""
+    from ..outputs import atomic_write_text
+
+    atomic_write_text(path, json.dumps(obj, indent=2) + "\n")
+    console.print(f"wrote {escape(str(path))}", highlight=False)
+
+
 def _register() -> None:
-    """Import every ``cli/_<name>.py`` module: each adds its commands to :data:`app` on import."""
+    """Import every ``cli/_<name>.py`` module: each adds its commands to :data:`app` on import.
+
+    Every sub-application then prints its help verbatim, as the root does (``rich_markup_mode``).
+    """
     import importlib
     import pkgutil
 
@@ -43,6 +85,11 @@ def _register() -> None:
     for mod in sorted(m.name for m in pkgutil.iter_modules(cli_path)):
         if mod.startswith("_") and mod != "_app":
             importlib.import_module(f"{__package__}.{mod}")
+    groups = list(app.registered_groups)
+    while groups:
+        sub = groups.pop().typer_instance
+        sub.rich_markup_mode = app.rich_markup_mode
+        groups += sub.registered_groups
 
 
 _register()

@@ -1,5 +1,6 @@
 """Laser range finders: scanner models, simulation, registration onto the plane stack, readers."""
 
+from ._camera_check import BoardCheck, board_check
 from ._legs import (
     LegClusters,
     LegDetectorParams,
@@ -33,6 +34,7 @@ from ._readers import (
     T_world_laser_from_pose_2d,
     points_from_pointcloud2,
     read_carmen_log,
+    read_laser_scans,
     read_rosbag,
     read_rosbag_topics,
     read_transform_yaml,
@@ -51,6 +53,8 @@ from ._scanner import (
 from ._simulate import ScanTruth, simulate_nodding_sweep, simulate_scan
 
 __all__ = [
+    "BoardCheck",
+    "board_check",
     "LegClusters",
     "LegDetectorParams",
     "background_ranges_m",
@@ -71,6 +75,7 @@ __all__ = [
     "T_world_laser_from_pose_2d",
     "points_from_pointcloud2",
     "read_carmen_log",
+    "read_laser_scans",
     "read_rosbag",
     "read_rosbag_topics",
     "read_xyz",

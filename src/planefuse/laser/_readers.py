@@ -17,6 +17,7 @@ __all__ = [
     "read_carmen_log",
     "T_world_laser_from_pose_2d",
     "PointCloudFrame",
+    "read_laser_scans",
     "read_rosbag",
     "read_rosbag_topics",
     "points_from_pointcloud2",
@@ -388,3 +389,68 @@ def read_transform_yaml(path) -> np.ndarray:
     if R.shape != (3, 3) or t.shape != (3,):
         raise ValueError(f"{path}: R must be 3x3 and t 3 numbers, got {R.shape} and {t.shape}")
     return transform_from_rotation_translation(R, t)
+
+
+#: First bytes of a ROS 1 bag file.
+_ROSBAG1_MAGIC = b"#ROSBAG V2.0"
+
+
+def _laser_topics(path) -> dict[str, tuple[str, int]]:
+    return {t: v for t, v in read_rosbag_topics(path).items() if v[0] == "sensor_msgs/msg/LaserScan"}
+
+
+def read_laser_scans(path, topic: str | None = None) -> tuple[list[LaserScan], str]:
+    """2-D laser scans of a CARMEN log (``FLASER``, with poses) or of a LaserScan topic of a ROS bag.
+
+    Parameters
+    ----------
+    path : path-like
+        CARMEN ``.log`` / ``.log.gz`` file, ROS 1 ``.bag`` file, or ROS 2 bag folder (``metadata.yaml``).
+    topic : str, optional
+        Bag topic of type ``sensor_msgs/LaserScan``; default: the bag's only one.
+
+    Returns
+    -------
+    scans : list of LaserScan
+        In file order; CARMEN scans carry their ``T_world_laser`` (corrected pose, z = 0).
+    source : str
+        What was read: the topic name, or ``"FLASER"``.
+
+    Raises
+    ------
+    ValueError
+        One line naming what was found: a folder that is not a ROS 2 bag, a file that is neither a bag nor a
+        CARMEN log, a bag without a LaserScan topic (its topics listed), several of them and no ``topic``.
+    """
+    path = Path(path)
+    if path.is_dir():
+        if not (path / "metadata.yaml").is_file():
+            found = sorted(p.name for p in path.iterdir())[:10]
+            raise ValueError(f"folder {path} is not a ROS 2 bag (no metadata.yaml); it holds {found}")
+        is_bag = True
+    elif not path.is_file():
+        raise ValueError(f"laser input {path} does not exist")
+    else:
+        with open(path, "rb") as f:
+            head = f.read(len(_ROSBAG1_MAGIC))
+        is_bag = head == _ROSBAG1_MAGIC
+    if not is_bag:
+        if topic:
+            raise ValueError(f"--topic {topic!r} given but {path} is not a ROS bag")
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NonMonotonicTimeWarning)  # reported by the caller from the log
+                log = read_carmen_log(path)
+        except ValueError as err:
+            raise ValueError(f"{path} is neither a ROS bag nor a CARMEN log ({err})") from None
+        return log.scans(), "FLASER"
+    topics = _laser_topics(path)
+    if topic is None:
+        if len(topics) != 1:
+            kind = "no" if not topics else f"{len(topics)}"
+            raise ValueError(f"bag {path} has {kind} sensor_msgs/LaserScan topics ({sorted(topics)}); "
+                             f"all topics: {read_rosbag_topics(path)}" + ("; choose one with a topic" if topics else ""))
+        topic = next(iter(topics))
+    elif topic not in topics:
+        raise ValueError(f"bag {path} has no LaserScan topic {topic!r}; LaserScan topics: {sorted(topics)}")
+    return read_rosbag(path, topic)[1], topic

@@ -22,6 +22,7 @@ from ..grid import Evidence, GroundDetections, PlaneStack
 from ..io import Recording
 
 if TYPE_CHECKING:
+    from ..registration import CameraRegistration
     from ..vision import CameraReport
 
 __all__ = ["EvidenceSource", "MergedEvidence", "ModalityReport", "camera_evidence", "camera_source",
@@ -44,6 +45,9 @@ class ModalityReport:
     sound_saliency: list[np.ndarray] = field(default_factory=list)
     sound_azimuth_grid_rad: np.ndarray | None = None
     T_world_head: np.ndarray | None = None
+    #: The cameras' registration (attitude sources, lookup rebuilds per camera); rebuilt, not checkpointed,
+    #: by a resumed run (which replays the attitudes of the instants it skips).
+    camera_registration: "CameraRegistration | None" = None
 
     @property
     def n_camera_frames(self) -> int:
@@ -206,21 +210,31 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     background models (:func:`planefuse.vision.camera_detections` ``replay``), so that what follows is
     exactly what an uninterrupted run computes.
     """
-    from ..vision import CameraReport, camera_detections, camera_instants, lookups_from_cameras, recording_frames
+    from ..registration import CameraRegistration
+    from ..vision import CameraReport, camera_detections, camera_instants, recording_frames
 
     cams = rec.cameras
     names = [c.name for c in cams]
     if report.camera is None:
         report.camera = CameraReport()
     replay = start if params.foreground is not None else 0
-    times = camera_instants(rec)[start:]
+    all_times = camera_instants(rec)
+    times = all_times[start:]
 
     def messages() -> Iterator[Evidence]:
-        lookups = lookups_from_cameras(cams, stack, ignore_masks=[rec.camera(n).ignore_mask for n in names])
+        # lookups that follow the attitude of cameras registered through their IMU (the calibration's otherwise),
+        # replayed through the instants a resumed run skips
+        registration = CameraRegistration.from_recording(rec, stack, params.registration)
+        lookups = registration.lookups_at(float(all_times[0]))
+        if start:
+            registration.advance(all_times[1:start])
+            lookups = registration.current_lookups()
         # empty-scene calibration plates prime the background models (no ghosts of people already in view)
         backgrounds = [_background_or_none(rec.camera(n)) for n in names]
         instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
-                                     names=names, report=report.camera, backgrounds=backgrounds, replay=replay)
+                                     names=names, report=report.camera, backgrounds=backgrounds, replay=replay,
+                                     registration=registration)
+        report.camera_registration = registration
         for ev, det in instants:
             report.camera_detections.append(det)
             yield ev

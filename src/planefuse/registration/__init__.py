@@ -1,5 +1,15 @@
 """Registration of sensor data onto the plane stack."""
 
+from ._attitude import (
+    ATTITUDE_SOURCES,
+    AttitudeTrack,
+    CameraRegistration,
+    RegistrationParams,
+    gyro_bias_at_rest,
+    pixel_shift_px,
+    rest_at_start_s,
+)
 from ._lookup import ImagePlaneLookup
 
-__all__ = ["ImagePlaneLookup"]
+__all__ = ["ATTITUDE_SOURCES", "AttitudeTrack", "CameraRegistration", "ImagePlaneLookup", "RegistrationParams",
+           "gyro_bias_at_rest", "pixel_shift_px", "rest_at_start_s"]

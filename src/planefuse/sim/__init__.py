@@ -25,7 +25,8 @@ from ._config import (
     default_scene_config,
     load_scene_config,
 )
-from ._imu import R_cam_imu, T_cam_imu, simulate_static_imu
+from ._imu import R_cam_imu, T_cam_imu, simulate_imu, simulate_static_imu
+from ._motion import CameraMotionSpec, R_world_cam_at, max_motion_deg, omega_cam_rad_s_at
 from ._render import CameraRenderer, body_surface_points, render_background
 from ._scene import Body, PeopleState, Scene, sample_points_in_bodies
 from ._sensors import audio_stream, laser_stream, tilting_unit_from_model, tilting_unit_from_spec
@@ -45,7 +46,12 @@ __all__ = [
     "load_scene_config",
     "R_cam_imu",
     "T_cam_imu",
+    "simulate_imu",
     "simulate_static_imu",
+    "CameraMotionSpec",
+    "R_world_cam_at",
+    "max_motion_deg",
+    "omega_cam_rad_s_at",
     "CameraRenderer",
     "body_surface_points",
     "render_background",

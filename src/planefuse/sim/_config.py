@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from ..geometry import CameraIntrinsics, PinholeCamera, T_world_cam_look_at, transform_from_rotation_translation
 from ..io._paths import check_name
 from ..io._yaml import load_yaml_model
+from ._motion import CameraMotionSpec
 
 __all__ = [
     "CameraSpec",
@@ -44,7 +45,8 @@ class _Model(BaseModel):
 
 
 class CameraSpec(_Model):
-    """A static camera looking from ``position_m`` at ``target_m`` (world frame, metres)."""
+    """A camera looking from ``position_m`` at ``target_m`` (world frame, metres) at rest; ``motion`` turns it
+    about its optical centre over time (:mod:`planefuse.sim._motion`; empty = static)."""
 
     name: str
     position_m: Vec3
@@ -55,6 +57,7 @@ class CameraSpec(_Model):
     dist: tuple[float, float, float, float, float] = (-0.05, 0.01, 0.0, 0.0, 0.0)
     rate_hz: PositiveFloat = 25.0
     time_offset_s: float = Field(0.0, ge=0.0, description="first frame time; frames at offset + k / rate")
+    motion: list[CameraMotionSpec] = Field([], description="sway / bump / pan of the camera; empty = static")
 
     def pinhole(self) -> PinholeCamera:
         """The :class:`~planefuse.geometry.PinholeCamera` this spec describes."""

@@ -17,8 +17,9 @@ import cv2
 import numpy as np
 from scipy.ndimage import map_coordinates
 
-from ..geometry import PinholeCamera
+from ..geometry import CameraIntrinsics, PinholeCamera, transform_from_rotation_translation
 from ._config import RenderSpec
+from ._motion import R_world_cam_at, max_motion_deg
 from ._scene import Body, Scene
 
 __all__ = ["CameraRenderer", "body_surface_points", "N_RING"]
@@ -96,7 +97,8 @@ def _interp_grid(coarse: np.ndarray, nx: int, ny: int, step: int) -> np.ndarray:
     return (a * (1 - wx) + b * wx) * (1 - wy) + (c * (1 - wx) + d * wx) * wy
 
 
-def render_background(camera: PinholeCamera, room_xy_m, wall_height_m: float, seed: int) -> np.ndarray:
+def render_background(camera: PinholeCamera, room_xy_m, wall_height_m: float, seed: int,
+                      vignetting: bool = True) -> np.ndarray:
     """Ray cast the empty room seen by ``camera``: (H, W, 3) uint8 BGR.
 
     Floor: 0.5 m tiles with grout, per-tile tone and smooth mottling, lit from the middle of the
@@ -174,11 +176,16 @@ def render_background(camera: PinholeCamera, room_xy_m, wall_height_m: float, se
 
     img = img.reshape(H * ss, W * ss, 3).astype(np.float32)
     img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
-    # Lens vignetting.
+    if vignetting:
+        img *= _vignetting(W, H)[..., None]
+    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+
+def _vignetting(W: int, H: int) -> np.ndarray:
+    """Lens vignetting gain (H, W) float32: 1 at the centre, 0.75 in the corners."""
     yy, xx = np.mgrid[0:H, 0:W]
     r2 = ((xx - W / 2) ** 2 + (yy - H / 2) ** 2) / ((W / 2) ** 2 + (H / 2) ** 2)
-    img *= (1.0 - 0.25 * r2)[..., None].astype(np.float32)
-    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+    return (1.0 - 0.25 * r2).astype(np.float32)
 
 
 def _poly(uv: np.ndarray) -> np.ndarray:
@@ -201,6 +208,10 @@ class CameraRenderer:
         Distinguishes the noise streams of cameras sharing a seed.
     noise_bank : ndarray, shape (B, H, W, 3), uint8, optional
         Pre-drawn pixel noise images centred on 128 (shared between cameras of one size).
+    motion : sequence of CameraMotionSpec, optional
+        The camera turns about its centre from the attitude of ``camera`` (its rest attitude, what the
+        calibration says) as :func:`planefuse.sim._motion.R_world_cam_at` gives. The empty room is then ray
+        cast once for a wider view at rest and resampled per frame along the moved camera's pixel rays.
     """
 
     def __init__(
@@ -211,8 +222,11 @@ class CameraRenderer:
         seed: int,
         camera_index: int = 0,
         noise_bank: np.ndarray | None = None,
+        motion=(),
     ) -> None:
         self.camera = camera
+        self.motion = tuple(motion)
+        self._wide: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.scene = scene
         self.spec = render
         self.seed = seed
@@ -240,12 +254,61 @@ class CameraRenderer:
 
     @property
     def background(self) -> np.ndarray:
-        """The empty room (H, W, 3) uint8 BGR, ray cast on first use."""
+        """The empty room (H, W, 3) uint8 BGR seen at the rest attitude, ray cast on first use."""
         if self._background is None:
-            sc = self.scene
-            self._background = render_background(self.camera, sc.room_xy_m, sc.wall_height_m,
-                                                 self.seed + 101 * self.camera_index)
+            if self.motion:
+                self._background = self._background_at(self.camera.R_world_cam)
+            else:
+                sc = self.scene
+                self._background = render_background(self.camera, sc.room_xy_m, sc.wall_height_m,
+                                                     self.seed + 101 * self.camera_index)
         return self._background
+
+    def R_world_cam_at(self, time_s: float) -> np.ndarray:
+        """The camera's attitude (3, 3) at ``time_s`` (its calibrated one when it does not move)."""
+        if not self.motion:
+            return self.camera.R_world_cam
+        return R_world_cam_at(self.camera.R_world_cam, self.motion, [time_s])[0]
+
+    def _background_at(self, R_world_cam: np.ndarray) -> np.ndarray:
+        """Empty room seen with attitude ``R_world_cam`` (the camera turns about its centre): the wide rest view
+        resampled along this attitude's pixel rays, then vignetted."""
+        if self._wide is None:
+            self._wide = self._wide_view()
+        wide, K_wide, d_cam = self._wide
+        R0 = self.camera.R_world_cam
+        d = d_cam @ (R0.T @ R_world_cam).T  # pixel rays in the wide (rest) camera frame
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = d[:, :2] / d[:, 2:3] @ K_wide[:2, :2].T + K_wide[:2, 2]
+        uv[d[:, 2] <= 0] = -1.0
+        W, H = self.camera.intrinsics.width_px, self.camera.intrinsics.height_px
+        maps = uv.reshape(H, W, 2).astype(np.float32)
+        img = cv2.remap(wide, maps[..., 0], maps[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        img = img.astype(np.float32) * _vignetting(W, H)[..., None]
+        return np.clip(np.round(img), 0, 255).astype(np.uint8)
+
+    def _wide_view(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The empty room (no vignetting) from the rest attitude through an undistorted pinhole wide enough for
+        every attitude of the motion; its K; the camera's pixel rays in its own frame (H*W, 3)."""
+        cam = self.camera
+        W, H = cam.intrinsics.width_px, cam.intrinsics.height_px
+        u, v = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
+        xy = cam.intrinsics.normalized_from_pixels(np.stack([u.ravel(), v.ravel()], axis=1))
+        d_cam = np.c_[xy, np.ones(len(xy))]
+        margin = np.radians(max_motion_deg(self.motion) + 3.0)
+        half = np.arctan(np.abs(xy).max(axis=0)) + margin
+        if np.any(half >= np.radians(80.0)):
+            raise ValueError(f"{cam.name}: the camera's motion ({max_motion_deg(self.motion):.1f} deg) turns its "
+                             "view too far to be rendered (over 80 deg off its rest axis)")
+        f = float(cam.K[0, 0])
+        Ww, Hw = (2 * np.ceil(f * np.tan(half))).astype(int) + 1
+        K_wide = np.array([[f, 0.0, (Ww - 1) / 2], [0.0, f, (Hw - 1) / 2], [0.0, 0.0, 1.0]])
+        wide_cam = PinholeCamera(CameraIntrinsics(K_wide, int(Ww), int(Hw)),
+                                 transform_from_rotation_translation(cam.R_world_cam, cam.center_world))
+        sc = self.scene
+        wide = render_background(wide_cam, sc.room_xy_m, sc.wall_height_m, self.seed + 101 * self.camera_index,
+                                 vignetting=False)
+        return wide, K_wide, d_cam
 
     def gain(self, time_s: float, rng: np.random.Generator) -> float:
         """Global illumination gain at ``time_s``: slow drift plus per-frame flicker."""
@@ -275,7 +338,12 @@ class CameraRenderer:
         cam = self.camera
         W, H = cam.intrinsics.width_px, cam.intrinsics.height_px
         labels = np.zeros((H, W), np.uint8)
-        img = self.background.copy() if colour else None
+        if self.motion:  # the pose :meth:`project` uses, at this frame's time
+            R = self.R_world_cam_at(time_s)
+            self._R_cam_world, self._t_cam_world = R.T, -R.T @ cam.center_world
+            img = self._background_at(R) if colour else None
+        else:
+            img = self.background.copy() if colour else None
         P = self.scene.n_people
         if P == 0:
             return img, labels

@@ -8,7 +8,8 @@ import numpy as np
 
 from ..io import CameraStream, GroundTruth, ImuStream, PeopleTruth, Recording, SoundTruth
 from ._config import SceneConfig, default_scene_config
-from ._imu import T_cam_imu, simulate_static_imu
+from ._imu import T_cam_imu, simulate_imu
+from ._motion import R_world_cam_at, omega_cam_rad_s_at
 from ._render import CameraRenderer, make_noise_bank
 from ._scene import Scene
 from ._sensors import audio_stream, laser_stream
@@ -66,7 +67,7 @@ def simulate(config: SceneConfig | None = None) -> SimulatedRecording:
         key = (spec.width_px, spec.height_px)
         if key not in banks:
             banks[key] = make_noise_bank(*key, cfg.render.pixel_noise_std, cfg.seed)
-        renderer = CameraRenderer(cam, scene, cfg.render, cfg.seed, i, banks[key])
+        renderer = CameraRenderer(cam, scene, cfg.render, cfg.seed, i, banks[key], motion=spec.motion)
         times = sample_times(cfg.duration_s, spec.rate_hz, spec.time_offset_s)
         rec.camera_streams[spec.name] = CameraStream(
             cam, times, lambda k, r=renderer, t=times: r.render(float(t[k]), k), True, spec.rate_hz,
@@ -74,9 +75,14 @@ def simulate(config: SceneConfig | None = None) -> SimulatedRecording:
         )
         if cfg.imu is not None:
             T = T_cam_imu()
-            R_world_imu = cam.R_world_cam @ T[:3, :3]
             t_imu = sample_times(cfg.duration_s, cfg.imu.rate_hz)
-            data = simulate_static_imu(R_world_imu, t_imu, cfg.imu, np.random.default_rng([cfg.seed, 5, i]))
+            rng = np.random.default_rng([cfg.seed, 5, i])
+            if spec.motion:  # the same attitude as the rendered frames; gyro = its body rate in the IMU frame
+                R_world_imu = R_world_cam_at(cam.R_world_cam, spec.motion, t_imu) @ T[:3, :3]
+                omega_imu = omega_cam_rad_s_at(cam.R_world_cam, spec.motion, t_imu) @ T[:3, :3]
+                data = simulate_imu(R_world_imu, t_imu, cfg.imu, rng, omega_imu)
+            else:
+                data = simulate_imu(cam.R_world_cam @ T[:3, :3], t_imu, cfg.imu, rng)
             name = f"{spec.name}_imu"
             rec.imus[name] = ImuStream(name, spec.name, T, cfg.imu.rate_hz, len(t_imu), cfg.imu.gyro_noise_rad_s,
                                        cfg.imu.accel_noise_m_s2, cfg.imu.gravity_m_s2, data=data)

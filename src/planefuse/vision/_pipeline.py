@@ -10,7 +10,7 @@ import numpy as np
 
 from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
-from ..registration import ImagePlaneLookup
+from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
 from ._foreground import BackgroundSubtractor, ForegroundParams
 from ._fusion import CameraFusion, FusionParams, max_log_ratio
 from ._persons import PersonParams, ground_detections_from_log_odds
@@ -74,11 +74,14 @@ class CameraParams:
         Multi-view sensor model.
     person : PersonParams
         Multi-plane person model and peak extraction.
+    registration : RegistrationParams
+        Where each camera's attitude comes from (calibration or IMU) when registering a recording.
     """
 
     foreground: ForegroundParams | None = field(default_factory=ForegroundParams)
     fusion: FusionParams = field(default_factory=FusionParams)
     person: PersonParams = field(default_factory=PersonParams)
+    registration: RegistrationParams = field(default_factory=RegistrationParams)
 
 
 @dataclass
@@ -116,6 +119,7 @@ def camera_detections(
     report: CameraReport | None = None,
     backgrounds: Sequence[np.ndarray | None] | None = None,
     replay: int = 0,
+    registration: CameraRegistration | None = None,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -143,6 +147,9 @@ def camera_detections(
         The first ``replay`` instants only update the background models: nothing is registered, fused,
         yielded or reported for them. A run resumed after ``replay`` instants gets the exact background
         models (OpenCV cannot save them) and so the exact outputs of an uninterrupted run.
+    registration : CameraRegistration, optional
+        Lookups that follow the cameras' attitudes: at every registered instant, the lookups of cameras
+        that moved beyond its tolerance are replaced (``lookups`` must be its lookups at the first one).
 
     Yields
     ------
@@ -184,6 +191,9 @@ def camera_detections(
                 if img is not None:
                     sub.update(img)
             continue
+        if registration is not None:
+            for c, lookup in registration.updates(time_s):
+                fusion.set_lookup(c, lookup)
         fgs: list[np.ndarray | None] = []
         for c, img in enumerate(images):
             if img is None:

@@ -1,0 +1,325 @@
+"""Cameras registered through their attitude over time: the seed's inertial route in the running system.
+
+Each camera takes its attitude from one of two sources (:class:`RegistrationParams`):
+
+* ``"calibration"``: the fixed ``T_world_cam`` of the calibration; its lookup is built once.
+* ``"imu"``: roll and pitch from the camera's IMU (an :func:`~planefuse.geometry.attitude_from_imu` filter),
+  the heading about gravity fixed once by :func:`~planefuse.geometry.yaw_from_ground_points` on ground points
+  the calibrated camera sees at its first frame (the calibration's moment) and followed afterwards by the
+  filter's gyroscope integration, the optical centre from the calibration. The camera's image -> plane
+  lookup follows this attitude: it is rebuilt when the attitude has turned far enough from the one it was
+  built for to move some image point by more than ``tolerance_px`` pixels, so a still camera costs nothing.
+
+The camera turns about its optical centre, so a change of attitude ``R_built -> R`` moves an undistorted
+pixel ``u`` to ``pi(K R^T R_built K^-1 u)`` (the infinite homography); the displacement is measured on a
+3 x 3 grid of image points (corners, edge midpoints, centre).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry import (
+    PinholeCamera,
+    R_world_cam_from_attitude,
+    attitude_from_imu,
+    transform_from_rotation_translation,
+    yaw_from_ground_points,
+)
+from ..grid import PlaneStack
+from ._lookup import ImagePlaneLookup
+
+__all__ = ["ATTITUDE_SOURCES", "AttitudeTrack", "CameraRegistration", "RegistrationParams",
+           "gyro_bias_at_rest", "pixel_shift_px", "rest_at_start_s"]
+
+#: Where a camera's attitude comes from.
+ATTITUDE_SOURCES = ("calibration", "imu")
+
+
+@dataclass(frozen=True)
+class RegistrationParams:
+    """How cameras are registered on the planes.
+
+    Attributes
+    ----------
+    attitude_source : {"calibration", "imu"}
+        Default source of every camera's attitude.
+    attitude_source_by_camera : mapping of str -> str
+        Per-camera exceptions (camera name -> source).
+    tolerance_px : float
+        A following lookup is rebuilt when the attitude has moved some image point by more than this [px].
+    imu_filter : str
+        :func:`~planefuse.geometry.attitude_from_imu` method.
+    imu_filter_params : mapping, optional
+        Its parameters (None = the method's defaults).
+    gyro_bias_rest_s : float
+        The gyroscope bias is the mean rate over the still start of the IMU stream (until the rate first
+        exceeds 2 deg/s, at most ``gyro_bias_rest_s`` seconds, at least 0.25 s); 0 disables the estimate.
+        Without it the heading, which only the gyroscope sees, drifts by the bias (~0.2 deg/s for the
+        simulator's IMU). The heading is anchored on the calibration at the end of that still start (the
+        filter has settled; the camera has not moved since its first frame).
+    """
+
+    attitude_source: str = "calibration"
+    attitude_source_by_camera: Mapping[str, str] = field(default_factory=dict)
+    tolerance_px: float = 0.5
+    imu_filter: str = "madgwick"
+    imu_filter_params: Mapping[str, float] | None = None
+    gyro_bias_rest_s: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name, src in [("attitude_source", self.attitude_source),
+                          *((f"attitude_source_by_camera[{k!r}]", v) for k, v in self.attitude_source_by_camera.items())]:
+            if src not in ATTITUDE_SOURCES:
+                raise ValueError(f"{name} must be one of {ATTITUDE_SOURCES}, got {src!r}")
+        if not self.tolerance_px > 0:
+            raise ValueError(f"tolerance_px must be > 0, got {self.tolerance_px}")
+        if not self.gyro_bias_rest_s >= 0:
+            raise ValueError(f"gyro_bias_rest_s must be >= 0, got {self.gyro_bias_rest_s}")
+
+    def source_of(self, camera_name: str) -> str:
+        """The attitude source of camera ``camera_name``."""
+        return self.attitude_source_by_camera.get(camera_name, self.attitude_source)
+
+
+def rest_at_start_s(time_s, gyro_rad_s, max_s: float, max_rate_rad_s: float = np.radians(2.0)) -> float:
+    """How long the IMU is still at the start of its stream [s], at most ``max_s``: the time until the first
+    sample whose rate exceeds ``max_rate_rad_s`` (2 deg/s by default: ten times the simulator's bias, below
+    any deliberate motion)."""
+    t = np.asarray(time_s, dtype=float)
+    moving = np.flatnonzero(np.linalg.norm(np.asarray(gyro_rad_s, dtype=float), axis=1) > max_rate_rad_s)
+    end = t[moving[0]] if moving.size else t[-1]
+    return float(min(end - t[0], max_s))
+
+
+def gyro_bias_at_rest(time_s, gyro_rad_s, rest_s: float, min_rest_s: float = 0.25) -> np.ndarray:
+    """Mean gyroscope rate [rad/s] (3,) over the still start of the stream (:func:`rest_at_start_s`, at most
+    ``rest_s``), or zeros when it is shorter than ``min_rest_s``."""
+    t = np.asarray(time_s, dtype=float)
+    still = rest_at_start_s(t, gyro_rad_s, rest_s)
+    window = t < t[0] + still
+    if rest_s <= 0 or still < min_rest_s or window.sum() < 2:
+        return np.zeros(3)
+    return np.asarray(gyro_rad_s, dtype=float)[window].mean(axis=0)
+
+
+def pixel_shift_px(K, R_world_cam_a, R_world_cam_b, width_px: int, height_px: int) -> float:
+    """Largest displacement [px] of a 3 x 3 grid of image points between two attitudes of a camera turning
+    about its centre: ``max |pi(K R_b^T R_a K^-1 u) - u|``."""
+    K = np.asarray(K, dtype=float)
+    u, v = np.meshgrid([0.0, (width_px - 1) / 2, width_px - 1.0], [0.0, (height_px - 1) / 2, height_px - 1.0])
+    uv1 = np.stack([u.ravel(), v.ravel(), np.ones(9)], axis=1)
+    H = K @ np.asarray(R_world_cam_b).T @ np.asarray(R_world_cam_a) @ np.linalg.inv(K)
+    q = uv1 @ H.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shift = np.linalg.norm(q[:, :2] / q[:, 2:3] - uv1[:, :2], axis=1)
+    return float(np.max(np.where(q[:, 2] > 0, shift, np.inf)))
+
+
+@dataclass(frozen=True)
+class AttitudeTrack:
+    """A camera's attitude in the world over time, from its IMU.
+
+    Attributes
+    ----------
+    times_s : ndarray, shape (N,)
+        IMU sample times [s].
+    R_world_cam : ndarray, shape (N, 3, 3)
+        Camera axes in the world at each sample.
+    yaw_rad : float
+        Heading offset from the filter's gravity frame to the world (``R_world_cam = Rz(yaw) R_gravity_cam``).
+    gyro_bias_rad_s : ndarray, shape (3,)
+        Gyroscope bias removed before filtering (IMU frame).
+    """
+
+    times_s: np.ndarray
+    R_world_cam: np.ndarray
+    yaw_rad: float
+    gyro_bias_rad_s: np.ndarray
+
+    @classmethod
+    def from_imu(cls, camera: PinholeCamera, time_s, gyro_rad_s, accel_m_s2, R_imu_cam, reference_time_s: float,
+                 params: RegistrationParams = RegistrationParams()) -> "AttitudeTrack":
+        """Filter the IMU samples and anchor the heading on the calibration at ``reference_time_s``.
+
+        Parameters
+        ----------
+        camera : PinholeCamera
+            The calibrated camera (intrinsics, optical centre, and its attitude at ``reference_time_s``).
+        time_s, gyro_rad_s, accel_m_s2 : array_like
+            IMU samples (see :func:`~planefuse.geometry.attitude_from_imu`).
+        R_imu_cam : array_like, shape (3, 3)
+            Camera -> IMU rotation.
+        reference_time_s : float
+            When the calibration holds (the first frame); the heading is fitted there, or at the end of the
+            still start of the stream if that is later.
+        params : RegistrationParams
+        """
+        t = np.asarray(time_s, dtype=float)
+        bias = gyro_bias_at_rest(t, gyro_rad_s, params.gyro_bias_rest_s)
+        reference_time_s = max(reference_time_s, t[0] + rest_at_start_s(t, gyro_rad_s, params.gyro_bias_rest_s))
+        R_gravity_cam = attitude_from_imu(t, np.asarray(gyro_rad_s, dtype=float) - bias, accel_m_s2,
+                                          method=params.imu_filter, R_imu_cam=R_imu_cam,
+                                          params=dict(params.imu_filter_params or {}))
+        k = int(np.clip(np.searchsorted(t, reference_time_s, side="right") - 1, 0, len(t) - 1))
+        uv, xy = _ground_points_seen(camera)
+        # keep the points whose rays also reach the ground with the filter's inclination
+        down = (np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(camera.K).T @ R_gravity_cam[k].T)[:, 2] < -1e-6
+        if down.sum() < 2:
+            raise ValueError(f"{camera.name}: the IMU attitude at t={t[k]:.3f} s sees the ground in fewer than 2 "
+                             "of the calibration's ground points; is the IMU's T_cam_imu right?")
+        yaw = yaw_from_ground_points(camera.K, R_gravity_cam[k], camera.center_world, uv[down], xy[down])
+        return cls(t, R_world_cam_from_attitude(R_gravity_cam, yaw), yaw, bias)
+
+    def at(self, time_s: float) -> np.ndarray:
+        """The attitude (3, 3) of the last IMU sample at or before ``time_s`` (the first before the stream)."""
+        k = int(np.searchsorted(self.times_s, time_s, side="right")) - 1
+        return self.R_world_cam[max(k, 0)]
+
+
+def _ground_points_seen(camera: PinholeCamera, n: int = 5) -> tuple[np.ndarray, np.ndarray]:
+    """Undistorted pixels (M, 2) of ground points (z = 0) the calibrated camera sees, and their world XY.
+
+    The points are where a grid of ``n x n`` pixels over the lower two thirds of the image meets the ground.
+    """
+    W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
+    u, v = np.meshgrid(np.linspace(0.1, 0.9, n) * (W - 1), np.linspace(0.35, 0.95, n) * (H - 1))
+    uv = np.stack([u.ravel(), v.ravel()], axis=1)
+    d = np.c_[uv, np.ones(len(uv))] @ np.linalg.inv(camera.K).T @ camera.R_world_cam.T
+    c = camera.center_world
+    down = d[:, 2] < -1e-6
+    if down.sum() < 2:
+        raise ValueError(f"{camera.name}: fewer than 2 image points see the ground; the heading cannot be fixed")
+    xy = c[:2] + d[down, :2] * (-c[2] / d[down, 2])[:, None]
+    return uv[down], xy
+
+
+class CameraRegistration:
+    """Every camera's image -> plane lookup over time, following the attitude where it comes from the IMU.
+
+    Parameters
+    ----------
+    cameras : sequence of PinholeCamera
+        The calibration (rest attitude and optical centre of every camera).
+    stack : PlaneStack
+    tracks : mapping of str -> AttitudeTrack
+        The IMU attitude of every camera whose source is ``"imu"`` (by camera name).
+    tolerance_px : float
+        Rebuild threshold (see the module docstring).
+    ignore_masks : sequence of (ndarray (height_px, width_px) bool or None), optional
+        Per camera, pixels that are not scene evidence: every lookup leaves the cells they see unobserved
+        (:meth:`ImagePlaneLookup.without_pixels`).
+
+    Attributes
+    ----------
+    n_rebuilds : list of int
+        Lookups rebuilt per camera after the first (the cost of following the attitude).
+    """
+
+    def __init__(self, cameras: Sequence[PinholeCamera], stack: PlaneStack,
+                 tracks: Mapping[str, AttitudeTrack] | None = None, tolerance_px: float = 0.5,
+                 ignore_masks: Sequence[np.ndarray | None] | None = None) -> None:
+        self.cameras = list(cameras)
+        if ignore_masks is not None and len(ignore_masks) != len(self.cameras):
+            raise ValueError(f"ignore_masks: expected {len(self.cameras)} entries (None where absent), "
+                             f"got {len(ignore_masks)}")
+        self.ignore_masks = list(ignore_masks) if ignore_masks is not None else [None] * len(self.cameras)
+        self.stack = stack
+        self.tracks = dict(tracks or {})
+        unknown = set(self.tracks) - {c.name for c in self.cameras}
+        if unknown:
+            raise ValueError(f"attitude tracks for unknown cameras {sorted(unknown)}")
+        self.tolerance_px = float(tolerance_px)
+        self.n_rebuilds = [0] * len(self.cameras)
+        self._built: list[np.ndarray | None] = [None] * len(self.cameras)
+
+    @classmethod
+    def from_recording(cls, rec, stack: PlaneStack, params: RegistrationParams = RegistrationParams()
+                       ) -> "CameraRegistration":
+        """The registration a :class:`~planefuse.io.Recording` and ``params`` call for.
+
+        Raises
+        ------
+        ValueError
+            A camera whose source is ``"imu"`` has no IMU, or a camera named in ``attitude_source_by_camera``
+            is not in the recording.
+        """
+        names = [c.name for c in rec.cameras]
+        unknown = set(params.attitude_source_by_camera) - set(names)
+        if unknown:
+            raise ValueError(f"attitude_source_by_camera names cameras {sorted(unknown)} not in the recording "
+                             f"(cameras: {names})")
+        tracks = {}
+        for cam in rec.cameras:
+            if params.source_of(cam.name) != "imu":
+                continue
+            imu = rec.imu_for(cam.name)
+            data = imu.read()
+            t_ref = float(rec.camera(cam.name).times_s[0])
+            R_imu_cam = np.asarray(imu.T_cam_imu, dtype=float)[:3, :3].T
+            tracks[cam.name] = AttitudeTrack.from_imu(cam, data.times_s, data.gyro_rad_s, data.accel_m_s2,
+                                                      R_imu_cam, t_ref, params)
+        return cls(rec.cameras, stack, tracks, params.tolerance_px,
+                   ignore_masks=[rec.camera(n).ignore_mask for n in names])
+
+    @property
+    def lookup_attitudes(self) -> list[np.ndarray | None]:
+        """The attitude (3, 3) each camera's current lookup was built for (None before :meth:`lookups_at`)."""
+        return list(self._built)
+
+    def attitude_at(self, camera_index: int, time_s: float) -> np.ndarray:
+        """Camera ``camera_index``'s attitude (3, 3) at ``time_s`` from its source."""
+        cam = self.cameras[camera_index]
+        track = self.tracks.get(cam.name)
+        return cam.R_world_cam if track is None else track.at(time_s)
+
+    def lookup_for(self, camera_index: int, R_world_cam) -> ImagePlaneLookup:
+        """The lookup of camera ``camera_index`` turned to attitude ``R_world_cam`` (lens distortion included)."""
+        cam = self.cameras[camera_index]
+        T = transform_from_rotation_translation(R_world_cam, cam.center_world)
+        lookup = ImagePlaneLookup.from_camera(PinholeCamera(cam.intrinsics, T, name=cam.name), self.stack)
+        mask = self.ignore_masks[camera_index]
+        return lookup if mask is None else lookup.without_pixels(mask)
+
+    def lookups_at(self, time_s: float) -> list[ImagePlaneLookup]:
+        """Every camera's lookup at ``time_s``; following lookups start from this attitude."""
+        self._built = [self.attitude_at(c, time_s) for c in range(len(self.cameras))]
+        return self.current_lookups()
+
+    def current_lookups(self) -> list[ImagePlaneLookup]:
+        """Every camera's lookup for the attitude it was last built for."""
+        if any(R is None for R in self._built):
+            raise ValueError("call lookups_at(first time) before current_lookups()")
+        return [self.lookup_for(c, R) for c, R in enumerate(self._built)]
+
+    def updates(self, time_s: float) -> Iterator[tuple[int, ImagePlaneLookup]]:
+        """``(camera_index, lookup)`` for every following camera whose attitude at ``time_s`` moved an image
+        point by more than the tolerance since its lookup was built (call in time order, after
+        :meth:`lookups_at`)."""
+        for c in self._moved(time_s):
+            yield c, self.lookup_for(c, self._built[c])
+
+    def advance(self, times_s: Iterable[float]) -> None:
+        """Follow the attitudes through ``times_s`` as :meth:`updates` would, without building the lookups (a
+        resumed run replays its skipped instants so that its lookups are those of the uninterrupted run)."""
+        for t in times_s:
+            self._moved(float(t))
+
+    def _moved(self, time_s: float) -> list[int]:
+        """Cameras whose attitude moved beyond the tolerance at ``time_s``; their built attitude is updated."""
+        out = []
+        for c, cam in enumerate(self.cameras):
+            if cam.name not in self.tracks:
+                continue
+            R = self.attitude_at(c, time_s)
+            built = self._built[c]
+            if built is not None and pixel_shift_px(cam.K, built, R, cam.intrinsics.width_px,
+                                                    cam.intrinsics.height_px) <= self.tolerance_px:
+                continue
+            self._built[c] = R
+            self.n_rebuilds[c] += 1
+            out.append(c)
+        return out

@@ -1,0 +1,382 @@
+"""Generative multi-view occupancy: mean-field posterior marginals of ground locations (Fleuret et al. 2008, §V, App. A).
+
+Model (per instant; K ground locations, C cameras; see docs/cameras.md, "Generative sensor model")::
+
+    X_k in {0, 1}                  a person stands at location k; prior P(X_k = 1) = eps, independent
+    R_ck                           silhouette of that person in camera c: an axis-aligned pixel box (or nothing)
+    A_c(X) = union_{k: X_k=1} R_ck                                           synthetic foreground image
+    B_c    in [0, 1]^pixels        observed foreground (background subtraction)
+    W_c    in {0, 1}^pixels        observed pixels (0 = ignored region: no evidence)
+    Psi(B, A) = |W (B (1 - A) + (1 - B) A)| / |W A|                        pseudo-distance, |.| = sum over pixels
+    P(B | X) prop. to prod_c exp(-Psi(B_c, A_c(X)) / sigma)
+
+Mean-field approximation ``P(X | B) ~ prod_k q_k^X_k (1 - q_k)^(1 - X_k)``, with the paper's closed form: the
+expected pseudo-distance is replaced by the pseudo-distance of the expected (average) synthetic image::
+
+    Abar_c = 1 - prod_k (1 - q_k R_ck)                                      P(pixel covered) under q
+    Abar_c^{k,1} = Abar_c on pixels outside R_ck, 1 inside
+    Abar_c^{k,0} = Abar_c outside R_ck, 1 - (1 - Abar_c) / (1 - q_k) inside    (location k removed)
+    q_k <- 1 / (1 + exp(log((1 - eps) / eps) + sum_c [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma))
+
+iterated to a fixed point from ``q = eps``, with damping ``q <- damping q_old + (1 - damping) q_new``.
+
+Every sum over a silhouette is four look-ups in an integral image. ``Abar`` itself is built without a loop over
+the pixels of each box: each box multiplies its four corners of a 2-D "difference" array by ``(1 - q_k)`` or
+``1 / (1 - q_k)``, and a running 2-D product turns it into ``prod_k (1 - q_k R_ck)`` for every pixel in one pass
+(the multiplicative analogue of a summed-area table). One iteration therefore costs O(pixels + K C), in a
+single numba kernel with no Python loop over locations or iterations.
+
+A box covering no observed pixel, or an image whose synthetic image is empty, is guarded by ``|W A| >= 1`` pixel
+(the pseudo-distance of an empty synthetic image is otherwise undefined).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from numba import njit
+
+__all__ = ["GenerativeParams", "MeanFieldResult", "MeanFieldSolver", "Silhouettes", "occupancy_marginals"]
+
+#: Largest marginal the solver holds (1 - q_k divides the synthetic image; see module notes).
+Q_MAX = 1.0 - 1e-6
+
+
+@dataclass(frozen=True)
+class GenerativeParams:
+    """Parameters of the generative model and of its mean-field solver.
+
+    Attributes
+    ----------
+    prior : float
+        Prior probability eps that a person stands at a location (POM ``PRIOR``, default 0.01).
+    sigma : float
+        Scale of the pseudo-distance: ``P(B|X) ~ exp(-Psi / sigma)`` (POM ``SIGMA_IMAGE_DENSITY``, default 0.01).
+    max_iterations : int
+        Bound on the fixed-point iterations (POM ``MAX_NB_SOLVER_ITERATIONS``, default 100).
+    damping : float
+        Weight in [0, 1) of the previous iterate in each update. The plain fixed point (0) oscillates: every
+        location explains the same foreground at once; 0.8 was chosen on POM's test frames 160-174 (agreement
+        with POM's marginals, docs/results.md) and reported on 175-189.
+    tolerance : float
+        Stop when no marginal moved by more than this in one iteration.
+    ignored_below : float
+        Locations whose marginal is below this are left out of the average synthetic image (POM
+        ``PROBA_IGNORED`` p: ``ignored_below = 1 - p``; 0 = none left out). They are still updated.
+    """
+
+    prior: float = 0.01
+    sigma: float = 0.01
+    max_iterations: int = 100
+    damping: float = 0.8
+    tolerance: float = 1e-3
+    ignored_below: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.prior < 1.0:
+            raise ValueError(f"GenerativeParams.prior must be in (0, 1), got {self.prior}")
+        if not self.sigma > 0.0:
+            raise ValueError(f"GenerativeParams.sigma must be > 0, got {self.sigma}")
+        if int(self.max_iterations) < 1:
+            raise ValueError(f"GenerativeParams.max_iterations must be >= 1, got {self.max_iterations}")
+        if not 0.0 <= self.damping < 1.0:
+            raise ValueError(f"GenerativeParams.damping must be in [0, 1), got {self.damping}")
+        if not self.tolerance >= 0.0:
+            raise ValueError(f"GenerativeParams.tolerance must be >= 0, got {self.tolerance}")
+        if not 0.0 <= self.ignored_below < 1.0:
+            raise ValueError(f"GenerativeParams.ignored_below must be in [0, 1), got {self.ignored_below}")
+
+
+@dataclass(frozen=True)
+class Silhouettes:
+    """One silhouette box per camera and ground location.
+
+    Attributes
+    ----------
+    boxes_px : ndarray, shape (C, K, 4), int32
+        ``(x_min, y_min, x_max, y_max)`` pixels, inclusive, top-left origin, inside the image; all -1 where the
+        location is not visible in the camera.
+    image_sizes : tuple of (height_px, width_px)
+        Size of each camera's image.
+    """
+
+    boxes_px: np.ndarray
+    image_sizes: tuple[tuple[int, int], ...]
+
+    def __post_init__(self) -> None:
+        b = np.asarray(self.boxes_px)
+        if b.ndim != 3 or b.shape[2] != 4:
+            raise ValueError(f"boxes_px must have shape (C, K, 4), got {b.shape}")
+        sizes = tuple((int(h), int(w)) for h, w in self.image_sizes)
+        if len(sizes) != b.shape[0]:
+            raise ValueError(f"image_sizes has {len(sizes)} entries for {b.shape[0]} cameras")
+        b = b.astype(np.int32)
+        vis = b[..., 0] >= 0
+        for c, (h, w) in enumerate(sizes):
+            if h <= 0 or w <= 0:
+                raise ValueError(f"camera {c}: image size must be positive, got {h}x{w}")
+            bc = b[c][vis[c]]
+            bad = (bc[:, 0] > bc[:, 2]) | (bc[:, 1] > bc[:, 3]) | (bc[:, 2] >= w) | (bc[:, 3] >= h) | (bc[:, 1] < 0)
+            if bad.any():
+                k = int(np.nonzero(vis[c])[0][np.argmax(bad)])
+                raise ValueError(f"camera {c}, location {k}: box {b[c, k].tolist()} is empty or outside the "
+                                 f"{w}x{h} image")
+        b[~vis] = -1
+        b.setflags(write=False)
+        object.__setattr__(self, "boxes_px", b)
+        object.__setattr__(self, "image_sizes", sizes)
+
+    @property
+    def n_cameras(self) -> int:
+        """Number of cameras C."""
+        return self.boxes_px.shape[0]
+
+    @property
+    def n_locations(self) -> int:
+        """Number of ground locations K."""
+        return self.boxes_px.shape[1]
+
+    @property
+    def visible(self) -> np.ndarray:
+        """(C, K) bool: the location has a silhouette in the camera."""
+        return self.boxes_px[..., 0] >= 0
+
+
+@dataclass(frozen=True)
+class MeanFieldResult:
+    """Output of :func:`occupancy_marginals`.
+
+    Attributes
+    ----------
+    marginals : ndarray, shape (K,), float64
+        Posterior marginal ``q_k = P(X_k = 1 | B)`` under the mean-field approximation.
+    n_iterations : int
+        Fixed-point iterations run.
+    converged : bool
+        The last iteration moved no marginal by more than the tolerance.
+    """
+
+    marginals: np.ndarray
+    n_iterations: int
+    converged: bool
+
+
+def _check_images(images: Sequence[np.ndarray], sizes, what: str, binary: bool) -> list[np.ndarray]:
+    if len(images) != len(sizes):
+        raise ValueError(f"{what}: expected {len(sizes)} images (one per camera), got {len(images)}")
+    out = []
+    for c, (img, (h, w)) in enumerate(zip(images, sizes)):
+        a = np.asarray(img)
+        if a.shape != (h, w):
+            raise ValueError(f"{what}[{c}]: expected shape ({h}, {w}) (rows x cols), got {a.shape}")
+        if binary:
+            out.append(a.astype(bool).astype(np.float64))
+        elif a.dtype == np.uint8:
+            out.append(a.astype(np.float64) / 255.0)
+        elif a.dtype == bool:
+            out.append(a.astype(np.float64))
+        else:
+            a = np.asarray(a, dtype=np.float64)
+            if not np.isfinite(a).all() or a.min() < 0.0 or a.max() > 1.0:
+                raise ValueError(f"{what}[{c}]: float foreground must be finite and in [0, 1]")
+            out.append(a)
+    return out
+
+
+class MeanFieldSolver:
+    """The mean-field fixed point for one set of silhouettes, with its work buffers allocated once.
+
+    Parameters
+    ----------
+    silhouettes : Silhouettes
+    params : GenerativeParams
+    """
+
+    def __init__(self, silhouettes: Silhouettes, params: GenerativeParams = GenerativeParams()) -> None:
+        self.silhouettes = silhouettes
+        self.params = params
+        sizes = silhouettes.image_sizes
+        self._n_px = np.array([h * w for h, w in sizes], dtype=np.int64)
+        self._n_ii = np.array([(h + 1) * (w + 1) for h, w in sizes], dtype=np.int64)
+        self._px_off = np.concatenate([[0], np.cumsum(self._n_px)]).astype(np.int64)
+        self._ii_off = np.concatenate([[0], np.cumsum(self._n_ii)]).astype(np.int64)
+        self._hw = np.array(sizes, dtype=np.int64).reshape(-1, 2)
+        n_ii = int(self._ii_off[-1])
+        self._work = np.zeros((5, n_ii), dtype=np.float64)  # D, I_W, I_WB, I_WA, I_WBA
+
+    def solve(self, foregrounds: Sequence[np.ndarray], observed: Sequence[np.ndarray | None] | None = None,
+              initial=None) -> MeanFieldResult:
+        """Posterior marginals of every location given one instant's foreground images.
+
+        Parameters
+        ----------
+        foregrounds : sequence of C arrays (height_px, width_px)
+            Foreground per camera: bool, uint8 (0..255, scaled to [0, 1]) or float in [0, 1].
+        observed : sequence of C (bool arrays (height_px, width_px) or None), optional
+            False on ignored pixels (unobserved regions: no evidence either way); None = all observed.
+        initial : array_like, shape (K,), optional
+            Starting marginals (default: the prior).
+
+        Returns
+        -------
+        MeanFieldResult
+        """
+        sil, p = self.silhouettes, self.params
+        sizes = sil.image_sizes
+        fg = _check_images(foregrounds, sizes, "foregrounds", binary=False)
+        if observed is None:
+            w_img = [np.ones(s) for s in sizes]
+        else:
+            if len(observed) != len(sizes):
+                raise ValueError(f"observed: expected {len(sizes)} masks (None for all observed), got {len(observed)}")
+            w_img = _check_images([np.ones(s, bool) if o is None else o for o, s in zip(observed, sizes)], sizes,
+                                  "observed", binary=True)
+        B = np.concatenate([f.ravel() for f in fg])
+        W = np.concatenate([w.ravel() for w in w_img])
+        K = sil.n_locations
+        if initial is None:
+            q = np.full(K, p.prior, dtype=np.float64)
+        else:
+            q = np.array(initial, dtype=np.float64).ravel()
+            if q.shape != (K,) or not np.isfinite(q).all():
+                raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
+        q = np.clip(q, 0.0, Q_MAX)
+        n_iter, converged = _solve(B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._work,
+                                   float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations),
+                                   float(p.damping), float(p.tolerance), float(p.ignored_below), Q_MAX)
+        return MeanFieldResult(q, int(n_iter), bool(converged))
+
+
+def occupancy_marginals(foregrounds: Sequence[np.ndarray], silhouettes: Silhouettes,
+                        params: GenerativeParams = GenerativeParams(),
+                        observed: Sequence[np.ndarray | None] | None = None) -> MeanFieldResult:
+    """One-call form of :class:`MeanFieldSolver` (allocates its buffers each call)."""
+    return MeanFieldSolver(silhouettes, params).solve(foregrounds, observed)
+
+
+@njit(cache=True, boundscheck=False)
+def _box_sum(I, o, w1, x0, y0, x1, y1):  # pragma: no cover - compiled
+    # sum over the inclusive box of the image whose integral image (h+1, w+1) starts at I[o]
+    return I[o + (y1 + 1) * w1 + x1 + 1] - I[o + y0 * w1 + x1 + 1] - I[o + (y1 + 1) * w1 + x0] + I[o + y0 * w1 + x0]
+
+
+@njit(cache=True, boundscheck=False)
+def _integral(img, W, h, w, po, I, o):  # pragma: no cover - compiled
+    # I = integral image of W * img (img=None-like handled by caller passing ones)
+    w1 = w + 1
+    for x in range(w1):
+        I[o + x] = 0.0
+    for y in range(h):
+        I[o + (y + 1) * w1] = 0.0
+        run = 0.0
+        for x in range(w):
+            run += W[po + y * w + x] * img[po + y * w + x]
+            I[o + (y + 1) * w1 + x + 1] = I[o + y * w1 + x + 1] + run
+
+
+@njit(cache=True, boundscheck=False)
+def _solve(B, W, hw, px_off, ii_off, boxes, q, work, log_prior_ratio, inv_sigma, max_iter, damping, tol,
+           ignored_below, q_max):  # pragma: no cover - compiled
+    n_cam, K = boxes.shape[0], boxes.shape[1]
+    D, IW, IB, IA, IBA = work[0], work[1], work[2], work[3], work[4]
+    ones = np.ones(B.shape[0])
+    SB = np.zeros(n_cam)
+    for c in range(n_cam):
+        h, w = hw[c, 0], hw[c, 1]
+        _integral(ones, W, h, w, px_off[c], IW, ii_off[c])
+        _integral(B, W, h, w, px_off[c], IB, ii_off[c])
+        SB[c] = IB[ii_off[c] + (h + 1) * (w + 1) - 1]
+        for x in range(w + 1):
+            IA[ii_off[c] + x] = 0.0
+            IBA[ii_off[c] + x] = 0.0
+    acc = np.zeros(K)
+    prev = np.empty(hw[:, 1].max())
+    converged = False
+    it = 0
+    while it < max_iter:
+        it += 1
+        acc[:] = 0.0
+        for c in range(n_cam):
+            h, w = hw[c, 0], hw[c, 1]
+            w1 = w + 1
+            o, po = ii_off[c], px_off[c]
+            # 1. difference array of prod_k (1 - q_k R_ck): each box scales its four corners
+            for i in range(o, o + (h + 1) * w1):
+                D[i] = 1.0
+            for k in range(K):
+                x0 = boxes[c, k, 0]
+                if x0 < 0 or q[k] < ignored_below:
+                    continue
+                y0, x1, y1 = boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3]
+                f = 1.0 - q[k]
+                g = 1.0 / f
+                D[o + y0 * w1 + x0] *= f
+                D[o + y0 * w1 + x1 + 1] *= g
+                D[o + (y1 + 1) * w1 + x0] *= g
+                D[o + (y1 + 1) * w1 + x1 + 1] *= f
+            # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass
+            for x in range(w):
+                prev[x] = 1.0
+            for y in range(h):
+                r = 1.0
+                ra = 0.0
+                rba = 0.0
+                IA[o + (y + 1) * w1] = 0.0
+                IBA[o + (y + 1) * w1] = 0.0
+                for x in range(w):
+                    r *= D[o + y * w1 + x]
+                    pr = r * prev[x]
+                    prev[x] = pr
+                    a = (1.0 - pr) * W[po + y * w + x]
+                    ra += a
+                    rba += a * B[po + y * w + x]
+                    IA[o + (y + 1) * w1 + x + 1] = IA[o + y * w1 + x + 1] + ra
+                    IBA[o + (y + 1) * w1 + x + 1] = IBA[o + y * w1 + x + 1] + rba
+            last = o + (h + 1) * w1 - 1
+            SA, SBA, sb = IA[last], IBA[last], SB[c]
+            # 3. per location: pseudo-distance with the location present and absent
+            for k in range(K):
+                x0 = boxes[c, k, 0]
+                if x0 < 0:
+                    continue
+                y0, x1, y1 = boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3]
+                rW = _box_sum(IW, o, w1, x0, y0, x1, y1)
+                rB = _box_sum(IB, o, w1, x0, y0, x1, y1)
+                rA = _box_sum(IA, o, w1, x0, y0, x1, y1)
+                rBA = _box_sum(IBA, o, w1, x0, y0, x1, y1)
+                t = 1.0 / (1.0 - q[k]) if q[k] >= ignored_below else 1.0
+                in0 = rW - (rW - rA) * t
+                if in0 < 0.0:
+                    in0 = 0.0
+                inb0 = rB - (rB - rBA) * t
+                if inb0 < 0.0:
+                    inb0 = 0.0
+                if inb0 > in0:
+                    inb0 = in0
+                a1 = SA - rA + rW
+                ba1 = SBA - rBA + rB
+                a0 = SA - rA + in0
+                ba0 = SBA - rBA + inb0
+                psi1 = (sb + a1 - 2.0 * ba1) / max(a1, 1.0)
+                psi0 = (sb + a0 - 2.0 * ba0) / max(a0, 1.0)
+                acc[k] += (psi1 - psi0) * inv_sigma
+        # 4. damped fixed-point update
+        delta = 0.0
+        for k in range(K):
+            e = log_prior_ratio + acc[k]
+            if e > 700.0:
+                e = 700.0
+            qn = 1.0 / (1.0 + np.exp(e))
+            qn = damping * q[k] + (1.0 - damping) * qn
+            if qn > q_max:
+                qn = q_max
+            d = abs(qn - q[k])
+            if d > delta:
+                delta = d
+            q[k] = qn
+        if delta <= tol:
+            converged = True
+            break
+    return it, converged

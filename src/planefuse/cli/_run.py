@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-import yaml
 
 from ._app import app, console
 
@@ -24,10 +23,10 @@ def run(
 
     An interrupted run (Ctrl-C, kill) re-run with the same configuration resumes after its last finished
     chunk and ends with the same files as an uninterrupted run; --fresh starts afresh."""
-    from ..config import ConfigError, config_hash, load_config
+    from ..config import ConfigError, load_config
     from ..io import read_recording
     from ..outputs import progress_mode
-    from ..pipeline import run_to_folder, system_params_from_config
+    from ..pipeline import run_options_from_config, run_to_folder, system_params_from_config
     from ._demo import _print_summary
 
     try:
@@ -42,13 +41,11 @@ def run(
         raise typer.Exit(1) from None
     params = system_params_from_config(cfg)
     out = cfg.outputs
+    options = run_options_from_config(cfg)
+    options["rerun"] = options["rerun"] or rerun
     try:
-        _, metrics = run_to_folder(
-            rec, params, out.out_dir, progress_mode=progress_mode(quiet, log_json), animation=out.animation,
-            figures=out.figures, report=out.report, rerun=out.rerun or rerun, chunk_steps=out.chunk_steps,
-            config_text=yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False) + f"# {config_hash(cfg)}\n",
-            stack=cfg.planes.to_stack(), resume=not fresh,
-        )
+        _, metrics = run_to_folder(rec, params, out.out_dir, progress_mode=progress_mode(quiet, log_json),
+                                   resume=not fresh, **options)
     except KeyboardInterrupt:
         console.print(f"interrupted: outputs so far are in {out.out_dir}; re-run to resume")
         raise typer.Exit(130) from None

@@ -1,6 +1,6 @@
 """The whole system: every modality registered on the planes, filtered, tracked and evaluated."""
 
-from ._config import system_params_from_config
+from ._config import run_options_from_config, system_params_from_config
 from ._outputs import run_to_folder
 from ._streams import (
     EvidenceSource,
@@ -39,6 +39,7 @@ __all__ = [
     "laser_evidence",
     "laser_sources",
     "merged_evidence",
+    "run_options_from_config",
     "run_system",
     "run_to_folder",
     "sound_evidence",

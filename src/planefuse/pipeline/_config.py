@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..tracking import BOFParams, ClusterParams, TrackerParams, TrackingParams
 from ._system import SystemParams
 
-__all__ = ["system_params_from_config"]
+__all__ = ["system_params_from_config", "run_options_from_config"]
 
 
 def system_params_from_config(cfg) -> SystemParams:
@@ -37,4 +37,21 @@ def system_params_from_config(cfg) -> SystemParams:
         laser=las.enabled, sound=snd.enabled, camera_params=camera_params, laser_model=laser_model,
         tracking=tracking, sound_block_s=snd.block_length_s, sound_model_path=snd.model_path,
         output_period_s=flt.output_period_s, threshold_m=det.match_distance_m,
+    )
+
+
+def run_options_from_config(cfg) -> dict:
+    """The keyword arguments of :func:`~planefuse.pipeline.run_to_folder` that ``cfg.outputs`` and ``cfg.planes``
+    set (everything but the recording, the parameters and the progress mode): what ``planefuse run`` and
+    ``planefuse batch`` both run with."""
+    import yaml
+
+    from ..config import config_hash
+
+    out = cfg.outputs
+    return dict(
+        animation=out.animation, figures=out.figures, report=out.report, rerun=out.rerun,
+        chunk_steps=out.chunk_steps,
+        config_text=yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False) + f"# {config_hash(cfg)}\n",
+        stack=cfg.planes.to_stack(),
     )

@@ -1,0 +1,125 @@
+"""What one task of a batch is, and how a worker runs it."""
+
+from __future__ import annotations
+
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..pipeline import SystemParams
+
+__all__ = ["SceneSpec", "BatchJob", "JobResult", "run_job"]
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """A simulated recording, made on the worker that runs the job (nothing large crosses the network).
+
+    Attributes
+    ----------
+    seed : int
+        Scene seed (people's paths, sensor noise).
+    duration_s : float
+        Simulated duration [s].
+    scene_path : str, optional
+        Scene YAML (:func:`planefuse.sim.load_scene_config`); the default scene when None. Its ``seed`` and
+        ``duration_s`` are replaced by the ones above.
+    """
+
+    seed: int = 1
+    duration_s: float = 10.0
+    scene_path: str | None = None
+
+    def recording(self):
+        """The simulated :class:`~planefuse.sim.SimulatedRecording`."""
+        from ..sim import default_scene_config, load_scene_config, simulate
+
+        if self.scene_path is None:
+            cfg = default_scene_config(duration_s=self.duration_s, seed=self.seed)
+        else:
+            cfg = load_scene_config(self.scene_path).model_copy(
+                update={"duration_s": self.duration_s, "seed": self.seed})
+        return simulate(cfg)
+
+
+@dataclass(frozen=True)
+class BatchJob:
+    """One run of the whole system.
+
+    Attributes
+    ----------
+    name : str
+        Label of the run in tables and progress (unique within a batch).
+    recording : str or SceneSpec
+        A recording folder (read on the worker, so it must be reachable there under that path) or a
+        simulated scene.
+    params : SystemParams
+        What to run.
+    out_dir : str, optional
+        Where to write the run's folder (:func:`planefuse.pipeline.run_to_folder`); None computes the
+        metrics only.
+    run_options : dict
+        Further keyword arguments of ``run_to_folder`` when ``out_dir`` is given (default: tables, occupancy
+        and metrics, no figures, animation or report; :func:`planefuse.pipeline.run_options_from_config` gives
+        what ``planefuse run`` uses).
+    tags : dict
+        Free labels carried into the result (scenario, seed, configuration name, ...).
+    """
+
+    name: str
+    recording: str | SceneSpec
+    params: SystemParams = field(default_factory=SystemParams)
+    out_dir: str | None = None
+    run_options: dict = field(default_factory=dict)
+    tags: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What a worker gives back for one :class:`BatchJob`.
+
+    Attributes
+    ----------
+    name : str
+    tags : dict
+    metrics : dict
+        :func:`planefuse.pipeline.evaluate_system`'s metrics (empty without ground truth or on error).
+    error : str or None
+        One line naming what failed, when the run failed (the other jobs go on).
+    detail : str or None
+        The failure's traceback, for a log file.
+    """
+
+    name: str
+    tags: dict
+    metrics: dict
+    error: str | None = None
+    detail: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.error is None
+
+
+def run_job(job: BatchJob) -> JobResult:
+    """Run one job in this process (what a dask worker calls); failures are returned, not raised."""
+    from ..io import read_recording
+    from ..pipeline import evaluate_system, run_system, run_to_folder
+
+    try:
+        if isinstance(job.recording, SceneSpec):
+            rec = job.recording.recording()
+        else:
+            rec = read_recording(job.recording)
+        if job.out_dir is not None:
+            options = {"animation": "none", "figures": False, "report": False, "resume": False, **job.run_options}
+            _, metrics = run_to_folder(rec, job.params, Path(job.out_dir), progress_mode="quiet", **options)
+        elif rec.groundtruth is not None and rec.groundtruth.people is not None:
+            metrics = evaluate_system(rec, run_system(rec, job.params), job.params.threshold_m)
+        else:
+            run_system(rec, job.params)
+            metrics = {}
+    except Exception as exc:  # noqa: BLE001 - one failed run must not stop a batch; reported per job
+        return JobResult(job.name, dict(job.tags), {}, f"{job.name}: {type(exc).__name__}: {exc}",
+                         traceback.format_exc())
+    return JobResult(job.name, dict(job.tags), metrics)

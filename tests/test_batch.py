@@ -1,0 +1,141 @@
+"""planefuse.batch: runs as dask.distributed tasks give exactly the serial runs' metrics, on a LocalCluster and
+on a real scheduler with its workers started as separate processes on localhost."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed")
+
+from planefuse.batch import BatchJob, SceneSpec, run_batch, run_job  # noqa: E402
+from planefuse.pipeline import SystemParams  # noqa: E402
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+TIMING = {"elapsed_s"}  # measured computing time: the only metric that may differ between two runs
+
+
+def _jobs() -> list[BatchJob]:
+    params = SystemParams(laser=False, sound=False)
+    return [BatchJob(f"seed{s}", SceneSpec(seed=s, duration_s=1.5), params, tags={"seed": s}) for s in (1, 2)]
+
+
+def _same(a: dict, b: dict) -> bool:
+    return {k: v for k, v in a.items() if k not in TIMING} == {k: v for k, v in b.items() if k not in TIMING}
+
+
+@pytest.fixture
+def workers_see_checkout(monkeypatch):
+    """Spawned worker processes import this checkout's planefuse."""
+    monkeypatch.setenv("PYTHONPATH", SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
+
+
+def test_local_cluster_gives_the_serial_metrics(workers_see_checkout):
+    jobs = _jobs()
+    serial = [run_job(j) for j in jobs]
+    assert all(r.ok for r in serial), [r.error for r in serial]
+    batch = run_batch(jobs, n_workers=2, progress_mode="quiet")
+    assert [r.name for r in batch] == ["seed1", "seed2"]
+    for s, b in zip(serial, batch):
+        assert b.ok and b.tags == s.tags
+        assert s.metrics["n_camera_frames"] > 0
+        assert _same(s.metrics, b.metrics), (s.metrics, b.metrics)
+
+
+def test_failed_job_is_reported_and_the_others_finish(workers_see_checkout, tmp_path):
+    jobs = [BatchJob("missing", str(tmp_path / "no-such-recording")), _jobs()[0]]
+    res = run_batch(jobs, n_workers=1, progress_mode="quiet")
+    assert not res[0].ok and res[0].error.startswith("missing: ") and "no-such-recording" in res[0].error
+    assert "\n" not in res[0].error
+    assert res[1].ok and res[1].metrics["moda"] > 0.5
+
+
+def test_bad_batches_are_refused():
+    with pytest.raises(ValueError, match="repeated: a"):
+        run_batch([BatchJob("a", SceneSpec()), BatchJob("a", SceneSpec(seed=2))])
+    with pytest.raises(ValueError, match="n_workers is for a local cluster"):
+        run_batch(_jobs(), scheduler="tcp://127.0.0.1:1", n_workers=2)
+
+
+def test_unreachable_scheduler_is_one_clear_error():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]  # nothing listens there once closed
+    with pytest.raises(OSError, match=f"dask scheduler tcp://127.0.0.1:{port}: cannot connect"):
+        run_batch(_jobs(), scheduler=f"tcp://127.0.0.1:{port}")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_real_scheduler_and_workers_on_localhost(tmp_path):
+    """A ``dask scheduler`` and two ``dask worker`` processes, as a user starts them on their machines."""
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    procs = [subprocess.Popen(dask + ["--host", "127.0.0.1", "--port", str(port), "--no-dashboard"], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        time.sleep(2.0)
+        for _ in range(2):
+            procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
+                                           "--nthreads", "1", "--no-dashboard"], env=env, cwd=tmp_path,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        jobs = _jobs()
+        batch = run_batch(jobs, scheduler=address, progress_mode="quiet")
+        serial = [run_job(j) for j in jobs]
+        for s, b in zip(serial, batch):
+            assert b.ok, b.error
+            assert _same(s.metrics, b.metrics)
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_cli_batch_writes_what_planefuse_run_writes(tmp_path, workers_see_checkout):
+    """``planefuse batch`` of a configuration writes the same tracks, detections and metrics as ``planefuse run``
+    of it (byte for byte, the measured run time aside)."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from planefuse.cli import app
+    from planefuse.config import example_yaml
+    from planefuse.sim import default_scene_config, simulate
+
+    simulate(default_scene_config(duration_s=1.5, seed=2)).write(tmp_path / "rec")
+    text = (example_yaml("rec").replace("figures: true", "figures: false").replace("animation: gif", "animation: none")
+            .replace("report: true", "report: false"))
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.yaml").write_text(text.replace("out_dir: planefuse-out", f"out_dir: out-{name}"))
+    runner = CliRunner()
+    r = runner.invoke(app, ["run", str(tmp_path / "a.yaml"), "--quiet"], terminal_width=200)
+    assert r.exit_code == 0, r.output
+    r = runner.invoke(app, ["batch", str(tmp_path / "b.yaml"), "--workers", "1", "--quiet", "--json-out",
+                            str(tmp_path / "batch.json")], terminal_width=200)
+    assert r.exit_code == 0, r.output
+    for f in ("tracks.csv", "detections.csv"):
+        assert (tmp_path / "out-a" / f).read_bytes() == (tmp_path / "out-b" / f).read_bytes(), f
+    ma, mb = (json.loads((tmp_path / f"out-{n}" / "metrics.json").read_text()) for n in ("a", "b"))
+    assert _same(ma, mb)
+    rows = json.loads((tmp_path / "batch.json").read_text())
+    assert rows[0]["name"] == "b" and rows[0]["error"] is None and _same(rows[0]["metrics"], mb)
+    # a configuration that does not load is refused before any task starts
+    (tmp_path / "bad.yaml").write_text(text.replace("cell_size_m: 0.1", "cell_size_m: -1"))
+    r = runner.invoke(app, ["batch", str(tmp_path / "bad.yaml"), "--workers", "1"], terminal_width=200)
+    assert r.exit_code == 2 and "cell_size_m" in r.output

@@ -1,0 +1,99 @@
+"""Generative multi-view occupancy (planefuse.occupancy): mean-field marginals against the exact posterior, a lone
+person found, a ghost between two views explained away, ignored pixels giving no evidence."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planefuse.occupancy import GenerativeParams, Silhouettes, occupancy_marginals
+
+H, W = 40, 60
+EXACT = GenerativeParams(prior=0.05, sigma=0.05, max_iterations=500, damping=0.5, tolerance=1e-12)
+
+
+def _psi(B, A, Wm):
+    """Pseudo-distance of the model, from its definition (module docstring)."""
+    return (Wm * (B * (1 - A) + (1 - B) * A)).sum() / max((Wm * A).sum(), 1.0)
+
+
+def _box_image(box):
+    A = np.zeros((H, W))
+    x0, y0, x1, y1 = box
+    A[y0:y1 + 1, x0:x1 + 1] = 1.0
+    return A
+
+
+@pytest.mark.parametrize("fill", [0.0, 0.3, 0.7, 1.0])
+def test_single_location_equals_exact_posterior(fill, rng):
+    """One location: the mean-field fixed point is the exact posterior (enumeration of X in {0, 1})."""
+    boxes = [(10, 5, 25, 35), (30, 2, 50, 30)]
+    B = [(rng.random((H, W)) < 0.05).astype(float) for _ in boxes]
+    for b, box in zip(B, boxes):
+        inside = _box_image(box) > 0
+        b[inside] = (rng.random(inside.sum()) < fill)
+    sil = Silhouettes(np.array(boxes, dtype=np.int32)[:, None, :], ((H, W), (H, W)))
+    q = occupancy_marginals(B, sil, EXACT).marginals[0]
+    ones = np.ones((H, W))
+    energy = {x: sum(_psi(b, _box_image(box) * x, ones) for b, box in zip(B, boxes)) / EXACT.sigma for x in (0, 1)}
+    p1 = EXACT.prior * np.exp(-energy[1])
+    p0 = (1 - EXACT.prior) * np.exp(-energy[0])
+    assert q == pytest.approx(min(p1 / (p0 + p1), 1 - 1e-6), abs=1e-6)  # the solver holds q <= 1 - 1e-6
+
+
+def _two_view_scene():
+    """Three locations seen by two cameras: people at 0 and 1; location 2 lies on the line of sight of person 0
+    in camera A and of person 1 in camera B, so both its silhouettes are foreground (the classic ghost)."""
+    boxes = np.array([
+        [[5, 5, 20, 35], [35, 5, 50, 35], [5, 5, 20, 35]],     # camera A: the ghost hides behind person 0
+        [[5, 5, 20, 35], [35, 5, 50, 35], [35, 5, 50, 35]],    # camera B: the ghost hides behind person 1
+    ], dtype=np.int32)
+    fg = []
+    for c in range(2):
+        img = np.zeros((H, W))
+        for k in (0, 1):
+            x0, y0, x1, y1 = boxes[c, k]
+            img[y0:y1 + 1, x0:x1 + 1] = 1.0
+        fg.append(img)
+    return Silhouettes(boxes, ((H, W), (H, W))), fg
+
+
+def test_people_found_and_their_ghost_explained_away():
+    sil, fg = _two_view_scene()
+    q = occupancy_marginals(fg, sil).marginals
+    assert q[0] > 0.95 and q[1] > 0.95
+    assert q[2] < 0.05
+    # the per-cell (independent) view of the same images: every silhouette of location 2 is fully foreground
+    assert all(f[sil.boxes_px[c, 2, 1]:sil.boxes_px[c, 2, 3] + 1, sil.boxes_px[c, 2, 0]:sil.boxes_px[c, 2, 2] + 1]
+               .mean() == 1.0 for c, f in enumerate(fg))
+
+
+def test_lone_person_found_empty_scene_stays_at_prior_level():
+    sil, fg = _two_view_scene()
+    one = [np.zeros((H, W)), np.zeros((H, W))]
+    for c in range(2):
+        x0, y0, x1, y1 = sil.boxes_px[c, 1]
+        one[c][y0:y1 + 1, x0:x1 + 1] = 1.0
+    q = occupancy_marginals(one, sil).marginals
+    assert q[1] > 0.95 and q[0] < 0.05
+    empty = occupancy_marginals([np.zeros((H, W))] * 2, sil).marginals
+    assert (empty <= GenerativeParams().prior + 1e-12).all()
+
+
+def test_ignored_pixels_give_no_evidence():
+    """A location whose silhouettes are all in ignored regions keeps exactly its prior, whatever the pixels say."""
+    boxes = np.array([[[10, 5, 25, 35]], [[30, 2, 50, 30]]], dtype=np.int32)
+    sil = Silhouettes(boxes, ((H, W), (H, W)))
+    observed = [~(_box_image(b[0]) > 0) for b in boxes]
+    p = GenerativeParams(prior=0.05, max_iterations=200, damping=0.5, tolerance=1e-14)
+    for value in (0.0, 1.0):
+        q = occupancy_marginals([np.full((H, W), value)] * 2, sil, p, observed=observed).marginals[0]
+        assert q == pytest.approx(p.prior, abs=1e-12)
+
+
+def test_bad_silhouettes_and_images_are_refused():
+    with pytest.raises(ValueError, match="outside the 60x40 image"):
+        Silhouettes(np.array([[[0, 0, 60, 10]]], dtype=np.int32), ((H, W),))
+    sil, _ = _two_view_scene()
+    with pytest.raises(ValueError):
+        occupancy_marginals([np.zeros((H, W))], sil)

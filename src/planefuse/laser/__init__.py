@@ -25,7 +25,7 @@ from ._occupancy import (
     traverse_beams,
     xy_ref_from_points_laser,
 )
-from ._raycast import HIT_CYLINDER, HIT_FLOOR, HIT_NONE, HIT_SPHERE, HIT_WALL, raycast
+from ._raycast import HIT_BOX, HIT_CYLINDER, HIT_FLOOR, HIT_NONE, HIT_SPHERE, HIT_WALL, raycast
 from ._readers import (
     SUPPORTED_TYPES,
     CarmenLog,
@@ -95,6 +95,7 @@ __all__ = [
     "HIT_FLOOR",
     "HIT_NONE",
     "HIT_SPHERE",
+    "HIT_BOX",
     "HIT_WALL",
     "raycast",
     "LaserScan",

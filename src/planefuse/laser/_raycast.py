@@ -1,10 +1,12 @@
-"""Ray casting against the simulator's scene: vertical cylinders, spheres, floor and room walls.
+"""Ray casting against the simulator's scene: vertical cylinders, spheres, boxes, floor and room walls.
 
 Scene contract (the one ``planefuse.sim``'s ``scene.bodies_at(time_s)`` returns):
 
 * ``cylinders`` (P, 5): ``[x, y, radius, z_bottom, z_top]`` [m] -- finite vertical
   cylinders, closed by horizontal caps at ``z_bottom`` and ``z_top``;
 * ``spheres`` (S, 4): ``[x, y, z, radius]`` [m];
+* ``boxes`` (B, 6), optional: ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m] -- axis-aligned static
+  occluders (slab intersection);
 * the floor: the infinite plane z = 0;
 * the room's walls: the four vertical rectangles ``x = x0``, ``x = x1`` (for
   ``y0 <= y <= y1``) and ``y = y0``, ``y = y1`` (for ``x0 <= x <= x1``), each from
@@ -18,16 +20,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["raycast", "HIT_NONE", "HIT_FLOOR", "HIT_WALL", "HIT_CYLINDER", "HIT_SPHERE"]
+__all__ = ["raycast", "HIT_NONE", "HIT_FLOOR", "HIT_WALL", "HIT_CYLINDER", "HIT_SPHERE", "HIT_BOX"]
 
 #: Hit kinds returned by ``raycast(..., return_hits=True)``.
-HIT_NONE, HIT_FLOOR, HIT_WALL, HIT_CYLINDER, HIT_SPHERE = 0, 1, 2, 3, 4
+HIT_NONE, HIT_FLOOR, HIT_WALL, HIT_CYLINDER, HIT_SPHERE, HIT_BOX = 0, 1, 2, 3, 4, 5
 
 _EPS = 1e-9
 
 
 @njit(cache=True)
-def _raycast_kernel(origins, directions, cylinders, spheres, room, wall_h, max_range, out_t, out_kind, out_idx):
+def _raycast_kernel(origins, directions, cylinders, spheres, boxes, room, wall_h, max_range, out_t, out_kind,
+                    out_idx):
     n = origins.shape[0]
     x0, x1, y0, y1 = room[0], room[1], room[2], room[3]
     for i in range(n):
@@ -97,6 +100,27 @@ def _raycast_kernel(origins, directions, cylinders, spheres, room, wall_h, max_r
                 for t in ((-b - sq) / aa, (-b + sq) / aa):
                     if _EPS < t <= best:
                         best, kind, idx = t, 4, k
+        # axis-aligned boxes (slabs): entry point, or exit point from inside
+        for k in range(boxes.shape[0]):
+            t_in = -np.inf
+            t_out = np.inf
+            o3 = (ox, oy, oz)
+            d3 = (dx, dy, dz)
+            for ax in range(3):
+                lo = boxes[k, 2 * ax]
+                hi = boxes[k, 2 * ax + 1]
+                if d3[ax] == 0.0:
+                    if o3[ax] < lo or o3[ax] > hi:
+                        t_in = np.inf
+                else:
+                    ta = (lo - o3[ax]) / d3[ax]
+                    tb = (hi - o3[ax]) / d3[ax]
+                    t_in = max(t_in, min(ta, tb))
+                    t_out = min(t_out, max(ta, tb))
+            if t_in <= t_out:
+                t = t_in if t_in > _EPS else t_out
+                if _EPS < t <= best:
+                    best, kind, idx = t, 5, k
         if kind == 0:
             out_t[i] = np.inf
         else:
@@ -125,6 +149,7 @@ def raycast(
     wall_height_m: float,
     max_range_m: float,
     *,
+    boxes=None,
     return_hits: bool = False,
 ):
     """Distance along each ray to the first surface of the scene (numba).
@@ -145,6 +170,8 @@ def raycast(
         Height of the walls [m].
     max_range_m : float
         Surfaces farther than this are ignored [m].
+    boxes : array_like (B, 6), optional
+        ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m] per axis-aligned box (static occluders).
     return_hits : bool
         Also return what each ray hit.
 
@@ -153,9 +180,9 @@ def raycast(
     ranges_m : ndarray (N,)
         Distance to the first hit [m]; ``inf`` where nothing lies within ``max_range_m``.
     hit_kind : ndarray (N,) int8, only with ``return_hits``
-        ``HIT_NONE``, ``HIT_FLOOR``, ``HIT_WALL``, ``HIT_CYLINDER`` or ``HIT_SPHERE``.
+        ``HIT_NONE``, ``HIT_FLOOR``, ``HIT_WALL``, ``HIT_CYLINDER``, ``HIT_SPHERE`` or ``HIT_BOX``.
     hit_index : ndarray (N,) int64, only with ``return_hits``
-        Row of the hit cylinder / sphere, -1 otherwise.
+        Row of the hit cylinder / sphere / box, -1 otherwise.
     """
     o = np.asarray(origins, dtype=np.float64)
     d = np.asarray(directions, dtype=np.float64)
@@ -180,11 +207,14 @@ def raycast(
         raise ValueError("cylinders need radius > 0 and z_bottom <= z_top")
     if np.any(sph[:, 3] <= 0):
         raise ValueError("spheres need radius > 0")
+    box = _as_table(boxes, 6, "boxes")
+    if np.any(box[:, 0::2] > box[:, 1::2]):
+        raise ValueError("boxes need x_min <= x_max, y_min <= y_max, z_min <= z_max")
     n = o.shape[0]
     out_t = np.empty(n)
     out_kind = np.empty(n, dtype=np.int8)
     out_idx = np.empty(n, dtype=np.int64)
-    _raycast_kernel(np.ascontiguousarray(o), d, cyl, sph, room, float(wall_height_m), float(max_range_m),
+    _raycast_kernel(np.ascontiguousarray(o), d, cyl, sph, box, room, float(wall_height_m), float(max_range_m),
                     out_t, out_kind, out_idx)
     if return_hits:
         return out_t, out_kind, out_idx

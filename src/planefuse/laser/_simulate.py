@@ -52,6 +52,7 @@ def simulate_scan(
     rng: np.random.Generator,
     *,
     time_s: float = 0.0,
+    boxes=None,
     return_truth: bool = False,
 ):
     """Simulate one scan: ray-cast every beam and add Gaussian range noise.
@@ -70,6 +71,8 @@ def simulate_scan(
         Source of the range noise.
     time_s : float
         Time stamp given to the scan [s].
+    boxes : array_like (B, 6), optional
+        Static axis-aligned occluders (see :func:`planefuse.laser.raycast`).
     return_truth : bool
         Also return the noise-free :class:`ScanTruth`.
 
@@ -86,7 +89,7 @@ def simulate_scan(
     tilt = np.broadcast_to(np.asarray(tilt_rad, dtype=float), angles.shape)
     o_W, d_W = origins_world_from_scan(angles, tilt, T_world_laser, unit)
     r_true, kind, idx = raycast(o_W, d_W, cylinders, spheres, room_xy_m, wall_height_m, spec.range_max_m,
-                                return_hits=True)
+                                boxes=boxes, return_hits=True)
     r = r_true + spec.range_noise_sigma_m * rng.standard_normal(r_true.shape)
     r[r >= spec.range_max_m] = np.inf
     r[r < spec.range_min_m] = np.nan
@@ -116,7 +119,8 @@ def simulate_nodding_sweep(
         Fixed unit pose, or ``time_s -> (4, 4)`` for a moving platform (evaluated at scan start).
     scene : object
         Anything with ``bodies_at(time_s) -> (cylinders, cylinder_ids, spheres, sphere_ids)``,
-        ``room_xy_m`` and ``wall_height_m`` (``planefuse.sim``'s scene).
+        ``room_xy_m`` and ``wall_height_m`` (``planefuse.sim``'s scene); its ``occluder_boxes_m``
+        (B, 6), if it has them, stop beams too.
     times_s : array_like (K,)
         Start time of each scan [s].
     rng : numpy.random.Generator
@@ -135,10 +139,11 @@ def simulate_nodding_sweep(
         raise ValueError("times_s has non-finite entries")
     pose_at: Callable[[float], Any] = T_world_laser if callable(T_world_laser) else (lambda _t: T_world_laser)
     frac = np.arange(unit.scanner.n_beams) / unit.scanner.n_beams
+    boxes = getattr(scene, "occluder_boxes_m", None)
     scans = []
     for t in times:  # one ray-cast call per scan; the beams are vectorised inside it
         cylinders, _, spheres, _ = scene.bodies_at(float(t))
         tilt = unit.tilt_at(t + frac * scan_duration_s)
         scans.append(simulate_scan(unit, pose_at(float(t)), tilt, cylinders, spheres, scene.room_xy_m,
-                                   scene.wall_height_m, rng, time_s=float(t)))
+                                   scene.wall_height_m, rng, time_s=float(t), boxes=boxes))
     return scans

@@ -13,10 +13,12 @@ See ``docs/simulator.md``.
 """
 
 from ._config import (
+    CameraFaultSpec,
     CameraSpec,
     HeadSpec,
     ImuSpec,
     LaserSpec,
+    OccluderSpec,
     PeopleSpec,
     RenderSpec,
     SceneConfig,
@@ -27,12 +29,19 @@ from ._config import (
 )
 from ._imu import R_cam_imu, T_cam_imu, simulate_imu, simulate_static_imu
 from ._motion import CameraMotionSpec, R_world_cam_at, max_motion_deg, omega_cam_rad_s_at
-from ._render import CameraRenderer, body_surface_points, render_background
+from ._render import CameraRenderer, body_surface_points, occluder_distance_image, render_background
+from ._scenarios import SCENARIOS, scenario_config, scenario_description
 from ._scene import Body, PeopleState, Scene, sample_points_in_bodies
 from ._sensors import audio_stream, laser_stream, tilting_unit_from_model, tilting_unit_from_spec
 from ._simulate import SimulatedRecording, groundtruth_of, sample_times, simulate
 
 __all__ = [
+    "SCENARIOS",
+    "scenario_config",
+    "scenario_description",
+    "occluder_distance_image",
+    "CameraFaultSpec",
+    "OccluderSpec",
     "CameraSpec",
     "HeadSpec",
     "ImuSpec",

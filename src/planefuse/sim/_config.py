@@ -8,7 +8,7 @@ on a wall and a binaural head on another wall, two people speaking in turn.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -26,6 +26,8 @@ __all__ = [
     "SpeakerSpec",
     "PeopleSpec",
     "RenderSpec",
+    "OccluderSpec",
+    "CameraFaultSpec",
     "SceneConfig",
     "default_scene_config",
     "load_scene_config",
@@ -174,6 +176,40 @@ class RenderSpec(_Model):
     shadows: bool = True
 
 
+class OccluderSpec(_Model):
+    """A static box on the floor (pillar, shelf, counter), axis-aligned with the room [m].
+
+    It hides what lies behind it from the cameras (rendered in the frames and the masks) and stops laser
+    beams (ray cast); people walk around it.
+    """
+
+    name: str = "occluder"
+    center_xy_m: tuple[float, float]
+    size_xy_m: tuple[PositiveFloat, PositiveFloat]
+    height_m: PositiveFloat = 2.2
+    bgr: tuple[int, int, int] = (150, 150, 150)
+
+    def box_m(self) -> tuple[float, float, float, float, float, float]:
+        """``(x_min, x_max, y_min, y_max, z_min, z_max)`` [m]."""
+        (cx, cy), (sx, sy) = self.center_xy_m, self.size_xy_m
+        return (cx - sx / 2, cx + sx / 2, cy - sy / 2, cy + sy / 2, 0.0, float(self.height_m))
+
+
+class CameraFaultSpec(_Model):
+    """Camera ``camera`` fails during ``[start_s, end_s)``: its frames are black or frozen on the last good one."""
+
+    camera: str
+    start_s: float = Field(ge=0)
+    end_s: float
+    kind: Literal["black", "frozen"] = "black"
+
+    @model_validator(mode="after")
+    def _check(self) -> CameraFaultSpec:
+        if not self.end_s > self.start_s:
+            raise ValueError(f"camera fault of {self.camera!r}: end_s {self.end_s} must exceed start_s {self.start_s}")
+        return self
+
+
 class SceneConfig(_Model):
     """Everything the simulator needs; see ``docs/simulator.md``."""
 
@@ -191,6 +227,9 @@ class SceneConfig(_Model):
     speakers: list[SpeakerSpec] | None = Field(None, description="None = persons 0 and 1 speak in turn")
     planes_heights_m: list[float] = [0.0, 0.5, 1.0, 1.5]
     groundtruth_rate_hz: PositiveFloat = 25.0
+    occluders: list[OccluderSpec] = Field(default_factory=list, description="static boxes (pillars, shelves)")
+    camera_faults: list[CameraFaultSpec] = Field(default_factory=list, description="black / frozen intervals")
+    dropped_frame_probability: float = Field(0.0, ge=0, lt=1, description="chance that a frame never arrives")
 
     @model_validator(mode="after")
     def _fill_defaults(self) -> SceneConfig:
@@ -207,6 +246,9 @@ class SceneConfig(_Model):
         names = [c.name for c in self.cameras]
         if len(set(names)) != len(names):
             raise ValueError(f"camera names must be unique, got {names}")
+        for i, f in enumerate(self.camera_faults):
+            if f.camera not in names:
+                raise ValueError(f"camera_faults[{i}].camera {f.camera!r} is not one of the cameras {names}")
         for i, s in enumerate(self.speakers):
             if s.person_id >= self.n_people:
                 raise ValueError(f"speakers[{i}].person_id = {s.person_id} but there are {self.n_people} people")
@@ -223,6 +265,10 @@ class SceneConfig(_Model):
                 if not (x0 < x < x1 and y0 < y < y1 and 0 < z < self.wall_height_m):
                     raise ValueError(f"{what}.position_m {spec.position_m} is outside the room {self.room_xy_m} "
                                      f"x (0, {self.wall_height_m}) m")
+        for i, o in enumerate(self.occluders):
+            bx0, bx1, by0, by1, _, _ = o.box_m()
+            if not (x0 < bx0 and bx1 < x1 and y0 < by0 and by1 < y1 and o.height_m < self.wall_height_m):
+                raise ValueError(f"occluders[{i}] ({o.name}) box {o.box_m()} is not inside the room {self.room_xy_m}")
         lo, hi = self.people.height_range_m
         if not 0.5 < lo <= hi < self.wall_height_m:
             raise ValueError(f"people.height_range_m must satisfy 0.5 < min <= max < wall_height_m, got {lo, hi}")

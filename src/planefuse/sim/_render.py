@@ -9,6 +9,11 @@ written into the label image, which is the exact ground-truth foreground mask: `
 where person ``pid`` is the visible surface, 0 on the background. Shading (Lambertian facets), a soft
 global illumination drift, per-frame gain flicker and per-pixel noise are applied to the colour image
 only.
+
+Static occluders (the scene's boxes) are ray cast into the background (flat colour, Lambertian per face)
+and, per pixel, their horizontal distance from the camera is kept: a person's pixel whose body centre
+lies farther than the occluder surface seen through that pixel is painted back with the occluder and
+removed from the label image (so the masks are exact up to the person's own depth, ~0.15 m).
 """
 
 from __future__ import annotations
@@ -18,11 +23,12 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from ..geometry import CameraIntrinsics, PinholeCamera, transform_from_rotation_translation
+from ..laser import HIT_BOX, raycast
 from ._config import RenderSpec
 from ._motion import R_world_cam_at, max_motion_deg
 from ._scene import Body, Scene
 
-__all__ = ["CameraRenderer", "body_surface_points", "N_RING"]
+__all__ = ["CameraRenderer", "body_surface_points", "occluder_distance_image", "N_RING"]
 
 #: Vertices per cylinder ring; rings are circumscribed so that the polygon contains the circle.
 N_RING = 16
@@ -97,24 +103,64 @@ def _interp_grid(coarse: np.ndarray, nx: int, ny: int, step: int) -> np.ndarray:
     return (a * (1 - wx) + b * wx) * (1 - wy) + (c * (1 - wx) + d * wx) * wy
 
 
-def render_background(camera: PinholeCamera, room_xy_m, wall_height_m: float, seed: int,
-                      vignetting: bool = True) -> np.ndarray:
-    """Ray cast the empty room seen by ``camera``: (H, W, 3) uint8 BGR.
+def _pixel_rays(camera: PinholeCamera, ss: int) -> np.ndarray:
+    """Unit rays in {W} (H*ss*W*ss, 3) through the centres of ``ss x ss`` supersamples of every pixel.
 
-    Floor: 0.5 m tiles with grout, per-tile tone and smooth mottling, lit from the middle of the
-    room. Walls: per-wall paint with panels and a dark skirting board. Above the walls: a dim
-    grey-blue gradient.
+    Lens distortion is smooth: it is inverted on a coarse grid (every 4 supersamples) and interpolated.
     """
     W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
-    ss = 2
-    # Lens distortion is smooth: invert it on a coarse grid (every 4 supersamples) and interpolate the rays.
     step = 4
     gu = (np.arange(0, W * ss + step, step) + 0.5) / ss - 0.5
     gv = (np.arange(0, H * ss + step, step) + 0.5) / ss - 0.5
     u, v = np.meshgrid(gu, gv)
     coarse = camera.rays(np.stack([u.ravel(), v.ravel()], axis=1)).reshape(len(gv), len(gu), 3)
     d = _interp_grid(coarse, W * ss, H * ss, step).reshape(-1, 3)
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _box_hits(camera: PinholeCamera, d: np.ndarray, boxes: np.ndarray, room_xy_m, wall_height_m: float):
+    """Range [m] (inf where none), box index and outward face normal (N, 3) of the first occluder on each ray."""
+    c = camera.center_world
+    r, kind, idx = raycast(np.broadcast_to(c, d.shape), d, None, None, room_xy_m, wall_height_m, 1e3,
+                           boxes=boxes, return_hits=True)
+    hit = kind == HIT_BOX
+    r = np.where(hit, r, np.inf)
+    normal = np.zeros(d.shape)
+    if hit.any():
+        p = c + r[hit, None] * d[hit]
+        b = boxes[idx[hit]]
+        # the face whose plane the hit point lies on: smallest distance to a face plane, sign = side
+        dist = np.abs(np.stack([p[:, 0] - b[:, 0], p[:, 0] - b[:, 1], p[:, 1] - b[:, 2], p[:, 1] - b[:, 3],
+                                p[:, 2] - b[:, 4], p[:, 2] - b[:, 5]], axis=1))
+        face = np.argmin(dist, axis=1)
+        n = np.zeros((len(face), 3))
+        n[np.arange(len(face)), face // 2] = np.where(face % 2 == 0, -1.0, 1.0)
+        normal[hit] = n
+    return r, np.where(hit, idx, -1), normal
+
+
+def occluder_distance_image(camera: PinholeCamera, boxes, room_xy_m, wall_height_m: float) -> np.ndarray:
+    """Horizontal distance [m] from the camera centre to the occluder surface seen through each pixel centre,
+    (H, W) float64, ``inf`` where no occluder is seen. ``boxes`` (B, 6) as in :func:`planefuse.laser.raycast`."""
+    W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
+    d = _pixel_rays(camera, 1)
+    r, _, _ = _box_hits(camera, d, np.asarray(boxes, dtype=float).reshape(-1, 6), room_xy_m, wall_height_m)
+    return (r * np.hypot(d[:, 0], d[:, 1])).reshape(H, W)
+
+
+def render_background(camera: PinholeCamera, room_xy_m, wall_height_m: float, seed: int, boxes=None,
+                      boxes_bgr=None, vignetting: bool = True) -> np.ndarray:
+    """Ray cast the empty room seen by ``camera``: (H, W, 3) uint8 BGR.
+
+    Floor: 0.5 m tiles with grout, per-tile tone and smooth mottling, lit from the middle of the
+    room. Walls: per-wall paint with panels and a dark skirting board. Above the walls: a dim
+    grey-blue gradient. Occluders (``boxes`` (B, 6) ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m],
+    colours ``boxes_bgr`` (B, 3)): flat colour with Lambertian shading per face. ``vignetting``: darken
+    towards the corners as a lens does (off for the wide views that moving cameras resample).
+    """
+    W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
+    ss = 2
+    d = _pixel_rays(camera, ss)
     c = camera.center_world
     x0, x1, y0, y1 = room_xy_m
     n = len(d)
@@ -174,6 +220,14 @@ def render_background(camera: PinholeCamera, room_xy_m, wall_height_m: float, se
     elev = np.clip(d[a, 2], -1, 1)
     img[a] = np.array([120.0, 105.0, 95.0])[None] + 40 * elev[:, None]
 
+    # Occluders (inside the room: in front of any floor or wall).
+    boxes = np.asarray(boxes if boxes is not None else np.zeros((0, 6)), dtype=float).reshape(-1, 6)
+    if len(boxes):
+        _, idx, normal = _box_hits(camera, d, boxes, room_xy_m, wall_height_m)
+        b = idx >= 0
+        bgr = np.asarray(boxes_bgr, dtype=float).reshape(-1, 3)
+        img[b] = bgr[idx[b]] * (0.55 + 0.45 * np.abs(normal[b] @ _LIGHT))[:, None]
+
     img = img.reshape(H * ss, W * ss, 3).astype(np.float32)
     img = cv2.resize(img, (W, H), interpolation=cv2.INTER_AREA)
     if vignetting:
@@ -232,6 +286,7 @@ class CameraRenderer:
         self.seed = seed
         self.camera_index = camera_index
         self._background: np.ndarray | None = None
+        self._occluder_distance: np.ndarray | None = None
         T_cam_world = camera.T_cam_world
         self._R_cam_world, self._t_cam_world = T_cam_world[:3, :3].copy(), T_cam_world[:3, 3].copy()
         W, H = camera.intrinsics.width_px, camera.intrinsics.height_px
@@ -260,8 +315,9 @@ class CameraRenderer:
                 self._background = self._background_at(self.camera.R_world_cam)
             else:
                 sc = self.scene
-                self._background = render_background(self.camera, sc.room_xy_m, sc.wall_height_m,
-                                                     self.seed + 101 * self.camera_index)
+                self._background = render_background(
+                    self.camera, sc.room_xy_m, sc.wall_height_m, self.seed + 101 * self.camera_index,
+                    sc.occluder_boxes_m, [o.bgr for o in sc.config.occluders])
         return self._background
 
     def R_world_cam_at(self, time_s: float) -> np.ndarray:
@@ -307,8 +363,22 @@ class CameraRenderer:
                                  transform_from_rotation_translation(cam.R_world_cam, cam.center_world))
         sc = self.scene
         wide = render_background(wide_cam, sc.room_xy_m, sc.wall_height_m, self.seed + 101 * self.camera_index,
-                                 vignetting=False)
+                                 sc.occluder_boxes_m, [o.bgr for o in sc.config.occluders], vignetting=False)
         return wide, K_wide, d_cam
+
+    @property
+    def occluder_distance(self) -> np.ndarray | None:
+        """:func:`occluder_distance_image` of the scene's occluders (None without occluders), computed once."""
+        sc = self.scene
+        if len(sc.occluder_boxes_m) and self.motion:
+            raise ValueError(f"{self.camera.name}: a moving camera in a scene with occluders is not simulated "
+                             "(occluder masks are cast from the rest attitude)")
+        if len(sc.occluder_boxes_m) == 0:
+            return None
+        if self._occluder_distance is None:
+            self._occluder_distance = occluder_distance_image(self.camera, sc.occluder_boxes_m, sc.room_xy_m,
+                                                              sc.wall_height_m)
+        return self._occluder_distance
 
     def gain(self, time_s: float, rng: np.random.Generator) -> float:
         """Global illumination gain at ``time_s``: slow drift plus per-frame flicker."""
@@ -397,6 +467,14 @@ class CameraRenderer:
                 cap = _HAIR & ok_sph[pid]
                 if cap.sum() >= 3:
                     cv2.fillConvexPoly(img, cv2.convexHull(fx_sph[pid][cap]), body.hair_bgr, cv2.LINE_8, _SUBPIXEL_BITS)
+        occ = self.occluder_distance
+        if occ is not None:
+            # a person's pixel is hidden where the occluder surface is nearer than the person's centre
+            person_dist = np.append(np.inf, np.hypot(sph[:, 0] - c[0], sph[:, 1] - c[1]))
+            hide = np.isfinite(occ) & ((labels == 0) | (person_dist[labels] > occ))
+            labels[hide] = 0
+            if colour:
+                img[hide] = self.background[hide]
         return img, labels
 
     def _shadows(self, img: np.ndarray, cyl: np.ndarray) -> None:

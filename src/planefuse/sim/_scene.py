@@ -98,8 +98,47 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + np.pi) % (2 * np.pi) - np.pi
 
 
+#: People keep at least this distance [m] from an occluder's faces (their torso radius and a little).
+OCCLUDER_CLEARANCE_M = 0.3
+
+
+def _nearest_on_boxes(p: np.ndarray, boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest point of each box footprint to each position and its distance.
+
+    ``p`` (P, 2) [m], ``boxes`` (B, 6) ``[x_min, x_max, y_min, y_max, z_min, z_max]``; returns ``q``
+    (P, B, 2) and ``dist`` (P, B) [m] (0 inside a footprint).
+    """
+    q = np.stack([np.clip(p[:, None, 0], boxes[None, :, 0], boxes[None, :, 1]),
+                  np.clip(p[:, None, 1], boxes[None, :, 2], boxes[None, :, 3])], axis=-1)
+    return q, np.linalg.norm(p[:, None, :] - q, axis=-1)
+
+
+def _free_of_boxes(xy: np.ndarray, boxes: np.ndarray, clearance_m: float) -> np.ndarray:
+    """True where a position (N, 2) is farther than ``clearance_m`` from every box footprint."""
+    if len(boxes) == 0:
+        return np.ones(len(xy), bool)
+    return _nearest_on_boxes(xy, boxes)[1].min(axis=1) > clearance_m
+
+
+def _sample_free(rng: np.random.Generator, lo_xy, hi_xy, boxes: np.ndarray, n: int) -> np.ndarray:
+    """``n`` uniform positions in ``[lo_xy, hi_xy]`` clear of the occluders (rejection sampling)."""
+    out = rng.uniform(lo_xy, hi_xy, size=(n, 2))
+    for _ in range(100):
+        bad = ~_free_of_boxes(out, boxes, OCCLUDER_CLEARANCE_M + 0.2)
+        if not bad.any():
+            break
+        out[bad] = rng.uniform(lo_xy, hi_xy, size=(int(bad.sum()), 2))
+    return out
+
+
 def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> PeopleState:
-    """Integrate the walking model on the grid ``k * DT_S`` covering the whole duration."""
+    """Integrate the walking model on the grid ``k * DT_S`` covering the whole duration.
+
+    Occluders: goals and starts are drawn clear of them; within 0.6 m of a box a person's desired velocity
+    loses its component into the box (they slide along its face), an exponential force pushes them off and
+    a hard constraint keeps them ``OCCLUDER_CLEARANCE_M`` away.
+    """
+    boxes = np.array([o.box_m() for o in cfg.occluders], dtype=float).reshape(-1, 6)
     P = len(bodies)
     n = int(np.ceil(cfg.duration_s / DT_S)) + 2
     t = np.arange(n) * DT_S
@@ -119,10 +158,11 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
     for i in range(P):
         for _ in range(1000):
             c = rng.uniform(lo_xy, hi_xy)
-            if i == 0 or np.min(np.linalg.norm(p[:i] - c, axis=1)) > 0.9:
+            if (i == 0 or np.min(np.linalg.norm(p[:i] - c, axis=1)) > 0.9) and \
+                    _free_of_boxes(c[None], boxes, OCCLUDER_CLEARANCE_M + 0.1)[0]:
                 break
         p[i] = c
-    goal = rng.uniform(lo_xy, hi_xy, size=(P, 2))
+    goal = rng.uniform(lo_xy, hi_xy, size=(P, 2)) if len(boxes) == 0 else _sample_free(rng, lo_xy, hi_xy, boxes, P)
     pref = rng.uniform(*cfg.people.speed_range_m_s, size=P)
     pause = np.where(rng.random(P) < 0.3, rng.uniform(*cfg.people.pause_range_s, size=P), 0.0)
     v = np.zeros((P, 2))
@@ -142,6 +182,14 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
         want = pref * np.clip(dist / 0.8, 0.0, 1.0)
         want[(pause > 0) | talking[k]] = 0.0
         desired = to_goal / np.maximum(dist, 1e-9)[:, None] * want[:, None]
+        if len(boxes):
+            q, dq = _nearest_on_boxes(p, boxes)
+            nrm = (p[:, None, :] - q) / np.maximum(dq, 1e-9)[..., None]  # (P, B, 2) away from each box
+            into = np.einsum("pd,pbd->pb", desired, nrm)
+            slide = (dq < 0.6) & (into < 0)
+            desired = desired - np.einsum("pb,pbd->pd", np.where(slide, into, 0.0), nrm)
+            sp_d = np.linalg.norm(desired, axis=1)
+            desired *= (want / np.maximum(sp_d, 1e-9))[:, None] * (sp_d > 1e-6)[:, None]
         # Social force between people (exponential repulsion) and from the walls.
         d = p[:, None, :] - p[None, :, :]
         r = np.linalg.norm(d, axis=2) + np.eye(P)
@@ -150,11 +198,22 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
         rep = np.einsum("ij,ijk->ik", np.where(r < 2.0, f, 0.0), d)
         rep[:, 0] += 1.0 * np.exp((lo_xy[0] - p[:, 0]) / 0.2) - 1.0 * np.exp((p[:, 0] - hi_xy[0]) / 0.2)
         rep[:, 1] += 1.0 * np.exp((lo_xy[1] - p[:, 1]) / 0.2) - 1.0 * np.exp((p[:, 1] - hi_xy[1]) / 0.2)
+        if len(boxes):
+            rep += np.einsum("pb,pbd->pd", 1.0 * np.exp((OCCLUDER_CLEARANCE_M - dq) / 0.1), nrm)
         rep[talking[k]] *= 0.1  # a talker holds their ground; the others walk around them
         v = v + ((desired - v) / tau_s + rep) * DT_S
         sp = np.linalg.norm(v, axis=1)
         v *= (np.minimum(sp, 1.8) / np.maximum(sp, 1e-9))[:, None]
         p = np.clip(p + v * DT_S, lo_xy - 0.25, hi_xy + 0.25)
+        if len(boxes):
+            q, dq = _nearest_on_boxes(p, boxes)
+            b = np.argmin(dq, axis=1)
+            rows = np.arange(P)
+            inside = dq[rows, b] < OCCLUDER_CLEARANCE_M
+            if inside.any():
+                qb, db = q[rows, b][inside], dq[rows, b][inside]
+                away = (p[inside] - qb) / np.maximum(db, 1e-9)[:, None]
+                p[inside] = qb + away * OCCLUDER_CLEARANCE_M
         sp = np.linalg.norm(v, axis=1)
         # Turn the body towards the walking direction (or the goal when standing) at a bounded rate.
         aim = np.where(sp > 0.15, np.arctan2(v[:, 1], v[:, 0]), np.arctan2(to_goal[:, 1], to_goal[:, 0]))
@@ -165,7 +224,8 @@ def _walk(cfg: SceneConfig, bodies: list[Body], rng: np.random.Generator) -> Peo
         if reached.any():
             stop = reached & (rng.random(P) < cfg.people.pause_probability)
             pause[stop] = rng.uniform(*cfg.people.pause_range_s, size=int(stop.sum()))
-            goal[reached] = rng.uniform(lo_xy, hi_xy, size=(int(reached.sum()), 2))
+            goal[reached] = (rng.uniform(lo_xy, hi_xy, size=(int(reached.sum()), 2)) if len(boxes) == 0
+                             else _sample_free(rng, lo_xy, hi_xy, boxes, int(reached.sum())))
         xy[k], heading[k], speed[k], phase[k] = p, hd, sp, ph
     return PeopleState(t, xy, heading, speed, phase)
 
@@ -193,6 +253,8 @@ class Scene:
         self.room_xy_m = config.room_xy_m
         self.wall_height_m = float(config.wall_height_m)
         self.bodies = _random_bodies(config, rng)
+        #: Static occluders (B, 6): ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m].
+        self.occluder_boxes_m = np.array([o.box_m() for o in config.occluders], dtype=float).reshape(-1, 6)
         self._track = _walk(config, self.bodies, rng)
         self.person_ids = np.arange(len(self.bodies))
         self.height_m = np.array([b.height_m for b in self.bodies])

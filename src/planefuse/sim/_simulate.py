@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -69,8 +70,9 @@ def simulate(config: SceneConfig | None = None) -> SimulatedRecording:
             banks[key] = make_noise_bank(*key, cfg.render.pixel_noise_std, cfg.seed)
         renderer = CameraRenderer(cam, scene, cfg.render, cfg.seed, i, banks[key], motion=spec.motion)
         times = sample_times(cfg.duration_s, spec.rate_hz, spec.time_offset_s)
+        frame_of = _faulty_frames(cfg, spec.name, times, np.random.default_rng([cfg.seed, 9, i]))
         rec.camera_streams[spec.name] = CameraStream(
-            cam, times, lambda k, r=renderer, t=times: r.render(float(t[k]), k), True, spec.rate_hz,
+            cam, times[frame_of[0]], partial(_render_faulty, renderer, times, frame_of), True, spec.rate_hz,
             get_background=lambda r=renderer: r.background,
         )
         if cfg.imu is not None:
@@ -93,6 +95,40 @@ def simulate(config: SceneConfig | None = None) -> SimulatedRecording:
         rec.audio[cfg.head.name] = audio_stream(scene, cfg.seed)
     rec.groundtruth = groundtruth_of(scene)
     return rec
+
+
+def _faulty_frames(cfg: SceneConfig, camera: str, times: np.ndarray, rng: np.random.Generator):
+    """Frames a camera with faults delivers: ``(kept, source, black)`` over its nominal frames ``times``.
+
+    ``kept`` (F,) bool: the frame arrives (each is dropped with ``cfg.dropped_frame_probability``; without
+    it no random number is drawn). For the kept frames, in order: ``source`` (K,) int, the nominal frame
+    rendered (a frozen camera repeats the last frame before the fault), ``black`` (K,) bool.
+    """
+    n = len(times)
+    kept = np.ones(n, bool)
+    if cfg.dropped_frame_probability > 0:
+        kept = rng.random(n) >= cfg.dropped_frame_probability
+    source = np.arange(n)
+    black = np.zeros(n, bool)
+    for f in cfg.camera_faults:
+        if f.camera != camera:
+            continue
+        inside = (times >= f.start_s) & (times < f.end_s)
+        if f.kind == "black":
+            black |= inside
+        else:
+            source[inside] = max(int(np.searchsorted(times, f.start_s)) - 1, 0)
+    return kept, source[kept], black[kept]
+
+
+def _render_faulty(renderer: CameraRenderer, times: np.ndarray, frame_of, k: int):
+    """Image and mask of the ``k``-th delivered frame (see :func:`_faulty_frames`); black frames have an
+    empty mask (nothing is visible)."""
+    _, source, black = frame_of
+    img, mask = renderer.render(float(times[source[k]]), int(source[k]))
+    if black[k]:
+        return np.zeros_like(img), np.zeros_like(mask)
+    return img, mask
 
 
 def groundtruth_of(scene: Scene) -> GroundTruth:

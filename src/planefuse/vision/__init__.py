@@ -21,7 +21,7 @@ from ._foreground import (
 )
 from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
-from ._pipeline import CameraParams, CameraReport, camera_detections, lookups_from_cameras
+from ._pipeline import CameraParams, CameraReport, camera_detections, frame_is_dead, lookups_from_cameras
 
 __all__ = [
     "BackgroundSubtractor",
@@ -33,6 +33,7 @@ __all__ = [
     "FusionParams",
     "PersonParams",
     "camera_detections",
+    "frame_is_dead",
     "epfl_box_frames",
     "epfl_ground_truth",
     "epfl_lookups",

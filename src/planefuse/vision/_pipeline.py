@@ -15,7 +15,18 @@ from ._foreground import BackgroundSubtractor, ForegroundParams
 from ._fusion import CameraFusion, FusionParams, max_log_ratio
 from ._persons import PersonParams, ground_detections_from_log_odds
 
-__all__ = ["CameraParams", "CameraReport", "camera_detections", "lookups_from_cameras"]
+__all__ = ["CameraParams", "CameraReport", "camera_detections", "frame_is_dead", "lookups_from_cameras"]
+
+#: A frame whose mean grey level is at most this is black (a camera that lost its signal).
+DEAD_FRAME_MAX_MEAN = 8.0
+
+
+def frame_is_dead(image: np.ndarray, previous: np.ndarray | None) -> bool:
+    """True for a frame a failed camera delivers: black (mean level <= ``DEAD_FRAME_MAX_MEAN``) or frozen
+    (bit-identical to the camera's previous frame, which sensor noise makes impossible for a live camera)."""
+    if float(np.mean(image)) <= DEAD_FRAME_MAX_MEAN:
+        return True
+    return previous is not None and previous.shape == image.shape and np.array_equal(image, previous)
 
 
 def lookups_from_cameras(cameras: Sequence[PinholeCamera], stack: PlaneStack,
@@ -181,14 +192,22 @@ def camera_detections(
             for sub, bg in zip(subtractors, backgrounds):
                 if bg is not None:
                     sub.prime(bg)
+    previous: list[np.ndarray | None] = [None] * fusion.n_cameras
     for i, (time_s, images) in enumerate(frames):
         images = list(images)
         if len(images) != fusion.n_cameras:
             raise ValueError(f"instant t={time_s}: expected {fusion.n_cameras} images (None for missing), "
                              f"got {len(images)}")
-        if i < replay:
-            for sub, img in zip(subtractors or (), images):
+        dead = [False] * fusion.n_cameras
+        if subtractors is not None:
+            # black or frozen frames are missing frames: they must neither be fused nor teach the background
+            for c, img in enumerate(images):
                 if img is not None:
+                    dead[c] = frame_is_dead(img, previous[c])
+                    previous[c] = img
+        if i < replay:
+            for sub, img, d in zip(subtractors or (), images, dead):
+                if img is not None and not d:
                     sub.update(img)
             continue
         if registration is not None:
@@ -196,8 +215,9 @@ def camera_detections(
                 fusion.set_lookup(c, lookup)
         fgs: list[np.ndarray | None] = []
         for c, img in enumerate(images):
-            if img is None:
-                warnings.warn(f"{fusion.names[c]}: no frame at t={time_s} s; fusing the other cameras",
+            if img is None or dead[c]:
+                what = "no frame" if img is None else "a black or frozen frame"
+                warnings.warn(f"{fusion.names[c]}: {what} at t={time_s} s; fusing the other cameras",
                               stacklevel=2)
                 if report is not None:
                     report.missing_frames.setdefault(fusion.names[c], []).append(float(time_s))

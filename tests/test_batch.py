@@ -63,18 +63,16 @@ def test_bad_batches_are_refused():
         run_batch(_jobs(), scheduler="tcp://127.0.0.1:1", n_workers=2)
 
 
-def test_unreachable_scheduler_is_one_clear_error():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]  # nothing listens there once closed
-    with pytest.raises(OSError, match=f"dask scheduler tcp://127.0.0.1:{port}: cannot connect"):
-        run_batch(_jobs(), scheduler=f"tcp://127.0.0.1:{port}")
-
-
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def test_unreachable_scheduler_is_one_clear_error():
+    port = _free_port()  # nothing listens there once closed
+    with pytest.raises(OSError, match=f"dask scheduler tcp://127.0.0.1:{port}: cannot connect"):
+        run_batch(_jobs(), scheduler=f"tcp://127.0.0.1:{port}")
 
 
 def test_real_scheduler_and_workers_on_localhost(tmp_path):

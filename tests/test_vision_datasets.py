@@ -145,7 +145,8 @@ def test_cli_wildtrack_on_frames_with_a_missing_one(tmp_path):
         for k in (0, 5):
             if i == 3 and k == 5:
                 continue
-            cv2.imwrite(str(d / "Image_subsets" / f"C{i}" / f"{k:08d}.png"), img)
+            # a live camera never repeats a frame bit for bit (a repeated frame counts as a frozen camera)
+            cv2.imwrite(str(d / "Image_subsets" / f"C{i}" / f"{k:08d}.png"), cv2.add(img, k // 5))
     out = tmp_path / "det.csv"
     with pytest.warns(UserWarning, match="C3: no frame at t=2.5"):
         r = CliRunner().invoke(app, ["cameras", "wildtrack", str(d), "--cell-m", "0.25", "--out", str(out)])

@@ -69,6 +69,7 @@ import numpy as np
 
 from .._state import StateDict, float_or_none, get_shaped, optional_float
 from ..grid import PlaneStack
+from .._params import check_fields, require
 
 __all__ = [
     "BOFParams",
@@ -119,18 +120,10 @@ class BOFParams:
     subcell: str = "bilinear"
 
     def __post_init__(self) -> None:
-        if int(self.n_velocities_per_axis) < 1:
-            raise ValueError(f"n_velocities_per_axis must be >= 1, got {self.n_velocities_per_axis}")
-        if not (np.isfinite(self.velocity_max_mps) and self.velocity_max_mps >= 0):
-            raise ValueError(f"velocity_max_mps must be finite and >= 0, got {self.velocity_max_mps}")
-        if not (0.0 < self.prior_occupancy < 1.0):
-            raise ValueError(f"prior_occupancy must be in (0, 1), got {self.prior_occupancy}")
-        for name in ("decay_rate_hz", "velocity_noise_rate_hz"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
-        if self.subcell not in ("accumulate", "bilinear"):
-            raise ValueError(f"subcell must be 'accumulate' or 'bilinear', got {self.subcell!r}")
+        check_fields(self, n_velocities_per_axis="int>=1", velocity_max_mps=">=0", prior_occupancy="(0,1)",
+                     decay_rate_hz=">=0", velocity_noise_rate_hz=">=0")
+        require(self.subcell in ("accumulate", "bilinear"), self, "subcell",
+                f"must be 'accumulate' or 'bilinear', got {self.subcell!r}")
 
     @property
     def n_velocities(self) -> int:

@@ -35,6 +35,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..grid import GroundDetections, PlaneStack, log_odds_from_probability, probability_from_log_odds
+from .._params import check_fields
 
 __all__ = ["ClusterParams", "Clusters", "cluster_occupancy", "column_log_odds"]
 
@@ -74,16 +75,8 @@ class ClusterParams:
     mean_shift_iterations: int = 3
 
     def __post_init__(self) -> None:
-        for name in ("smoothing_m", "person_radius_m", "min_separation_m"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
-        if not np.isfinite(self.threshold):
-            raise ValueError(f"threshold must be finite, got {self.threshold}")
-        if not (np.isfinite(self.plane_cap) and self.plane_cap > 0):
-            raise ValueError(f"plane_cap must be finite and > 0, got {self.plane_cap}")
-        if int(self.mean_shift_iterations) < 0:
-            raise ValueError(f"mean_shift_iterations must be >= 0, got {self.mean_shift_iterations}")
+        check_fields(self, smoothing_m=">=0", person_radius_m=">=0", min_separation_m=">=0", threshold="finite",
+                     plane_cap=">0", mean_shift_iterations="int>=0")
 
 
 @dataclass(frozen=True)

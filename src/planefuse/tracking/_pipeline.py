@@ -19,6 +19,7 @@ from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
 from ._tracker import MultiPersonTracker, TrackerParams, Tracks
+from .._params import check_fields
 
 __all__ = ["EvidenceTracker", "TrackerOutput", "TrackingParams", "track_evidence"]
 
@@ -52,8 +53,7 @@ class TrackingParams:
     output_period_s: float | None = None
 
     def __post_init__(self) -> None:
-        if self.output_period_s is not None and not (np.isfinite(self.output_period_s) and self.output_period_s > 0):
-            raise ValueError(f"output_period_s must be None or finite and > 0, got {self.output_period_s}")
+        check_fields(self, window_s=">=0", merge_tolerance_s=">=0", output_period_s="?>0")
 
 
 @dataclass(frozen=True)

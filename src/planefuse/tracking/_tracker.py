@@ -31,6 +31,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .._state import StateDict, float_or_none, get, optional_float
 from ._clustering import Clusters
+from .._params import check_fields
 
 __all__ = ["MultiPersonTracker", "TrackerParams", "Tracks"]
 
@@ -70,19 +71,8 @@ class TrackerParams:
     birth_exclusion_m: float = 0.5
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.gate_m) and self.gate_m > 0):
-            raise ValueError(f"gate_m must be finite and > 0, got {self.gate_m}")
-        if int(self.confirm_hits) < 1:
-            raise ValueError(f"confirm_hits must be >= 1, got {self.confirm_hits}")
-        if int(self.max_misses) < 0 or int(self.max_coast_report) < 0:
-            raise ValueError(f"max_misses and max_coast_report must be >= 0, got {self.max_misses}, "
-                             f"{self.max_coast_report}")
-        if not (np.isfinite(self.max_shared_s) and self.max_shared_s >= 0):
-            raise ValueError(f"max_shared_s must be finite and >= 0, got {self.max_shared_s}")
-        if not (np.isfinite(self.birth_exclusion_m) and self.birth_exclusion_m >= 0):
-            raise ValueError(f"birth_exclusion_m must be finite and >= 0, got {self.birth_exclusion_m}")
-        if not (0 < self.velocity_gain <= 1):
-            raise ValueError(f"velocity_gain must be in (0, 1], got {self.velocity_gain}")
+        check_fields(self, gate_m=">0", confirm_hits="int>=1", max_misses="int>=0", max_coast_report="int>=0",
+                     max_shared_s=">=0", birth_exclusion_m=">=0", velocity_gain="(0,1]")
 
 
 @dataclass(frozen=True)

@@ -122,6 +122,9 @@ class BOFParams:
     def __post_init__(self) -> None:
         check_fields(self, n_velocities_per_axis="int>=1", velocity_max_mps=">=0", prior_occupancy="(0,1)",
                      decay_rate_hz=">=0", velocity_noise_rate_hz=">=0")
+        # a walking or running person: a larger value is a unit error (km/h, mm/s) or a wasted velocity grid
+        require(self.velocity_max_mps <= 10.0, self, "velocity_max_mps",
+                f"must be at most 10 m/s, got {self.velocity_max_mps}")
         require(self.subcell in ("accumulate", "bilinear"), self, "subcell",
                 f"must be 'accumulate' or 'bilinear', got {self.subcell!r}")
 

@@ -68,7 +68,7 @@ class ClusterParams:
     body_max_height_m: float = 1.5
     plane_cap: float = 4.0
     observed_min: float = 0.5
-    threshold: float = 2.5
+    threshold: float = 1.5
     smoothing_m: float = 0.1
     person_radius_m: float = 0.3
     min_separation_m: float = 0.4

@@ -49,7 +49,7 @@ class TrackingParams:
     cluster: ClusterParams = field(default_factory=ClusterParams)
     tracker: TrackerParams = field(default_factory=TrackerParams)
     window_s: float = 0.2
-    merge_tolerance_s: float = 1e-6
+    merge_tolerance_s: float = 0.05
     output_period_s: float | None = None
 
     def __post_init__(self) -> None:

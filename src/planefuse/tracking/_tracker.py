@@ -61,7 +61,7 @@ class TrackerParams:
         No track is started on a cluster closer than this [m] to a confirmed track.
     """
 
-    gate_m: float = 0.5
+    gate_m: float = 0.75
     confirm_hits: int = 3
     max_misses: int = 10
     max_coast_report: int = 2

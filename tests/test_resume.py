@@ -82,7 +82,7 @@ def test_evidence_tracker_resumes_exactly_from_any_output(seed):
         for a, b in zip(ref[k + 1:], got):
             assert a.time_s == b.time_s and a.sensors == b.sensors
             np.testing.assert_array_equal(a.occupancy, b.occupancy)
-            np.testing.assert_array_equal(a.velocity_mps, b.velocity_mps)
+            np.testing.assert_array_equal(a.velocity_m_s, b.velocity_m_s)
             np.testing.assert_array_equal(a.tracks.ids, b.tracks.ids)
             np.testing.assert_array_equal(a.tracks.xy_m, b.tracks.xy_m)
 

@@ -199,7 +199,7 @@ class FilterModelConfig(_Model):
     )
     velocity_max_m_s: float = _field(
         description="Largest velocity hypothesis per axis", unit="m/s", expected="in [0, 10]",
-        library="system.tracking.bof.velocity_max_mps",
+        library="system.tracking.bof.velocity_max_m_s",
     )
     prior_occupancy: float = _field(
         description="Prior occupancy probability of a cell", expected="in (0, 1)",

@@ -218,7 +218,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
                 step = run.n_outputs - 1
                 if step >= out.resume_step:
                     out.write_detections(step, o.detections)
-                    out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_mps)
+                    out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_m_s)
                     out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict)
                 advance(1)
         result = SystemResult(stack, [], run.report, time.perf_counter() - t0)

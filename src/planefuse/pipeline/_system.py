@@ -322,7 +322,7 @@ def evaluate_steps(rec: Recording, times_s: np.ndarray, detections_xy_m: Sequenc
     keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
     gt_frames = list(_gt_frames(rec, times_s[keep]))
     det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), match_distance_m)
-    mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], max_distance_m=match_distance_m)
+    mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], match_distance_m=match_distance_m)
     m = {
         "moda": det.moda, "modp": det.modp, "precision": det.precision, "recall": det.recall,
         "mota": mot["mota"], "motp_m": mot.get("motp_m", float("nan")), "idf1": mot["idf1"],

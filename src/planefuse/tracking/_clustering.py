@@ -89,7 +89,7 @@ class Clusters:
         Time [s].
     xy_m : ndarray, shape (N, 2)
         Ground positions (world XY) [m].
-    velocity_mps : ndarray, shape (N, 2)
+    velocity_m_s : ndarray, shape (N, 2)
         Mean BOF velocity (vx, vy) [m/s].
     height_m : ndarray, shape (N,)
         Estimated height [m]; NaN where no plane reaches occupancy 0.5.
@@ -101,7 +101,7 @@ class Clusters:
 
     time_s: float
     xy_m: np.ndarray
-    velocity_mps: np.ndarray
+    velocity_m_s: np.ndarray
     height_m: np.ndarray
     confidence: np.ndarray
     column_log_odds: np.ndarray
@@ -164,7 +164,7 @@ def _height_from_profile(profile: np.ndarray, heights_m: np.ndarray) -> float:
 def cluster_occupancy(
     time_s: float,
     occupancy,
-    velocity_mps,
+    velocity_m_s,
     stack: PlaneStack,
     prior_occupancy: float,
     params: ClusterParams | None = None,
@@ -177,7 +177,7 @@ def cluster_occupancy(
         Time of the occupancy [s].
     occupancy : array_like, shape (L, ny, nx)
         Filtered ``P(occ)`` per plane.
-    velocity_mps : array_like, shape (L, ny, nx, 2)
+    velocity_m_s : array_like, shape (L, ny, nx, 2)
         BOF ``E[V | occ]`` per cell (vx, vy) [m/s].
     stack : PlaneStack
         The plane stack.
@@ -188,9 +188,9 @@ def cluster_occupancy(
     """
     params = params if params is not None else ClusterParams()
     occ = np.asarray(occupancy, dtype=float)
-    vel = np.asarray(velocity_mps, dtype=float)
+    vel = np.asarray(velocity_m_s, dtype=float)
     if vel.shape != stack.shape + (2,):
-        raise ValueError(f"velocity_mps must have shape {stack.shape + (2,)}, got {vel.shape}")
+        raise ValueError(f"velocity_m_s must have shape {stack.shape + (2,)}, got {vel.shape}")
     S = column_log_odds(occ, stack, prior_occupancy, params)
     cell = stack.cell_size_m
 

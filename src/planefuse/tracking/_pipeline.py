@@ -68,7 +68,7 @@ class TrackerOutput:
         Sensors fused since the previous output.
     occupancy : ndarray, shape (L, ny, nx), float32
         Filtered ``P(occ)`` per plane.
-    velocity_mps : ndarray, shape (L, ny, nx, 2), float32
+    velocity_m_s : ndarray, shape (L, ny, nx, 2), float32
         Filtered ``E[V | occ]`` per cell (vx, vy) [m/s].
     clusters : Clusters
         Person hypotheses (with the column evidence).
@@ -83,7 +83,7 @@ class TrackerOutput:
     time_s: float
     sensors: tuple[str, ...]
     occupancy: np.ndarray
-    velocity_mps: np.ndarray
+    velocity_m_s: np.ndarray
     clusters: Clusters
     detections: GroundDetections
     tracks: Tracks

@@ -10,7 +10,7 @@ Each step:
    velocity, ``v <- (1 - a) v + a v_cluster`` (``a = velocity_gain``);
 4. a confirmed track left without a cluster but predicted within the gate of a cluster taken by another
    confirmed track moving differently (two people merged while crossing: velocities differing by at
-   least ``share_min_relative_speed_mps``) shares it for at most ``max_shared_s``: both keep their own
+   least ``share_min_relative_speed_m_s``) shares it for at most ``max_shared_s``: both keep their own
    predicted positions and velocities;
 5. an unmatched track coasts on its prediction and counts a miss; a tentative track is confirmed after
    ``confirm_hits`` consecutive hits and dropped at its first miss, a confirmed track is deleted after more
@@ -54,7 +54,7 @@ class TrackerParams:
         ``a`` in (0, 1]: weight of the cluster's BOF velocity in the track velocity.
     max_shared_s : float
         Longest time [s] a track may share another track's cluster (people merged while crossing).
-    share_min_relative_speed_mps : float
+    share_min_relative_speed_m_s : float
         Tracks share a cluster only if their velocities differ by at least this [m/s] (people crossing;
         a track moving with the cluster's owner is a duplicate and is left to die).
     birth_exclusion_m : float
@@ -67,7 +67,7 @@ class TrackerParams:
     max_coast_report: int = 2
     velocity_gain: float = 0.7
     max_shared_s: float = 1.0
-    share_min_relative_speed_mps: float = 0.3
+    share_min_relative_speed_m_s: float = 0.3
     birth_exclusion_m: float = 0.5
 
     def __post_init__(self) -> None:
@@ -87,7 +87,7 @@ class Tracks:
         Track identities (unique over the tracker's life).
     xy_m : ndarray, shape (N, 2)
         Ground positions (world XY) [m].
-    velocity_mps : ndarray, shape (N, 2)
+    velocity_m_s : ndarray, shape (N, 2)
         Velocities (vx, vy) [m/s].
     height_m : ndarray, shape (N,)
         Heights [m] (NaN if unknown).
@@ -100,7 +100,7 @@ class Tracks:
     time_s: float
     ids: np.ndarray
     xy_m: np.ndarray
-    velocity_mps: np.ndarray
+    velocity_m_s: np.ndarray
     height_m: np.ndarray
     confidence: np.ndarray
     misses: np.ndarray
@@ -175,7 +175,7 @@ class MultiPersonTracker:
                 free[ci] = False
                 matched.add(tr.id)
                 tr.xy = clusters.xy_m[ci].copy()
-                tr.v = (1 - p.velocity_gain) * tr.v + p.velocity_gain * clusters.velocity_mps[ci]
+                tr.v = (1 - p.velocity_gain) * tr.v + p.velocity_gain * clusters.velocity_m_s[ci]
                 if np.isfinite(clusters.height_m[ci]):
                     tr.height = float(clusters.height_m[ci])
                 tr.confidence = float(clusters.confidence[ci])
@@ -196,7 +196,7 @@ class MultiPersonTracker:
             near = np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1)
             if near.size and near.min() < p.birth_exclusion_m:
                 continue  # a second mode of someone already tracked, not a new person
-            alive.append(_Track(self._next_id, clusters.xy_m[ci].copy(), clusters.velocity_mps[ci].copy(),
+            alive.append(_Track(self._next_id, clusters.xy_m[ci].copy(), clusters.velocity_m_s[ci].copy(),
                                 float(clusters.height_m[ci]), float(clusters.confidence[ci]),
                                 confirmed=p.confirm_hits <= 1))
             self._next_id += 1
@@ -219,7 +219,7 @@ class MultiPersonTracker:
             if d.min() > self.params.gate_m or tr.shared_s + dt > self.params.max_shared_s:
                 continue
             owner = owners[int(cis[np.argmin(d)])]
-            if np.linalg.norm(tr.v - owner.v_before) < self.params.share_min_relative_speed_mps:
+            if np.linalg.norm(tr.v - owner.v_before) < self.params.share_min_relative_speed_m_s:
                 continue  # moving with the owner: a duplicate of the same person, not a crossing
             owner.xy, owner.v = owner.pred.copy(), owner.v_before.copy()
             tr.xy, tr.shared_s = tr.pred.copy(), tr.shared_s + dt

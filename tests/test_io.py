@@ -379,7 +379,7 @@ def test_laser_and_audio_round_trip_any_shape(tmp_path_factory, n_scans, n_beams
     audio = rng.normal(size=(int(rng.integers(0, 3000)), 2)).astype(np.float32)
     T = np.eye(4)
     rec = Recording(duration_s=float(times[-1]) if n_scans else 0.0,
-                    lasers={"l": LaserStream("l", T, 40.0, n_scans, data=scans)},
+                    lasers={"l": LaserStream("l", T, 40.0, n_scans, dict(SYN_DEVICE), data=scans)},
                     audio={"h": AudioStream("h", T, 8000, 0.25, len(audio), data=audio)})
     out = tmp_path_factory.mktemp("lr") / "r"
     rec.write(out)

@@ -13,6 +13,7 @@ from rich.table import Table
 from ..config import CheckReport, ConfigError, RunConfig, check_recording, load_config
 from ._app import app, console
 from ._config import exit_on_config_error
+from ._import import recording_check_config
 
 SCENE_FILE = "scene.yaml"
 
@@ -41,7 +42,7 @@ def read_recording_for_check(cfg: RunConfig):
         expected += list(rec.lasers) or ["laser"]
     if cfg.sensors.sound.enabled:
         expected += list(rec.audio) or ["binaural"]
-    return rec.cameras, times, expected
+    return rec.cameras, times, expected, rec
 
 
 def _report_json(report: CheckReport) -> str:
@@ -54,12 +55,13 @@ def _report_json(report: CheckReport) -> str:
 
 @app.command()
 def check(
-    config: Path = typer.Argument(..., help="Run configuration (YAML)."),
+    config: Path = typer.Argument(..., help="Run configuration (YAML), or a recording folder (checked with its "
+                                  "own plane stack and monitored area, 10 cm cells)."),
     log_json: bool = typer.Option(False, "--log-json", help="Print the findings as one JSON object."),
 ) -> None:
     """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running."""
     try:
-        cfg = load_config(config)
+        cfg = load_config(config) if not config.is_dir() else recording_check_config(config)
     except ConfigError as err:
         if log_json:
             print(json.dumps({"ok": False, "file": str(err.file), "issues": [
@@ -82,8 +84,9 @@ def check(
             report.add("error", "recording", f"cannot read the recording: {err}")
             inputs = None
         if inputs is not None:
-            cameras, times, expected = inputs
-            sub = check_recording(cameras if cfg.sensors.cameras.enabled else [], stack, times, expected)
+            cameras, times, expected, *rec = inputs
+            sub = check_recording(cameras if cfg.sensors.cameras.enabled else [], stack, times, expected,
+                                  recording=rec[0] if rec else None)
             report.issues += sub.issues
             report.camera_visible_fraction = sub.camera_visible_fraction
             report.coverage_fraction = sub.coverage_fraction

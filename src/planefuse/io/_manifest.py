@@ -192,6 +192,8 @@ class RecordingManifest(_Entry):
     wall_height_m: float | None = None
     sensors: list[SensorEntry] = []
     groundtruth: GroundTruthEntry | None = None
+    calibration_points_file: str | None = Field(
+        None, description="CSV camera,u_px,v_px,x_m,y_m,z_m: pixels of known world points (planefuse check)")
     source: str = ""
 
     @model_validator(mode="after")

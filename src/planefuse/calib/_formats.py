@@ -49,8 +49,8 @@ def _opencv(path: Path, name: str, metres_per_unit: float, size: tuple[int, int]
         cam = load_opencv_camera(path, name=name, metres_per_unit=metres_per_unit, width_px=size[0], height_px=size[1])
     got = (cam.intrinsics.width_px, cam.intrinsics.height_px)
     if size is not None and got != tuple(size):
-        raise ValueError(f"{path}: field 'image_width': the calibration is {got[0]}x{got[1]} px, camera {name!r}'s "
-                         f"images {size[0]}x{size[1]} px")
+        raise ValueError(f"{path}: field 'image_width': the calibration is {got[0]}x{got[1]} px, the images of camera "
+                         f"{name!r} {size[0]}x{size[1]} px")
     return cam
 
 
@@ -102,11 +102,8 @@ def load_cameras(fmt: str, files: Mapping[str, str | Path], *, unit: str,
         elif fmt == "json":
             path, _, key = str(spec).partition("#")
             key = key or name
-            loaded = load_json_cameras(path, metres_per_unit=m, names={key: name},
-                                       sizes_px={key: size} if size else None)
-            if key not in loaded:
-                raise ValueError(f"{path}: field '{key}': no such camera (the file has {', '.join(sorted(loaded))})")
-            cams[name] = loaded[key]
+            cams[name] = load_json_cameras(path, metres_per_unit=m, names={key: name}, keys=[key],
+                                           sizes_px={key: size} if size else None)[key]
         elif fmt == "tsai":
             tsai = load_tsai_xml(spec, name=name)
             w, h = size if size is not None else (tsai.width_px, tsai.height_px)

@@ -105,7 +105,7 @@ def _camera(cam: dict, path: Path, name: str, metres_per_unit: float, size: tupl
 
 
 def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple[int, int]] | None = None,
-                      names: dict[str, str] | None = None) -> dict[str, PinholeCamera]:
+                      names: dict[str, str] | None = None, keys=None) -> dict[str, PinholeCamera]:
     """Every camera of a JSON calibration (module docstring), placed in the world in metres.
 
     Parameters
@@ -117,6 +117,8 @@ def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple
         Camera key -> ``(width_px, height_px)`` for files without the image size (or to override it).
     names : dict, optional
         Camera key in the file -> planefuse camera name (default: the key itself).
+    keys : collection of str, optional
+        Load only these cameras of the file (default: all).
 
     Returns
     -------
@@ -140,5 +142,9 @@ def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple
         raise calib_error(p, "<file>", f"not valid JSON ({exc})") from None
     sizes_px = sizes_px or {}
     names = names or {}
+    found = _cameras_in(data, p)
+    for key in keys or ():
+        if key not in found:
+            raise calib_error(p, key, f"no such camera (the file has {', '.join(sorted(found))})")
     return {key: _camera(c, p, names.get(key, key), metres_per_unit, sizes_px.get(key))
-            for key, c in _cameras_in(data, p).items()}
+            for key, c in found.items() if keys is None or key in keys}

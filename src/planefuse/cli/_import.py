@@ -20,7 +20,9 @@ from ..io import (
     read_control_points,
     read_ground_positions,
 )
-from ._app import app, console, exit_with_error, units_table
+from rich.markup import escape
+
+from ._app import app, console, exit_with_error
 
 #: Margin [m] around the ground truth's extent when the monitored area is not given.
 ROOM_MARGIN_M = 1.0
@@ -202,8 +204,8 @@ def import_cmd(
         exit_with_error(str(exc))
     notes = report.notes + notes
     findings = geometry_findings([cameras[n] for n in frames], heights, control_points=control, people=people)
-    console.print(units_table(f"planefuse import -> {out}", ["level", "subject", "finding"],
-                              [("info", "import", n) for n in notes] + list(findings)))
+    for level, subject, message in [("info", "import", n) for n in notes] + list(findings):
+        console.print(escape(f"{level}: {subject}: {message}"), soft_wrap=True, highlight=False)
     console.print(f"wrote {out / 'scene.yaml'}; next: planefuse check {out}", highlight=False)
     if any(level == "error" for level, _, _ in findings):
         raise typer.Exit(1)

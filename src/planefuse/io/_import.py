@@ -155,7 +155,7 @@ def probe_camera_input(inp: CameraInput) -> _Probe:
                 k = int(np.argmax(index >= n)) if index.max() >= n else int(np.argmin(index))
                 raise ValueError(f"{p}: camera {inp.name!r} video has {n} decodable frames, shorter than its times "
                                  f"{inp.times_file}: row {k + 2} asks for video frame {index[k]} (t={times[k]!r} s)")
-            rate = inp.rate_hz or fps
+            rate = inp.rate_hz or (1.0 / float(np.median(np.diff(times))) if len(times) > 1 else fps)
         else:
             n = _decodable_frames(p)
             rate = inp.rate_hz or fps

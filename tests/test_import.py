@@ -348,12 +348,14 @@ def test_check_finds_plane_above_camera_and_bad_control_points(installation):
 
 def test_people_from_boxes_takes_the_median_over_cameras(installation):
     d, cams, _, people = installation
+    times = np.array([1.0, np.nan, 1.4, 1.6, 1.8, np.nan])  # frames 1 and 5 not recorded, 6 and 7 past the end
     pt, notes = people_from_boxes({c.name: c for c in cams}, {c.name: d / f"{c.name}_gt.txt" for c in cams}, "mot",
-                                  rate_hz=5.0, start_time_s=1.0, n_frames=6)
-    np.testing.assert_allclose(pt.times_s, 1.0 + np.arange(6) / 5.0)
-    assert any("frames >= 6" in n for n in notes)
+                                  frame_times_s=times)
+    np.testing.assert_allclose(pt.times_s, [1.0, 1.4, 1.6, 1.8])
+    np.testing.assert_allclose(pt.xy_m[:, list(pt.person_ids).index(1), 0], 0.2 + 0.1 * np.array([0, 2, 3, 4]))
+    assert notes[0] == "c0: 8 boxes of frames the recording does not hold (it has 4 of frames 0..5) left out"
     with pytest.raises(ValueError, match="box format 'coco' is unknown"):
-        people_from_boxes({c.name: c for c in cams}, {"c0": d / "c0_gt.txt"}, "coco", rate_hz=5.0)
+        people_from_boxes({c.name: c for c in cams}, {"c0": d / "c0_gt.txt"}, "coco", frame_times_s=times)
 
 
 def test_import_recording_library_with_image_times_file(installation):
@@ -407,7 +409,7 @@ def test_import_epfl_terrace_real_video(tmp_path):
         args += ["--camera", f"c{c}={video / f'terrace1-c{c}.mp4'}", "--ignore-rect", f"c{c}={WATERMARK}"]
     r = _cli(*args)
     assert r.exit_code == 0, r.output
-    assert "3000 frames decoded" in r.output and "boxes of frames >= 3000 (past the recording) left out" in r.output
+    assert "3000 frames decoded" in r.output and "boxes of frames the recording does not hold (it has 3000 of frames 0..2999) left out" in r.output
     m = yaml.safe_load((tmp_path / "terrace" / "scene.yaml").read_text())
     assert [s["ignore_rects_px"] for s in m["sensors"]] == [[[130, 230, 356, 285]]] * 2
     rec = read_recording(tmp_path / "terrace")
@@ -440,3 +442,23 @@ def test_import_epfl_terrace_real_video(tmp_path):
     assert np.median(d) < 0.25
     r = _cli("check", tmp_path / "terrace")
     assert r.exit_code == 0 and "ready to run" in r.output, r.output
+
+
+def test_import_ground_positions_and_ignore_mask(installation):
+    d, cams, _, _ = installation
+    (d / "pos.csv").write_text("frame,person_id,x,y\n0,3,1000,2000\n2,3,1100,2000\n0,4,-500,0\n")
+    mask = np.zeros((H, W), np.uint8)
+    mask[:10, -20:] = 7
+    cv2.imwrite(str(d / "mask.png"), mask)
+    r = _cli(*_import_args(d, "--units", "mm", "--gt-positions", d / "pos.csv", "--ignore-mask", f"c0={d / 'mask.png'}",
+                           "--ignore-rect", "c0=0,60,5,72"))
+    assert r.exit_code == 0, r.output
+    rec = read_recording(d / "rec")
+    pt = rec.groundtruth.people
+    np.testing.assert_allclose(pt.times_s, [0.0, 0.08])
+    np.testing.assert_allclose(pt.xy_m[:, list(pt.person_ids).index(3)], [[1.0, 2.0], [1.1, 2.0]])
+    ign = rec.camera("c0").ignore_mask
+    assert ign.sum() == 10 * 20 + 12 * 5 and ign[0, -1] and ign[70, 2]
+    (d / "bad.csv").write_text("t,id,x,y\n")
+    r = _cli(*_import_args(d, "--units", "mm", "--gt-positions", d / "bad.csv", "--overwrite"))
+    assert r.exit_code == 2 and "bad.csv:1: header must be time_s,person_id,x,y" in r.output, r.output

@@ -15,6 +15,7 @@ from ..io import (
     geometry_findings,
     import_recording,
     load_manifest,
+    frame_times_of,
     people_from_boxes,
     probe_camera_input,
     read_control_points,
@@ -180,8 +181,7 @@ def import_cmd(
         if box_files:
             if first is None:
                 raise ValueError("--gt-boxes needs at least one --camera: its frame times date the boxes' frames")
-            people, gt_notes = people_from_boxes(cameras, box_files, gt_format, rate_hz=first.rate_hz,
-                                                 start_time_s=float(first.times_s[0]), n_frames=len(first.times_s))
+            people, gt_notes = people_from_boxes(cameras, box_files, gt_format, frame_times_s=frame_times_of(first))
             notes += gt_notes
         elif gt_positions is not None:
             people = read_ground_positions(gt_positions, LENGTH_UNITS_M[units],

@@ -37,6 +37,7 @@ __all__ = [
     "ImportReport",
     "probe_camera_input",
     "people_from_boxes",
+    "frame_times_of",
     "read_ground_positions",
     "read_control_points",
     "import_recording",
@@ -233,13 +234,12 @@ def _read_boxes(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Path], fmt: str, *,
-                      rate_hz: float, start_time_s: float = 0.0,
-                      n_frames: int | None = None) -> tuple[PeopleTruth, list[str]]:
+                      frame_times_s) -> tuple[PeopleTruth, list[str]]:
     """Ground-truth positions from per-camera person boxes with identities shared by the cameras.
 
     Each box's bottom centre (the feet) is mapped to the ground z = 0 through its camera; a person's position
     in a frame is the per-axis median over the cameras that see them. Frame ``k`` (0-based; MOTChallenge's
-    1-based frames are shifted) is at ``start_time_s + k / rate_hz``.
+    1-based frames are shifted) is at ``frame_times_s[k]``.
 
     Parameters
     ----------
@@ -249,9 +249,9 @@ def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Pa
     fmt : {"mot", "vatic"}
         MOTChallenge ``frame,id,left,top,width,height,flag,...`` (rows with flag 0 are left out) or EPFL/Vatic
         ``id xmin ymin xmax ymax frame lost occluded generated label`` (``lost`` rows are left out).
-    rate_hz, start_time_s : float
-    n_frames : int, optional
-        Frames of the recording: boxes of later frames are left out.
+    frame_times_s : array_like, shape (F,)
+        Time [s] of each (video) frame number of the recording, NaN for frames it does not hold (see
+        :func:`frame_times_of`); boxes of other frames are left out and counted.
 
     Returns
     -------
@@ -259,17 +259,20 @@ def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Pa
         Positions (heading, speed and height NaN: boxes do not give them) and notes counting what was left out.
     """
     rows, notes = [], []
+    times = np.asarray(frame_times_s, dtype=float)
     for name, path in box_files.items():
         if name not in cameras:
             raise ValueError(f"{path}: boxes of camera {name!r}, which has no calibration")
         frame, pid, foot, dropped = _read_boxes(Path(path), fmt)
         xy = cameras[name].backproject_to_height(foot, 0.0)[:, :2]
         ok = np.isfinite(xy).all(axis=1)
-        if n_frames is not None:
-            late = frame >= n_frames
-            ok &= ~late
-            if late.any():
-                notes.append(f"{name}: {int(late.sum())} boxes of frames >= {n_frames} (past the recording) left out")
+        recorded = np.zeros(len(frame), dtype=bool)
+        inside = (frame >= 0) & (frame < len(times))
+        recorded[inside] = np.isfinite(times[frame[inside]])
+        ok &= recorded
+        if (~recorded).any():
+            notes.append(f"{name}: {int((~recorded).sum())} boxes of frames the recording does not hold (it has "
+                         f"{int(np.isfinite(times).sum())} of frames 0..{len(times) - 1}) left out")
         if dropped:
             notes.append(f"{name}: {dropped} box rows marked lost/ignored left out")
         if (~np.isfinite(xy).all(axis=1)).any():
@@ -286,10 +289,20 @@ def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Pa
     med = np.stack([np.median(seg[:, 2:4], axis=0) for seg in np.split(a, starts[1:])])
     frames, pids = a[starts, 0], a[starts, 1]
     out = np.full((len(starts), 7), np.nan)
-    out[:, 0] = start_time_s + frames / rate_hz
+    out[:, 0] = times[frames.astype(np.int64)]
     out[:, 1] = pids
     out[:, 2:4] = med
     return PeopleTruth.from_rows(out, "boxes"), notes
+
+
+def frame_times_of(probe: _Probe) -> np.ndarray:
+    """Time [s] of each video frame number (NaN where the recording skips it), or of each image, of a probed
+    camera: what :func:`people_from_boxes` dates box frames with."""
+    if probe.frame_index is None:
+        return probe.times_s.copy()
+    out = np.full(int(probe.frame_index.max()) + 1, np.nan)
+    out[probe.frame_index] = probe.times_s
+    return out
 
 
 def read_ground_positions(path: Path, unit_m: float, *, rate_hz: float | None = None,

@@ -462,3 +462,26 @@ def test_import_ground_positions_and_ignore_mask(installation):
     (d / "bad.csv").write_text("t,id,x,y\n")
     r = _cli(*_import_args(d, "--units", "mm", "--gt-positions", d / "bad.csv", "--overwrite"))
     assert r.exit_code == 2 and "bad.csv:1: header must be time_s,person_id,x,y" in r.output, r.output
+
+
+def test_import_json_for_all_cameras_video_times_and_start_time(installation):
+    d, cams, frames, _ = installation
+    calib = {}
+    for c in cams:
+        R, t = c.T_cam_world[:3, :3], c.T_cam_world[:3, 3]
+        calib[c.name] = {"K": K.tolist(), "dist": DIST.tolist(), "R": R.tolist(), "T": (-R.T @ t * 100).tolist()}
+    (d / "calib.json").write_text(json.dumps(calib))
+    (d / "times.csv").write_text("time_s,frame_index\n10.0,1\n10.2,6\n")
+    r = _cli("import", d / "rec", "--camera", f"c0={d / 'c0.mkv'}", "--camera", f"c1={d / 'c1'}", "--rate", "c1=5",
+             "--start-time-s", "3", "--times", f"c0={d / 'times.csv'}", "--calib-format", "json", "--units", "cm",
+             "--calib", d / "calib.json", "--planes", "0,0.8", "--room", "-1,2,0,3")
+    assert r.exit_code == 0, r.output
+    rec = read_recording(d / "rec")
+    np.testing.assert_allclose(rec.camera("c0").times_s, [10.0, 10.2])
+    np.testing.assert_array_equal(rec.camera("c0").frame(1), frames[6])
+    np.testing.assert_allclose(rec.camera("c1").times_s, 3.0 + np.arange(8) / 5.0)
+    np.testing.assert_allclose(rec.camera("c1").camera.T_world_cam, cams[1].T_world_cam, atol=1e-9)
+    assert rec.planes_heights_m == [0.0, 0.8] and rec.room_xy_m == (-1.0, 2.0, 0.0, 3.0)
+    r = _cli("import", d / "rec2", "--camera", f"c0={d / 'c0.mkv'}", "--calib-format", "opencv", "--units", "cm",
+             "--calib", d / "calib.json")
+    assert r.exit_code == 2 and "a bare FILE serves every camera only for --calib-format json" in r.output

@@ -485,3 +485,20 @@ def test_import_json_for_all_cameras_video_times_and_start_time(installation):
     r = _cli("import", d / "rec2", "--camera", f"c0={d / 'c0.mkv'}", "--calib-format", "opencv", "--units", "cm",
              "--calib", d / "calib.json")
     assert r.exit_code == 2 and "a bare FILE serves every camera only for --calib-format json" in r.output
+
+
+def test_json_errors_name_file_camera_and_field(tmp_path):
+    from planefuse.calib import load_json_cameras
+
+    p = tmp_path / "c.json"
+    p.write_text(json.dumps({"cam7": {"fx": 1.0, "fy": 1.0, "cx": 0, "cy": 0, "R": np.eye(3).tolist()}}))
+    with pytest.raises(ValueError, match=r"c.json: field 'cam7.t': missing \(give t/tvec"):
+        load_json_cameras(p, metres_per_unit=1.0, sizes_px={"cam7": (W, H)})
+    p.write_text(json.dumps({"cam7": {"K": K.tolist(), "R": (2 * np.eye(3)).tolist(), "t": [0, 0, 1]}}))
+    with pytest.raises(ValueError, match=r"field 'cam7.R': not a rotation"):
+        load_json_cameras(p, metres_per_unit=1.0, sizes_px={"cam7": (W, H)})
+    with pytest.raises(ValueError, match=r"field 'cam9': no such camera \(the file has cam7\)"):
+        load_json_cameras(p, metres_per_unit=1.0, keys=["cam9"])
+    p.write_text("{not json")
+    with pytest.raises(ValueError, match=r"c.json: field '<file>': not valid JSON"):
+        load_json_cameras(p, metres_per_unit=1.0)

@@ -54,8 +54,8 @@ def _array(cam: dict, path: Path, where: str, field: str, sizes: tuple[int, ...]
     return a
 
 
-def _camera(cam: dict, path: Path, name: str, metres_per_unit: float, size: tuple[int, int] | None) -> PinholeCamera:
-    where = f"{name}"
+def _camera(cam: dict, path: Path, where: str, name: str, metres_per_unit: float,
+            size: tuple[int, int] | None) -> PinholeCamera:
     if "K" in cam:
         K = _array(cam, path, where, "K", (9,)).reshape(3, 3)
     elif all(k in cam for k in ("fx", "fy", "cx", "cy")):
@@ -146,5 +146,5 @@ def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple
     for key in keys or ():
         if key not in found:
             raise calib_error(p, key, f"no such camera (the file has {', '.join(sorted(found))})")
-    return {key: _camera(c, p, names.get(key, key), metres_per_unit, sizes_px.get(key))
+    return {key: _camera(c, p, key, names.get(key, key), metres_per_unit, sizes_px.get(key))
             for key, c in found.items() if keys is None or key in keys}

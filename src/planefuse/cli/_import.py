@@ -36,7 +36,7 @@ def _pairs(values: list[str], option: str) -> dict[str, str]:
         name, sep, value = v.partition("=")
         if not sep or not name or not value:
             raise ValueError(f"{option} {v!r}: expected NAME=VALUE")
-        if name in out and option != "--ignore-rect":
+        if name in out:
             raise ValueError(f"{option}: camera {name!r} given twice")
         out[name] = value
     return out

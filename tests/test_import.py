@@ -184,7 +184,9 @@ def test_metric_scale_refuses_mm_read_as_m_and_m_read_as_mm(tmp_path):
     with pytest.raises(ValueError, match=r"camera 'cam' is \d+ m above the ground with --units m.*--units mm"):
         check_metric_scale(cams, "m")
     cams, _ = load_cameras("opencv", {"cam": path}, unit="mm")
-    check_metric_scale(cams, "mm")
+    check_metric_scale(cams, "mm", room_xy_m=(-2.0, 3.0, -1.0, 3.0))
+    with pytest.raises(ValueError, match=r"camera 'cam' is \d+ m from the monitored area .* different length units"):
+        check_metric_scale(cams, "mm", room_xy_m=(-2000.0, -1990.0, 1000.0, 1010.0))
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
     for key, val in (("image_width", W), ("image_height", H), ("camera_matrix", K), ("rvec", rvec.reshape(3, 1)),
                      ("tvec", tvec.reshape(3, 1))):
@@ -290,6 +292,8 @@ def _import_args(d, *extra):
     (["--units", "mm", "--times", "c0=DIR/times.csv"], r"c0.mkv: camera 'c0' video has 8 decodable frames, shorter "
                                                        r"than its times .*times.csv: row 4 asks for video frame 9"),
     (["--units", "furlong"], "--units 'furlong': use one of mm, cm, m"),
+    (["--units", "mm", "--room", "-2000,3000,-1000,3000"], r"monitored area .* is over 1 km across: a length unit "
+                                                           r"is wrong \(--units mm, --room is in metres\)"),
     (["--units", "mm", "--camera", "c2=DIR/c0.yaml", "--calib", "c2=DIR/c0.yaml"],
      r"c0.yaml: camera 'c2': not a video .* nor a folder of images"),
     (["--units", "mm", "--camera", "c2=DIR/c1", "--calib", "c2=DIR/c1.yaml"], "an image folder needs a frame rate"),

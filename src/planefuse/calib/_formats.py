@@ -130,12 +130,15 @@ def load_cameras(fmt: str, files: Mapping[str, str | Path], *, unit: str,
     return cams, notes
 
 
-def check_metric_scale(cameras: Mapping[str, PinholeCamera], unit: str, *, source: str = "calibration") -> None:
+def check_metric_scale(cameras: Mapping[str, PinholeCamera], unit: str, *, source: str = "calibration",
+                       room_xy_m=None) -> None:
     """Refuse cameras whose height above the ground (z = 0, z up) shows a wrong length unit.
 
     Heights outside :data:`PLAUSIBLE_CAMERA_HEIGHT_M` (5 cm .. 300 m) are about 1000x off for a person-scale
     installation: millimetres read as metres put a 2 m camera 2 km up, metres read as millimetres 2 mm up.
-    A camera below the ground means the world's z axis points down.
+    A camera below the ground means the world's z axis points down. With a monitored area ``room_xy_m``
+    ``(x_min, x_max, y_min, y_max)`` [m], a camera farther from it than 100 times its size (and 100 m) means the area
+    and the calibration use different units.
 
     Raises
     ------
@@ -149,6 +152,14 @@ def check_metric_scale(cameras: Mapping[str, PinholeCamera], unit: str, *, sourc
             raise ValueError(f"{source}: camera {name!r} is {-z:.3g} m below the ground plane z = 0: the world's z "
                              "axis must point up (against gravity) with the ground at z = 0")
         if lo <= z <= hi:
+            if room_xy_m is not None:
+                x0, x1, y0, y1 = room_xy_m
+                size = max(x1 - x0, y1 - y0, 1.0)
+                d = float(np.hypot(cam.center_world[0] - np.clip(cam.center_world[0], x0, x1),
+                                   cam.center_world[1] - np.clip(cam.center_world[1], y0, y1)))
+                if d > max(100.0 * size, 100.0):
+                    raise ValueError(f"{source}: camera {name!r} is {d:.4g} m from the monitored area {list(room_xy_m)} m "
+                                     f"({size:g} m across): the area and the calibration use different length units")
             continue
         better = [u for u, f in LENGTH_UNITS_M.items() if lo <= z * f / LENGTH_UNITS_M[unit] <= hi]
         hint = f"; with --units {better[0]} it would be {z * LENGTH_UNITS_M[better[0]] / LENGTH_UNITS_M[unit]:.3g} m" \

@@ -175,7 +175,6 @@ def import_cmd(
         cameras, notes = load_cameras(calib_format, {n: calib_files[n] for n in set(frames) | set(box_files)},
                                       unit=units, sizes_px=sizes, ground_unit_m=ground_unit_m,
                                       ground_flip_y=ground_flip_y)
-        check_metric_scale(cameras, units, source=f"--calib-format {calib_format} --units {units}")
         first = probes[inputs[0].name] if inputs else None
         people = None
         if box_files:
@@ -192,6 +191,7 @@ def import_cmd(
             xy = xy[np.isfinite(xy).all(axis=1)]
             room_xy = (float(xy[:, 0].min() - ROOM_MARGIN_M), float(xy[:, 0].max() + ROOM_MARGIN_M),
                        float(xy[:, 1].min() - ROOM_MARGIN_M), float(xy[:, 1].max() + ROOM_MARGIN_M))
+        check_metric_scale(cameras, units, source=f"--calib-format {calib_format} --units {units}", room_xy_m=room_xy)
         if room_xy is not None and max(room_xy[1] - room_xy[0], room_xy[3] - room_xy[2]) > 1000.0:
             raise ValueError(f"monitored area {np.round(room_xy, 1).tolist()} m is over 1 km across: a length unit is "
                              f"wrong (--units {units}, --room is in metres)")

@@ -4,11 +4,14 @@ planefuse check on the result, and the real EPFL terrace."""
 from __future__ import annotations
 
 import json
+import re
 
 import cv2
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from planefuse.calib import (
@@ -308,8 +311,6 @@ def test_import_errors_are_one_line_naming_the_input(installation, extra, messag
     assert r.exit_code == 2, r.output
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error:"), r.output
-    import re
-
     assert re.search(message, lines[0]), lines[0]
     assert not (d / "rec" / "scene.yaml").exists()
 
@@ -506,3 +507,28 @@ def test_json_errors_name_file_camera_and_field(tmp_path):
     p.write_text("{not json")
     with pytest.raises(ValueError, match=r"c.json: field '<file>': not valid JSON"):
         load_json_cameras(p, metres_per_unit=1.0)
+
+
+def test_ignore_rect_past_the_image_is_refused(installation):
+    d = installation[0]
+    r = _cli(*_import_args(d, "--units", "mm", "--ignore-rect", "c0=50,50,97,60"))
+    assert r.exit_code == 2 and "ignore rectangle [50, 50, 97, 60] reaches past the 96x72 px image" in r.output, r.output
+
+
+@settings(max_examples=40, deadline=None)
+@given(height_m=st.floats(1.5, 12.0), tilt_deg=st.floats(20.0, 75.0), yaw_deg=st.floats(-180.0, 180.0),
+       f_px=st.floats(150.0, 1500.0), x_m=st.floats(-20.0, 20.0), y_m=st.floats(-20.0, 20.0))
+def test_camera_from_ground_homography_recovers_the_camera(height_m, tilt_deg, yaw_deg, f_px, x_m, y_m):
+    """Property: a camera with square pixels and a centred principal point comes back from its ground homography."""
+    from planefuse.calib import camera_from_ground_homography
+    from planefuse.geometry import H_plane_image_calibrated
+
+    yaw, tilt = np.radians(yaw_deg), np.radians(tilt_deg)
+    c = np.array([x_m, y_m, height_m])
+    look = np.array([np.cos(yaw) * np.cos(tilt), np.sin(yaw) * np.cos(tilt), -np.sin(tilt)])
+    Kc = np.array([[f_px, 0.0, (W - 1) / 2], [0.0, f_px, (H - 1) / 2], [0.0, 0.0, 1.0]])
+    cam = PinholeCamera(CameraIntrinsics(Kc, W, H), T_world_cam_look_at(c, c + look))
+    got, err = camera_from_ground_homography(H_plane_image_calibrated(cam, 0.0), W, H)
+    assert err < 1e-6
+    np.testing.assert_allclose(got.K, Kc, rtol=1e-6)
+    np.testing.assert_allclose(got.T_world_cam, cam.T_world_cam, atol=1e-6 * max(1.0, np.abs(c).max()))

@@ -131,7 +131,7 @@ def test_tsai_xml_matches_tsai_equations_and_projectpoints(tmp_path):
     ref = cv2.projectPoints(p_world_mm.reshape(-1, 1, 3) * 1e-3, rvec, cam.T_cam_world[:3, 3], cam.K,
                             cam.intrinsics.dist)[0].reshape(-1, 2)
     np.testing.assert_allclose(cam.project(p_world_mm * 1e-3), ref, atol=1e-6)
-    assert "fit within" in notes[0]
+    assert notes[0][0] == "info" and "fit within" in notes[0][1]
 
 
 def test_tsai_xml_round_trip_and_errors(tmp_path):
@@ -359,6 +359,11 @@ def test_people_from_boxes_takes_the_median_over_cameras(installation):
     np.testing.assert_allclose(pt.times_s, [1.0, 1.4, 1.6, 1.8])
     np.testing.assert_allclose(pt.xy_m[:, list(pt.person_ids).index(1), 0], 0.2 + 0.1 * np.array([0, 2, 3, 4]))
     assert notes[0] == "c0: 8 boxes of frames the recording does not hold (it has 4 of frames 0..5) left out"
+    # a camera known by its ground homography keeps that exact mapping (here the identity: feet pixels as metres)
+    pt, _ = people_from_boxes({c.name: c for c in cams}, {c.name: d / f"{c.name}_gt.txt" for c in cams}, "mot",
+                              frame_times_s=times, H_ground_image={"c0": np.eye(3)})
+    foot_c0 = cams[0].project(np.array([[0.2, 0.5, 0.0]]))[0]
+    np.testing.assert_allclose(pt.xy_m[0, list(pt.person_ids).index(1)], (foot_c0 + [0.2, 0.5]) / 2, atol=1e-6)
     with pytest.raises(ValueError, match="box format 'coco' is unknown"):
         people_from_boxes({c.name: c for c in cams}, {"c0": d / "c0_gt.txt"}, "coco", frame_times_s=times)
 

@@ -11,7 +11,7 @@ from ._epfl import (
     load_epfl_boxes,
     load_epfl_homography,
 )
-from ._formats import CALIBRATION_FORMATS, LENGTH_UNITS_M, check_metric_scale, load_cameras
+from ._formats import CALIBRATION_FORMATS, LENGTH_UNITS_M, check_metric_scale, load_cameras, load_ground_homographies
 from ._ground import camera_from_ground_homography
 from ._json import load_json_cameras
 from ._tsai import EPFL_TERRACE_TSAI, TsaiCamera, load_tsai_xml, pinhole_from_tsai, tsai_project, write_tsai_xml
@@ -23,6 +23,7 @@ __all__ = [
     "LENGTH_UNITS_M",
     "check_metric_scale",
     "load_cameras",
+    "load_ground_homographies",
     "camera_from_ground_homography",
     "load_json_cameras",
     "EPFL_TERRACE_TSAI",

@@ -26,12 +26,15 @@ from ._ground import camera_from_ground_homography
 from ._json import load_json_cameras
 from ._tsai import load_tsai_xml, pinhole_from_tsai
 
-__all__ = ["CALIBRATION_FORMATS", "LENGTH_UNITS_M", "load_cameras", "check_metric_scale"]
+__all__ = ["CALIBRATION_FORMATS", "LENGTH_UNITS_M", "load_cameras", "load_ground_homographies", "check_metric_scale"]
 
 CALIBRATION_FORMATS = ("opencv", "json", "tsai", "homography")
 
 #: Length unit name -> metres.
 LENGTH_UNITS_M = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+
+#: A pinhole model reproducing a ground homography worse than this [px] is reported as a warning.
+HOMOGRAPHY_MODEL_WARN_PX = 2.0
 
 #: Camera heights above the ground outside this range [m] mean the length unit is wrong.
 PLAUSIBLE_CAMERA_HEIGHT_M = (0.05, 300.0)
@@ -52,6 +55,25 @@ def _opencv(path: Path, name: str, metres_per_unit: float, size: tuple[int, int]
         raise ValueError(f"{path}: field 'image_width': the calibration is {got[0]}x{got[1]} px, the images of camera "
                          f"{name!r} {size[0]}x{size[1]} px")
     return cam
+
+
+def load_ground_homographies(files: Mapping[str, str | Path], *, ground_unit_m: float | None,
+                             ground_flip_y: bool = False) -> dict[str, np.ndarray]:
+    """``H_ground_image`` (3, 3) per camera, pixels -> ground XY [m], from 3x3 text files in ground units.
+
+    Raises
+    ------
+    ValueError
+        A missing or non-positive ``ground_unit_m``, or a malformed file (file and field named).
+    """
+    out = {}
+    for name, spec in files.items():
+        if ground_unit_m is None or not (np.isfinite(ground_unit_m) and ground_unit_m > 0):
+            raise ValueError(f"{spec}: a ground homography needs its ground unit in metres (ground_unit_m / "
+                             f"--ground-unit-m), got {ground_unit_m}")
+        W = np.diag([ground_unit_m, -ground_unit_m if ground_flip_y else ground_unit_m, 1.0])
+        out[name] = load_epfl_homography(spec, H_world_topview=W).H_plane_image
+    return out
 
 
 def load_cameras(fmt: str, files: Mapping[str, str | Path], *, unit: str,
@@ -79,8 +101,9 @@ def load_cameras(fmt: str, files: Mapping[str, str | Path], *, unit: str,
 
     Returns
     -------
-    (dict of str -> PinholeCamera, list of str)
-        The cameras, and notes worth printing (fit errors of converted models).
+    (dict of str -> PinholeCamera, list of (level, message))
+        The cameras, and notes worth printing (fit errors of converted models; ``"warning"`` for a pinhole model
+        that reproduces its ground homography worse than 2 px).
 
     Raises
     ------
@@ -94,7 +117,7 @@ def load_cameras(fmt: str, files: Mapping[str, str | Path], *, unit: str,
     m = LENGTH_UNITS_M[unit]
     sizes_px = dict(sizes_px or {})
     cams: dict[str, PinholeCamera] = {}
-    notes: list[str] = []
+    notes: list[tuple[str, str]] = []
     for name, spec in files.items():
         size = sizes_px.get(name)
         if fmt == "opencv":
@@ -111,22 +134,19 @@ def load_cameras(fmt: str, files: Mapping[str, str | Path], *, unit: str,
                 cams[name], err = pinhole_from_tsai(tsai, metres_per_unit=m, width_px=w, height_px=h, name=name)
             except ValueError as exc:
                 raise ValueError(f"{spec}: {exc}") from None
-            notes.append(f"{name}: Tsai model {tsai.width_px}x{tsai.height_px} px -> {w}x{h} px, OpenCV distortion "
-                         f"fit within {err:.3f} px")
+            notes.append(("info", f"{name}: Tsai model {tsai.width_px}x{tsai.height_px} px -> {w}x{h} px, OpenCV "
+                                  f"distortion fit within {err:.3f} px"))
         else:
-            if ground_unit_m is None or not (np.isfinite(ground_unit_m) and ground_unit_m > 0):
-                raise ValueError(f"{spec}: a ground homography needs its ground unit in metres (ground_unit_m / "
-                                 f"--ground-unit-m), got {ground_unit_m}")
             if size is None:
                 raise ValueError(f"{spec}: camera {name!r} needs an image size for its homography")
-            W = np.diag([ground_unit_m, -ground_unit_m if ground_flip_y else ground_unit_m, 1.0])
-            hom = load_epfl_homography(spec, H_world_topview=W)
+            H = load_ground_homographies({name: spec}, ground_unit_m=ground_unit_m, ground_flip_y=ground_flip_y)[name]
             try:
-                cams[name], err = camera_from_ground_homography(hom.H_plane_image, size[0], size[1], name=name)
+                cams[name], err = camera_from_ground_homography(H, size[0], size[1], name=name)
             except ValueError as exc:
                 raise ValueError(f"{spec}: {exc}") from None
-            notes.append(f"{name}: pinhole model from the ground homography (centred principal point, square "
-                         f"pixels): reproduces it within {err:.2f} px")
+            notes.append(("warning" if err > HOMOGRAPHY_MODEL_WARN_PX else "info",
+                          f"{name}: pinhole model from the ground homography (centred principal point, square "
+                          f"pixels): reproduces it within {err:.2f} px"))
     return cams, notes
 
 

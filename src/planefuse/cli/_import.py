@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from ..calib import CALIBRATION_FORMATS, LENGTH_UNITS_M, check_metric_scale, load_cameras
+from ..calib import CALIBRATION_FORMATS, LENGTH_UNITS_M, check_metric_scale, load_cameras, load_ground_homographies
 from ..io import (
     CameraInput,
     geometry_findings,
@@ -180,8 +180,11 @@ def import_cmd(
         if box_files:
             if first is None:
                 raise ValueError("--gt-boxes needs at least one --camera: its frame times date the boxes' frames")
-            people, gt_notes = people_from_boxes(cameras, box_files, gt_format, frame_times_s=frame_times_of(first))
-            notes += gt_notes
+            homs = load_ground_homographies({n: calib_files[n] for n in box_files}, ground_unit_m=ground_unit_m,
+                                            ground_flip_y=ground_flip_y) if calib_format == "homography" else None
+            people, gt_notes = people_from_boxes(cameras, box_files, gt_format, frame_times_s=frame_times_of(first),
+                                                 H_ground_image=homs)
+            notes += [("info", n) for n in gt_notes]
         elif gt_positions is not None:
             people = read_ground_positions(gt_positions, LENGTH_UNITS_M[units],
                                            rate_hz=first.rate_hz if first else None, start_time_s=start_time_s)
@@ -202,9 +205,9 @@ def import_cmd(
                                   source="planefuse import " + " ".join(shlex.quote(a) for a in sys.argv[2:]))
     except (ValueError, OSError) as exc:
         exit_with_error(str(exc))
-    notes = report.notes + notes
+    notes = [("info", n) for n in report.notes] + notes
     findings = geometry_findings([cameras[n] for n in frames], heights, control_points=control, people=people)
-    for level, subject, message in [("info", "import", n) for n in notes] + list(findings):
+    for level, subject, message in [(lv, "import", n) for lv, n in notes] + list(findings):
         console.print(escape(f"{level}: {subject}: {message}"), soft_wrap=True, highlight=False)
     console.print(f"wrote {out / 'scene.yaml'}; next: planefuse check {out}", highlight=False)
     if any(level == "error" for level, _, _ in findings):

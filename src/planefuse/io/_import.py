@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from ..calib import load_epfl_boxes
-from ..geometry import PinholeCamera
+from ..geometry import PinholeCamera, apply_homography
 from ._groundtruth import GroundTruth, PeopleTruth
 from ._manifest import MANIFEST_NAME, CameraEntry, GroundTruthEntry, RecordingManifest
 from ._paths import check_name
@@ -234,7 +234,8 @@ def _read_boxes(path: Path, fmt: str) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Path], fmt: str, *,
-                      frame_times_s) -> tuple[PeopleTruth, list[str]]:
+                      frame_times_s, H_ground_image: dict[str, np.ndarray] | None = None,
+                      ) -> tuple[PeopleTruth, list[str]]:
     """Ground-truth positions from per-camera person boxes with identities shared by the cameras.
 
     Each box's bottom centre (the feet) is mapped to the ground z = 0 through its camera; a person's position
@@ -252,6 +253,9 @@ def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Pa
     frame_times_s : array_like, shape (F,)
         Time [s] of each (video) frame number of the recording, NaN for frames it does not hold (see
         :func:`frame_times_of`); boxes of other frames are left out and counted.
+    H_ground_image : dict of str -> ndarray (3, 3), optional
+        Cameras whose feet go to the ground through this homography (pixels -> ground XY [m]) rather than through
+        the camera model: cameras calibrated by a ground homography alone keep its exact mapping.
 
     Returns
     -------
@@ -264,7 +268,10 @@ def people_from_boxes(cameras: dict[str, PinholeCamera], box_files: dict[str, Pa
         if name not in cameras:
             raise ValueError(f"{path}: boxes of camera {name!r}, which has no calibration")
         frame, pid, foot, dropped = _read_boxes(Path(path), fmt)
-        xy = cameras[name].backproject_to_height(foot, 0.0)[:, :2]
+        if H_ground_image and name in H_ground_image:
+            xy = apply_homography(H_ground_image[name], foot)
+        else:
+            xy = cameras[name].backproject_to_height(foot, 0.0)[:, :2]
         ok = np.isfinite(xy).all(axis=1)
         recorded = np.zeros(len(frame), dtype=bool)
         inside = (frame >= 0) & (frame < len(times))
@@ -395,6 +402,8 @@ class ImportReport:
 def _place(src: Path, dst: Path) -> None:
     """Hard link ``src`` to ``dst`` (same file system) or copy it: the recording must hold its own files."""
     dst.parent.mkdir(parents=True, exist_ok=True)
+    if dst.exists() or dst.is_symlink():  # --overwrite: replace, never write through an old link into the source
+        dst.unlink()
     try:
         os.link(src, dst)
     except OSError:

@@ -302,17 +302,24 @@ def _import_args(d, *extra):
     (["--units", "mm", "--camera", "c2=DIR/c1", "--calib", "c2=DIR/c1.yaml"], "an image folder needs a frame rate"),
     (["--units", "mm", "--ignore-rect", "c0=5,5,2,9"], "expected integer pixels with 0 <= U_MIN < U_MAX"),
     (["--units", "mm", "--calib", "c0=DIR/missing.yaml"], "--calib: camera 'c0' given twice"),
+    (["--units", "mm", "--rate", "c5=25"], "--rate names camera 'c5', which has no --camera frames"),
+    (["--units", "mm", "--gt-boxes", "c0=DIR/c0_gt.txt", "--image-size", "c0=96by72"],
+     "--image-size '96by72': expected WIDTHxHEIGHT in pixels"),
+    (["--units", "mm", "--ignore-mask", "c0=DIR/small.png"], r"small.png: ignore mask of camera 'c0' is 5x4 px, its "
+                                                              r"frames 96x72 px"),
+    (["--units", "mm", "--camera", "c0"], r"--camera 'c0': expected NAME=VALUE"),
 ])
 def test_import_errors_are_one_line_naming_the_input(installation, extra, message):
     d = installation[0]
     (d / "times.csv").write_text("time_s,frame_index\n0.0,0\n0.2,5\n0.36,9\n")
+    cv2.imwrite(str(d / "small.png"), np.zeros((4, 5), np.uint8))
     args = [str(a).replace("DIR", str(d)) for a in _import_args(d, *extra)]
     r = _cli(*args)
     assert r.exit_code == 2, r.output
     lines = [ln for ln in r.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("error:"), r.output
     assert re.search(message, lines[0]), lines[0]
-    assert not (d / "rec" / "scene.yaml").exists()
+    assert not (d / "rec").exists()  # nothing written
 
 
 def test_import_refuses_calibration_of_another_size(installation):

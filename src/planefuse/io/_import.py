@@ -476,10 +476,9 @@ def import_recording(out_dir: str | Path, inputs: list[CameraInput], cameras: di
             raise ValueError(f"{inp.path}: camera {inp.name!r} frames are {pr.width_px}x{pr.height_px} px, its "
                              f"calibration {size[0]}x{size[1]} px")
         TimeChecker(str(inp.times_file or inp.path), pr.rate_hz).check(pr.times_s)
+    masks = {inp.name: _read_ignore_mask(inp, probes[inp.name]) for inp in inputs}
     root.mkdir(parents=True, exist_ok=True)
-    sensors = []
-    for inp in inputs:
-        sensors.append(_write_camera(root, inp, cameras[inp.name], probes[inp.name]))
+    sensors = [_write_camera(root, inp, cameras[inp.name], probes[inp.name], masks[inp.name]) for inp in inputs]
     gt = None
     if people is not None:
         gt = GroundTruthEntry(**GroundTruth(people=people).write(root))
@@ -497,21 +496,28 @@ def import_recording(out_dir: str | Path, inputs: list[CameraInput], cameras: di
     return ImportReport(manifest, notes)
 
 
-def _write_camera(root: Path, inp: CameraInput, cam: PinholeCamera, pr: _Probe) -> CameraEntry:
+def _read_ignore_mask(inp: CameraInput, pr: _Probe) -> np.ndarray | None:
+    """The camera's ignore mask (height_px, width_px) bool, checked against its frames' size, or None."""
+    if inp.ignore_mask is None:
+        return None
+    mask = cv2.imread(str(inp.ignore_mask), cv2.IMREAD_GRAYSCALE)
+    if mask is None:
+        raise ValueError(f"{inp.ignore_mask}: cannot read the ignore mask of camera {inp.name!r}")
+    if mask.shape != (pr.height_px, pr.width_px):
+        raise ValueError(f"{inp.ignore_mask}: ignore mask of camera {inp.name!r} is {mask.shape[1]}x{mask.shape[0]} "
+                         f"px, its frames {pr.width_px}x{pr.height_px} px")
+    return mask > 0
+
+
+def _write_camera(root: Path, inp: CameraInput, cam: PinholeCamera, pr: _Probe, mask: np.ndarray | None) -> CameraEntry:
     base = root / "cameras" / inp.name
     rel = f"cameras/{inp.name}"
     common = dict(type="camera", name=inp.name, width_px=pr.width_px, height_px=pr.height_px, K=_matrix(cam.K),
                   dist=cam.intrinsics.dist.tolist(), T_world_cam=_matrix(cam.T_world_cam), rate_hz=pr.rate_hz,
                   n_frames=len(pr.times_s), ignore_rects_px=[tuple(int(x) for x in r) for r in inp.ignore_rects_px])
-    if inp.ignore_mask is not None:
-        mask = cv2.imread(str(inp.ignore_mask), cv2.IMREAD_GRAYSCALE)
-        if mask is None:
-            raise ValueError(f"{inp.ignore_mask}: cannot read the ignore mask of camera {inp.name!r}")
-        if mask.shape != (pr.height_px, pr.width_px):
-            raise ValueError(f"{inp.ignore_mask}: ignore mask of camera {inp.name!r} is {mask.shape[1]}x{mask.shape[0]} "
-                             f"px, its frames {pr.width_px}x{pr.height_px} px")
+    if mask is not None:
         base.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(base / "ignore.png"), (mask > 0).astype(np.uint8) * 255)
+        cv2.imwrite(str(base / "ignore.png"), mask.astype(np.uint8) * 255)
         common["ignore_mask_file"] = f"{rel}/ignore.png"
     if pr.video is not None:
         video_rel = f"{rel}/video{pr.video.suffix.lower()}"

@@ -28,6 +28,8 @@ from ._manifest import (
     GroundTruthEntry,
     ImuEntry,
     LaserEntry,
+    LaserScannerDevice,
+    LaserUnitDevice,
     RecordingManifest,
     load_manifest,
 )
@@ -75,6 +77,8 @@ __all__ = [
     "GroundTruthEntry",
     "ImuEntry",
     "LaserEntry",
+    "LaserScannerDevice",
+    "LaserUnitDevice",
     "RecordingManifest",
     "load_manifest",
     "Event",

@@ -544,3 +544,12 @@ def test_camera_from_ground_homography_recovers_the_camera(height_m, tilt_deg, y
     assert err < 1e-6
     np.testing.assert_allclose(got.K, Kc, rtol=1e-6)
     np.testing.assert_allclose(got.T_world_cam, cam.T_world_cam, atol=1e-6 * max(1.0, np.abs(c).max()))
+
+
+def test_calib_show_reads_tsai_and_json(tmp_path):
+    write_tsai_xml(tmp_path / "c1.xml", EPFL_TERRACE_TSAI["c1"])
+    r = _cli("calib-show", tmp_path / "c1.xml", "--metres-per-unit", "0.001", "--width-px", "360", "--height-px", "288")
+    assert r.exit_code == 0 and "-1.034 -1.225  2.109" in r.output and "360 x 288" in r.output, r.output
+    (tmp_path / "c.json").write_text(json.dumps({"a": {"K": K.tolist(), "R": np.eye(3).tolist(), "T": [0, 0, -2000]}}))
+    r = _cli("calib-show", tmp_path / "c.json", "--metres-per-unit", "0.001", "--width-px", str(W), "--height-px", str(H))
+    assert r.exit_code == 0 and "a: centre in world [m]" in r.output and "-2.]" in r.output, r.output

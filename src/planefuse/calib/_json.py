@@ -55,7 +55,7 @@ def _array(cam: dict, path: Path, where: str, field: str, sizes: tuple[int, ...]
 
 
 def _camera(cam: dict, path: Path, where: str, name: str, metres_per_unit: float,
-            size: tuple[int, int] | None) -> PinholeCamera:
+            size: tuple[int, int] | None, default_size: tuple[int, int] | None = None) -> PinholeCamera:
     if "K" in cam:
         K = _array(cam, path, where, "K", (9,)).reshape(3, 3)
     elif all(k in cam for k in ("fx", "fy", "cx", "cy")):
@@ -94,6 +94,8 @@ def _camera(cam: dict, path: Path, where: str, name: str, metres_per_unit: float
             w, h = (int(x) for x in _array(cam, path, where, "resolution", (2,)))
         elif "width" in cam and "height" in cam:
             w, h = int(cam["width"]), int(cam["height"])
+        elif default_size is not None:
+            w, h = default_size
         else:
             raise calib_error(path, f"{where}.resolution", "missing (the image size is not in the file: give it)")
         size = (w, h)
@@ -105,7 +107,8 @@ def _camera(cam: dict, path: Path, where: str, name: str, metres_per_unit: float
 
 
 def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple[int, int]] | None = None,
-                      names: dict[str, str] | None = None, keys=None) -> dict[str, PinholeCamera]:
+                      names: dict[str, str] | None = None, keys=None,
+                      default_size_px: tuple[int, int] | None = None) -> dict[str, PinholeCamera]:
     """Every camera of a JSON calibration (module docstring), placed in the world in metres.
 
     Parameters
@@ -119,6 +122,8 @@ def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple
         Camera key in the file -> planefuse camera name (default: the key itself).
     keys : collection of str, optional
         Load only these cameras of the file (default: all).
+    default_size_px : (width_px, height_px), optional
+        Image size of the cameras ``sizes_px`` does not name and the file does not size.
 
     Returns
     -------
@@ -146,5 +151,5 @@ def load_json_cameras(path, *, metres_per_unit: float, sizes_px: dict[str, tuple
     for key in keys or ():
         if key not in found:
             raise calib_error(p, key, f"no such camera (the file has {', '.join(sorted(found))})")
-    return {key: _camera(c, p, key, names.get(key, key), metres_per_unit, sizes_px.get(key))
+    return {key: _camera(c, p, key, names.get(key, key), metres_per_unit, sizes_px.get(key), default_size_px)
             for key, c in found.items() if keys is None or key in keys}

@@ -6,6 +6,7 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import typer
 from rich.table import Table
 
@@ -26,7 +27,7 @@ from ..vision import (
     recording_frames,
     wildtrack_frames,
 )
-from ._app import app, console
+from ._app import app, console, exit_with_error
 
 cameras_app = typer.Typer(help="Camera pipeline: foreground -> plane stack -> people on the ground.",
                           no_args_is_help=True)
@@ -51,10 +52,36 @@ def _print_scores(title: str, rows: list[tuple[str, dict]]) -> None:
     console.print(table)
 
 
+#: Largest ground grid ``planefuse cameras epfl`` builds (a wrong ground unit gives millions of cells).
+MAX_EPFL_CELLS = 4_000_000
+
+
+def epfl_stack(gt: dict, cell_m: float, margin_m: float = 1.0) -> PlaneStack:
+    """The ground plane over the ground truth's extent + ``margin_m`` [m]; ``ValueError`` when the ground truth
+    spans less than 2 m or more than 2 km, or the grid would exceed :data:`MAX_EPFL_CELLS` cells (a ground unit or
+    cell size off by orders of magnitude)."""
+    xy = np.concatenate([np.concatenate([g, i]) for g, i in gt.values()])
+    if not len(xy):
+        raise ValueError("the sequence's ground truth places nobody on the ground: no extent for the grid")
+    span = float(np.max(xy.max(axis=0) - xy.min(axis=0)))
+    if not 2.0 <= span <= 2000.0:
+        raise ValueError(f"the ground truth spans {span:.3g} m: implausible for people walking in a scene "
+                         "(expected 2..2000 m); the ground unit (--ground-unit-m) looks wrong")
+    lo, hi = xy.min(axis=0) - margin_m, xy.max(axis=0) + margin_m
+    n = np.prod(np.ceil((hi - lo) / cell_m))
+    if n > MAX_EPFL_CELLS:
+        raise ValueError(f"a ground grid of {(hi - lo)[0]:.4g} m x {(hi - lo)[1]:.4g} m in {cell_m:g} m cells has "
+                         f"{n:.3g} cells (> {MAX_EPFL_CELLS:.0e}): check --ground-unit-m and --cell-m")
+    return PlaneStack.from_extent([0.0], (lo[0], hi[0]), (lo[1], hi[1]), cell_m)
+
+
 @cameras_app.command("epfl")
 def epfl(
     root: Path = typer.Argument(..., help="EPFL folder holding <sequence>-c*/Homography.txt and gt/gt.txt."),
     sequence: str = typer.Option("terrace1", help="Sequence name prefix."),
+    ground_unit_m: float = typer.Option(None, help="Metres per Homography.txt ground unit [m]. Default for terrace "
+                                        "sequences: the fitted map to the Tsai world (~0.0219); required for any "
+                                        "other sequence (laboratory: 0.02)."),
     detections: str = typer.Option("", help="Per-camera MOTChallenge file inside each camera folder "
                                    "(e.g. det/det.txt); default: the ground-truth boxes."),
     foot_fraction: float = typer.Option(0.1, help="Bottom fraction of each box used as ground-plane foreground."),
@@ -66,15 +93,17 @@ def epfl(
     json_out: Path = typer.Option(None, help="Write the scores as JSON here."),
 ) -> None:
     """Detect people on an EPFL POM sequence from per-view boxes (ground homographies only) and score them."""
-    seq = load_epfl_sequence(root, sequence)
-    stack = PlaneStack.from_extent([0.0], (-1.0, 7.5), (-1.5, 9.5), cell_m) if sequence.startswith("terrace") \
-        else PlaneStack.from_extent([0.0], (0.0, 360.0), (0.0, 360.0), cell_m)
+    try:
+        seq = load_epfl_sequence(root, sequence, ground_unit_m=ground_unit_m)
+        gt = epfl_ground_truth(seq)
+        stack = epfl_stack(gt, cell_m)
+    except ValueError as exc:
+        exit_with_error(str(exc))
     lookups = epfl_lookups(seq, stack)
     boxes = read_epfl_detections(root, seq.names, detections) if detections else None
     frames = seq.frames[::step]
     params = CameraParams(foreground=None,
                           person=PersonParams(min_cameras=min_cameras, nms_radius_m=nms_radius_m))
-    gt = epfl_ground_truth(seq)
     pairs = []
     for _, det in camera_detections(epfl_box_frames(seq, frames, boxes=boxes, foot_fraction=foot_fraction),
                                     lookups, stack, params, names=seq.names):
@@ -134,3 +163,17 @@ def simulated(
                  if det.time_s >= warmup_s]
         rows.append((name, detection_scores(pairs, match_distance_m).as_dict()))
     _print_scores(f"simulated default scene, seed {seed}, {duration_s:g} s, foreground: {method}", rows)
+
+
+@cameras_app.command("epfl-tsai")
+def epfl_tsai(
+    out_dir: Path = typer.Argument(..., help="Folder to write <camera>.xml into (created)."),
+) -> None:
+    """Write EPFL terrace's Tsai calibration (c0..c3, 720x576 px, world in mm) as EPFL's XML files, for
+    planefuse import --calib-format tsai --units mm."""
+    from ..calib import EPFL_TERRACE_TSAI, write_tsai_xml
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for name, cam in EPFL_TERRACE_TSAI.items():
+        write_tsai_xml(out_dir / f"{name}.xml", cam)
+    console.print(f"wrote {', '.join(f'{n}.xml' for n in EPFL_TERRACE_TSAI)} in {out_dir}", highlight=False)

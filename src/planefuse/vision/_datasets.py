@@ -54,7 +54,7 @@ class EpflSequence:
     names : list of str
         Camera folder names (``terrace1-c0``...).
     homographies : list of EpflGroundHomography
-        Image -> ground (metres for terrace, top-view units otherwise).
+        Image -> ground [m].
     boxes : list of EpflBoxes
         Rows of each camera's ``gt/gt.txt``.
     """
@@ -69,19 +69,36 @@ class EpflSequence:
         return np.unique(np.concatenate([b.frame for b in self.boxes]))
 
 
-def load_epfl_sequence(root, sequence: str = "terrace1") -> EpflSequence:
-    """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``.
+def load_epfl_sequence(root, sequence: str = "terrace1", *, ground_unit_m: float | None = None) -> EpflSequence:
+    """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``, ground in metres.
 
-    ``root`` may be the data-set folder or its ``EPFL-Terrace`` / ``EPFL-Laboratory``
-    sub-folder. Terrace homographies are made metric with
-    :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE`; other sequences stay in
-    top-view units.
+    ``root`` may be the data-set folder or its ``EPFL-Terrace`` / ``EPFL-Laboratory`` sub-folder.
+
+    Parameters
+    ----------
+    ground_unit_m : float, optional
+        Metres per top-view unit of the homographies (top-view axes kept). Terrace sequences default to
+        :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE` (the Tsai world, ~2.19 cm per unit); any other sequence
+        must give it (EPFL's files carry no unit; the laboratory's is 0.02 according to Al-Sa'd et al.).
+
+    Raises
+    ------
+    ValueError
+        No camera folder, or a sequence other than the terrace without ``ground_unit_m``.
     """
     root = Path(root)
     dirs = sorted(p for p in root.rglob(f"{sequence}-c*") if p.is_dir() and (p / "Homography.txt").is_file())
     if not dirs:
         raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders")
-    W = H_WORLD_TOPVIEW_TERRACE if sequence.startswith("terrace") else None
+    if ground_unit_m is not None:
+        if not (np.isfinite(ground_unit_m) and ground_unit_m > 0):
+            raise ValueError(f"ground_unit_m must be a positive number of metres, got {ground_unit_m}")
+        W = np.diag([ground_unit_m, ground_unit_m, 1.0])
+    elif sequence.startswith("terrace"):
+        W = H_WORLD_TOPVIEW_TERRACE
+    else:
+        raise ValueError(f"{dirs[0] / 'Homography.txt'}: the ground unit of sequence {sequence!r} is unknown (EPFL's "
+                         "files carry none): give it in metres (ground_unit_m / --ground-unit-m)")
     homs = [load_epfl_homography(d / "Homography.txt", H_world_topview=W) for d in dirs]
     boxes = [load_epfl_boxes(d / "gt" / "gt.txt") for d in dirs]
     return EpflSequence([d.name for d in dirs], homs, boxes)

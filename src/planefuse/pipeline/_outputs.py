@@ -8,13 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..eval import system_metrics
 from ..io import Recording
 from ..io._paths import check_name
 from ..outputs import OutputSettings, OutputWriter, atomic_write_bytes, progress_steps, rows_by_step
 from ..viz import FigureInputs
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
-from ._system import SystemParams, SystemResult, SystemRun, evaluate_system, evaluate_steps, run_system, \
+from ._system import SystemParams, SystemResult, SystemRun, evaluate_system, run_system, \
     stack_for_recording
 
 __all__ = ["run_plan", "run_to_folder", "write_presentation"]
@@ -229,7 +230,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
         metrics = {}
         if rec.groundtruth is not None and rec.groundtruth.people is not None:
             with progress.step("evaluate", total=1, unit="runs") as advance:
-                metrics = evaluate_steps(rec, times, det_xy, tracks, run.report, result.elapsed_s,
+                metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)
                 metrics["resumed_at_step"] = run.resumed_at_step
                 advance(1)

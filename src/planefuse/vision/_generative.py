@@ -9,7 +9,7 @@ Its output on the stack, for the Bayesian occupancy filter (docs/cameras.md, "Ge
 
     eps      = people_per_m2 * cell_size_m^2                        prior of a location
     P_occ(X) = 1 - prod_{k: |x_k - X| <= radius_m} (1 - q_k)         a body covers cell X (some person within r)
-    P_0      = 1 - (1 - eps)^{n_disc}                               the same before the images
+    P_0(X)   = 1 - (1 - eps)^{n_disc(X)}                            the same before the images (disc cut at the edge)
     L_l(X)   = clip(logit P_occ(X) - logit P_0, +-max_log_odds)     on every plane l inside the person's volume
 
 i.e. the posterior log-odds of the cell minus its prior log-odds: the log-likelihood ratio the images carry
@@ -126,6 +126,9 @@ class GenerativeCameraSensor:
         self._blind = [np.zeros(s.shape, bool) for s in self._observed]
         self._disc = _disc(params.radius_m / stack.cell_size_m)
         self._solver_params = params.solver_params(stack)
+        # the prior's log P(no person within r) per cell, with the same truncation of the disc at the grid's edge
+        self._log_free0 = cv2.filter2D(np.full((stack.ny, stack.nx), np.log1p(-self._solver_params.prior)),
+                                       cv2.CV_64F, self._disc, borderType=cv2.BORDER_CONSTANT)
         band_mid = 0.5 * (np.asarray(stack.band_edges_m[:-1]) + np.asarray(stack.band_edges_m[1:]))
         lo, hi = self.person.height_range_m
         self._planes = (band_mid >= lo) & (band_mid <= hi)
@@ -172,7 +175,7 @@ class GenerativeCameraSensor:
         eps = self._solver_params.prior
         log_free = cv2.filter2D(np.log1p(-np.clip(q, 0.0, 1.0 - 1e-12)), cv2.CV_64F, self._disc,
                                 borderType=cv2.BORDER_CONSTANT)
-        log_free0 = self._disc.sum() * np.log1p(-eps)
+        log_free0 = self._log_free0
         # logit(1 - e^a) - logit(1 - e^a0), written with expm1 for the small-mass cells
         ev = (np.log(-np.expm1(np.minimum(log_free, -1e-300))) - log_free) \
             - (np.log(-np.expm1(log_free0)) - log_free0)

@@ -53,6 +53,10 @@ class GenerativeSensorParams:
         Bound on the evidence of one instant per cell (so that one frame cannot saturate the filter).
     detection_mass : float
         A person is reported where the expected number of people within ``radius_m`` reaches this.
+    foreground_threshold : float or None
+        Foreground likelihoods at or above this are foreground (1), the rest background (0), as POM's binary
+        masks; None keeps the likelihoods. A subtractor's floor (0.02 on every background pixel) otherwise
+        sums, over a whole image, to more than the silhouettes of several people.
     """
 
     people_per_m2: float = 0.05
@@ -61,6 +65,7 @@ class GenerativeSensorParams:
     height_range_m: tuple[float, float] | None = None
     max_log_odds: float = 6.0
     detection_mass: float = 0.5
+    foreground_threshold: float | None = 0.5
 
     def __post_init__(self) -> None:
         for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass"):
@@ -81,6 +86,12 @@ class GenerativeSensorParams:
             raise ValueError(f"people_per_m2 {self.people_per_m2} with {stack.cell_size_m} m cells gives a location "
                              f"prior of {prior}; expected below 0.5")
         return GenerativeParams(prior=prior, sigma=self.sigma)
+
+
+def _likelihood(image) -> np.ndarray:
+    """Foreground likelihood in [0, 1] of a bool, uint8 (0..255) or float image."""
+    a = np.asarray(image)
+    return a / 255.0 if a.dtype == np.uint8 else a
 
 
 def _disc(radius_cells: float) -> np.ndarray:
@@ -164,7 +175,9 @@ class GenerativeCameraSensor:
         """Posterior marginals ``q`` (ny, nx) of one instant; a camera with no frame (None) gives no evidence."""
         if len(foregrounds) != self.n_cameras:
             raise ValueError(f"expected {self.n_cameras} foreground images (None for missing), got {len(foregrounds)}")
-        fg = [np.zeros(o.shape) if f is None else f for f, o in zip(foregrounds, self._observed)]
+        thr = self.params.foreground_threshold
+        fg = [np.zeros(o.shape) if f is None else f if thr is None else _likelihood(f) >= thr
+              for f, o in zip(foregrounds, self._observed)]
         obs = [b if f is None else o for f, o, b in zip(foregrounds, self._observed, self._blind)]
         q = self._solver.solve(fg, obs).marginals.reshape(self.stack.ny, self.stack.nx)
         self.last_marginals = q

@@ -118,10 +118,12 @@ def part_b(exe: Path | None, work: Path, seeds, duration_s: float, every: int, c
                 d = work / f"seed{seed}-{'knn' if fg_name == 'KNN' else 'masks'}"
                 (d / "masks").mkdir(parents=True)
                 (d / "out").mkdir()
+                # POM gets the binary masks the generative model solves on (foreground_threshold)
+                thr = sensor.params.foreground_threshold
                 for f, fg in enumerate(fgs):
                     for c, img in enumerate(fg):
                         cv2.imwrite(str(d / "masks" / f"f{f}-c{c}.png"),
-                                    np.round(255 * np.asarray(img, float)).astype(np.uint8))
+                                    np.where(np.asarray(img, float) >= thr, 255, 0).astype(np.uint8))
                 write_pom(d / "sim.pom", sensor.silhouettes, sensor._solver_params,
                           input_view_format="masks/f%f-c%c.png", result_format="out/proba-f%f.dat",
                           process=(0, len(fgs)))

@@ -62,8 +62,9 @@ def pom(
 def pom_export(
     config: Path = typer.Argument(..., help="Run configuration (its recording, cameras and planes)."),
     out: Path = typer.Argument(..., help=".pom file to write."),
-    masks: bool = typer.Option(False, "--masks", help="Also write the recording's foreground masks (background "
-                               "subtraction as configured) as masks/f<instant>-c<camera>.png beside OUT."),
+    masks: bool = typer.Option(False, "--masks", help="Also write the recording's binary foreground masks (background "
+                               "subtraction as configured, likelihood >= 0.5) as masks/f<instant>-c<camera>.png "
+                               "beside OUT."),
     n_frames: int = typer.Option(None, help="Instants to write masks of (default: all)."),
     radius_m: float = typer.Option(0.25, help="Radius of the person's cylinder [m]."),
 ) -> None:
@@ -91,6 +92,7 @@ def pom_export(
     sil = silhouettes_from_cameras(rec.cameras, stack, PersonVolume.from_stack(stack, radius_m=radius_m))
     solver = params.generative.solver_params(stack)
     n_written = 0
+    thr = params.generative.foreground_threshold or 0.5
     if masks:
         folder = out.parent / "masks"
         folder.mkdir(parents=True, exist_ok=True)
@@ -103,7 +105,9 @@ def pom_export(
             for c, img in enumerate(images):
                 fg = np.zeros(sil.image_sizes[c]) if img is None else (
                     img / 255.0 if subs[c] is None else subs[c].apply(img))
-                cv2.imwrite(str(folder / f"f{i}-c{c}.png"), np.round(255 * np.asarray(fg, float)).astype(np.uint8))
+                # binary, as POM's masks and as the generative model's input (foreground_threshold)
+                cv2.imwrite(str(folder / f"f{i}-c{c}.png"),
+                            np.where(np.asarray(fg, float) >= thr, 255, 0).astype(np.uint8))
             n_written = i + 1
     comment = (f"written by planefuse pom-export from {config}\n"
                f"locations: cells of a {stack.ny} x {stack.nx} grid, x_min {stack.x_min_m} m, y_min {stack.y_min_m} m, "

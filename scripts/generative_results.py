@@ -124,7 +124,7 @@ def part_b(exe: Path | None, work: Path, seeds, duration_s: float, every: int, c
                     for c, img in enumerate(fg):
                         cv2.imwrite(str(d / "masks" / f"f{f}-c{c}.png"),
                                     np.where(np.asarray(img, float) >= thr, 255, 0).astype(np.uint8))
-                write_pom(d / "sim.pom", sensor.silhouettes, sensor._solver_params,
+                write_pom(d / "sim.pom", sensor.silhouettes, sensor.solver_params,
                           input_view_format="masks/f%f-c%c.png", result_format="out/proba-f%f.dat",
                           process=(0, len(fgs)))
                 q_pom, _ = run_pom_program(exe, d / "sim.pom", sensor.silhouettes.n_locations,

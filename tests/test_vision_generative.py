@@ -88,7 +88,7 @@ def test_config_selects_the_generative_model_in_the_camera_source(tmp_path):
     generative model (people found on a simulated recording, evidence bounded by max_log_odds)."""
     from planefuse.config import load_config
     from planefuse.io import read_recording
-    from planefuse.pipeline import system_params_from_config
+    from planefuse.pipeline import stack_for_recording
     from planefuse.pipeline._streams import ModalityReport, camera_source
     from planefuse.sim import default_scene_config, simulate
 
@@ -96,10 +96,12 @@ def test_config_selects_the_generative_model_in_the_camera_source(tmp_path):
     (tmp_path / "run.yaml").write_text("recording: rec\nplanes:\n  cell_size_m: 0.2\nsensors:\n  cameras:\n"
                                        "    sensor_model: generative\n")
     cfg = load_config(tmp_path / "run.yaml")
-    params = system_params_from_config(cfg).camera_params
+    system = cfg.system_params()
+    params = system.camera_params
     assert params.sensor_model == "generative"
     report = ModalityReport()
-    source = camera_source(read_recording(tmp_path / "rec"), cfg.planes.to_stack(), params, report)
+    rec = read_recording(tmp_path / "rec")
+    source = camera_source(rec, stack_for_recording(rec, system), params, report)
     evs = list(source.evidence())
     assert len(evs) == 10 and all(e.sensor == "cameras" for e in evs)
     assert max(float(np.abs(e.log_odds).max()) for e in evs) <= params.generative.max_log_odds + 1e-6

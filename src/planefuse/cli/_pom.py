@@ -76,7 +76,7 @@ def pom_export(
     from ..config import ConfigError, load_config
     from ..io import read_recording
     from ..occupancy import PersonVolume, silhouettes_from_cameras, write_pom
-    from ..pipeline import system_params_from_config
+    from ..pipeline import stack_for_recording
     from ..vision import BackgroundSubtractor, recording_frames
 
     try:
@@ -87,8 +87,12 @@ def pom_export(
         rec = read_recording(cfg.recording)
     except (ValueError, OSError) as exc:
         exit_with_error(f"recording {cfg.recording}: {exc}")
-    stack = cfg.planes.to_stack()
-    params = system_params_from_config(cfg).camera_params
+    system = cfg.system_params()
+    try:
+        stack = stack_for_recording(rec, system)
+    except ValueError as exc:
+        exit_with_error(f"{config}: {exc}")
+    params = system.camera_params
     sil = silhouettes_from_cameras(rec.cameras, stack, PersonVolume.from_stack(stack, radius_m=radius_m))
     solver = params.generative.solver_params(stack)
     n_written = 0

@@ -12,6 +12,8 @@ from ._manifest import (
     GroundTruthEntry,
     ImuEntry,
     LaserEntry,
+    LaserScannerDevice,
+    LaserUnitDevice,
     RecordingManifest,
     load_manifest,
 )
@@ -46,6 +48,8 @@ __all__ = [
     "GroundTruthEntry",
     "ImuEntry",
     "LaserEntry",
+    "LaserScannerDevice",
+    "LaserUnitDevice",
     "RecordingManifest",
     "load_manifest",
     "Event",

@@ -161,7 +161,7 @@ MUTATIONS = [
     # -- camera fusion ---------------------------------------------------------------------------------------------
     M("VIS-1", "vision", "src/planefuse/vision/_fusion.py",
       "np.log(f * pfa + (1 - f) * (1 - pfa))", "np.log(f * pfa + (1 - f) * pfa)",
-      "sensor model: P(background | free) wrong", VISION),
+      "sensor model: P(background given free) wrong", VISION),
     M("VIS-2", "vision", "src/planefuse/vision/_fusion.py",
       "            if k >= 0:\n                out[n]", "            if k > 0:\n                out[n]",
       "fusion kernel: off by one (pixel 0 of camera 0 ignored)", VISION),

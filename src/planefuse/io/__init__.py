@@ -4,6 +4,7 @@ See ``docs/recording-format.md``. ``read_recording(dir)`` opens a folder lazily;
 writes one (simulated recordings come from :func:`planefuse.sim.simulate`).
 """
 
+from ._imu_logs import IMU_REFERENCE_COLUMNS, XIO_COLUMNS, ImuLog, read_imu_log
 from ._groundtruth import BODY_COLUMNS, PEOPLE_COLUMNS, SOUND_COLUMNS, GroundTruth, PeopleTruth, SoundTruth
 from ._manifest import (
     MANIFEST_NAME,
@@ -37,6 +38,10 @@ __all__ = [
     "PEOPLE_COLUMNS",
     "SOUND_COLUMNS",
     "IMU_COLUMNS",
+    "IMU_REFERENCE_COLUMNS",
+    "XIO_COLUMNS",
+    "ImuLog",
+    "read_imu_log",
     "MANIFEST_NAME",
     "GroundTruth",
     "PeopleTruth",

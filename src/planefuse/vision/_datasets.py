@@ -33,6 +33,7 @@ __all__ = [
     "epfl_box_frames",
     "epfl_ground_truth",
     "epfl_lookups",
+    "epfl_sequences",
     "image_folder_frames",
     "load_epfl_sequence",
     "read_epfl_detections",
@@ -69,19 +70,48 @@ class EpflSequence:
         return np.unique(np.concatenate([b.frame for b in self.boxes]))
 
 
-def load_epfl_sequence(root, sequence: str = "terrace1") -> EpflSequence:
+def epfl_sequences(root) -> dict[str, int]:
+    """EPFL sequences under ``root``: name -> number of ``<name>-c<k>/Homography.txt`` camera folders."""
+    found: dict[str, int] = {}
+    for h in Path(root).rglob("Homography.txt"):
+        m = re.fullmatch(r"(.+)-c\d+", h.parent.name)
+        if m:
+            found[m.group(1)] = found.get(m.group(1), 0) + 1
+    return dict(sorted(found.items()))
+
+
+def load_epfl_sequence(root, sequence: str = "terrace1", metres_per_unit: float | None = None) -> EpflSequence:
     """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``.
 
     ``root`` may be the data-set folder or its ``EPFL-Terrace`` / ``EPFL-Laboratory``
     sub-folder. Terrace homographies are made metric with
-    :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE`; other sequences stay in
-    top-view units.
+    :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE`; other sequences are scaled by
+    ``metres_per_unit`` [m per top-view unit] when it is given, else stay in top-view units.
+
+    Raises
+    ------
+    ValueError
+        ``root`` is not a folder, or holds no camera folder of ``sequence`` (the message lists the
+        sequences it holds), or a homography / ``gt.txt`` does not load.
     """
     root = Path(root)
+    if not root.is_dir():
+        raise ValueError(f"{root}: not a folder (EPFL data: <sequence>-c<k>/Homography.txt and gt/gt.txt)")
     dirs = sorted(p for p in root.rglob(f"{sequence}-c*") if p.is_dir() and (p / "Homography.txt").is_file())
     if not dirs:
-        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders")
-    W = H_WORLD_TOPVIEW_TERRACE if sequence.startswith("terrace") else None
+        there = epfl_sequences(root)
+        if there:
+            what = "it holds " + ", ".join(f"{k} ({n} cameras)" for k, n in there.items())
+        else:
+            entries = sorted(p.name for p in root.iterdir())[:8]
+            what = f"it holds no EPFL camera folder at all (entries: {entries})"
+        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders; {what}")
+    if metres_per_unit is not None:
+        if not np.isfinite(metres_per_unit) or metres_per_unit <= 0:
+            raise ValueError(f"metres_per_unit must be a positive length [m], got {metres_per_unit}")
+        W = np.diag([metres_per_unit, metres_per_unit, 1.0])
+    else:
+        W = H_WORLD_TOPVIEW_TERRACE if sequence.startswith("terrace") else None
     homs = [load_epfl_homography(d / "Homography.txt", H_world_topview=W) for d in dirs]
     boxes = [load_epfl_boxes(d / "gt" / "gt.txt") for d in dirs]
     return EpflSequence([d.name for d in dirs], homs, boxes)
@@ -240,7 +270,9 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     names = sorted(rig)
     sub = Path(root) / "Image_subsets"
     if not sub.is_dir():
-        raise ValueError(f"{root}: no 'Image_subsets/' folder with the camera frames")
+        held = sorted(p.name for p in Path(root).iterdir())
+        raise ValueError(f"{root}: no 'Image_subsets/C<i>/' frame sequences (it holds {held}); background "
+                         "subtraction needs frames over time, single images per camera are not enough")
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 

@@ -51,7 +51,7 @@ def units_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[obje
     Cells wrap (they are never cut) so that the table fits the terminal; the first column is left-aligned,
     the others right-aligned when ``right``.
     """
-    table = Table(title=escape(title), caption=escape(caption) if caption else None)
+    table = Table(title=escape(title), caption=escape(caption) if caption else None, show_edge=False)
     for i, col in enumerate(columns):
         table.add_column(escape(col), justify="right" if right and i else "left", overflow="fold")
     for row in rows:

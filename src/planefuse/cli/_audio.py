@@ -119,7 +119,7 @@ def evaluate(
     hrir_interpolation: str = typer.Option("barycentric", help=_INTERPOLATION_HELP),
     speech: Path | None = typer.Option(None, help="Mono speech file for the evaluation (default: speech-like, "
                                        "another seed than the calibration)."),
-    duration_s: float = typer.Option(2.0, help="Seconds of speech per azimuth."),
+    duration_s: float = typer.Option(2.0, help="Speech per azimuth [s]."),
     step_deg: float = typer.Option(10.0, help="Azimuth step of the sweep -90..90 [deg]."),
     rt60_s: float = typer.Option(0.3, help="Reverberation time of the 6 x 5 x 3 m room [s]."),
     snr_db: float = typer.Option(20.0, help="Sensor SNR [dB]."),

@@ -57,9 +57,10 @@ def attitude(
              _fmt(s.rest_rms_deg, 3)) for s in scores]
     caption = ("RMSE, p95, max: inclination error against the reference" if ref != "none"
                else "no reference attitude in the file: only the at-rest error is scored") + \
-        "; rest: samples still after settle_s, RMS angle to the accelerometer's up direction"
-    console.print(units_table(title, ("filter", "scored", "RMSE [deg]", "p95 [deg]", "max [deg]", "rest",
-                                      "rest RMS [deg]"), rows, caption=caption))
+        ("; still: samples at rest after settle_s, and the RMS angle of the estimated up direction to the "
+         "accelerometer's there")
+    console.print(units_table(title, ("filter", "scored", "RMSE [deg]", "p95 [deg]", "max [deg]", "still",
+                                      "still [deg]"), rows, caption=caption))
     if attitude_csv:
         from scipy.spatial.transform import Rotation
 

@@ -216,6 +216,7 @@ def test_laser_legs_reproduces_the_docs(tmp_path):
     bag = shared_data("lrf2d_people_leg_tracker") / "positive_1_extracted.bag"
     code, out = invoke(["laser", "legs", bag, "--json-out", tmp_path / "legs.json"])
     assert code == 0, out
+    assert max(len(ln) for ln in out.splitlines() if not ln.startswith("wrote")) <= 80
     res = json.loads((tmp_path / "legs.json").read_text())
     s = res["leg_scores"]
     assert (s["tp"], s["fp"], s["fn"]) == (323, 10, 1) and round(s["f1"], 3) == 0.983  # docs/results.md
@@ -290,6 +291,7 @@ def test_cameras_epfl_names_the_sequences_a_folder_holds(laboratory_like, tmp_pa
     code, out = invoke(["cameras", "epfl", laboratory_like, "--sequence", "laboratory6", "--metres-per-unit",
                         "0.0219", "--step", "50", "--json-out", tmp_path / "lab.json"])
     assert code == 0, out
+    assert "thr [m]" in out and max(len(ln) for ln in out.splitlines() if not ln.startswith("wrote")) <= 80
     scores = json.loads((tmp_path / "lab.json").read_text())
     assert scores[0]["frames"] == 12 and scores[1]["moda"] > 0.5
     code, out = invoke(["cameras", "epfl", shared_data("imu_broad")])

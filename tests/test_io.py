@@ -94,7 +94,7 @@ def test_round_trip_is_identical(written):
         la, lb = rec.laser(name).read(), back.laser(name).read()
         for f in ("times_s", "angles_rad", "ranges_m", "tilt_rad"):
             np.testing.assert_array_equal(getattr(la, f), getattr(lb, f))
-        np.testing.assert_array_equal(back.laser(name).T_world_base, rec.laser(name).T_world_base)
+        np.testing.assert_array_equal(back.laser(name).T_world_laser, rec.laser(name).T_world_laser)
         assert back.laser(name).model == rec.laser(name).model
     np.testing.assert_array_equal(rec.laser("syn_laser").read().extra["T_world_scanner"],
                                   back.laser("syn_laser").read().extra["T_world_scanner"])

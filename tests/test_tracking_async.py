@@ -98,7 +98,7 @@ def test_too_late_messages_are_reported_not_fused(rng):
 def test_prediction_covers_elapsed_time_whatever_the_rates():
     """Fusing evidence at irregular stamps = predicting over each gap: one long gap equals many short ones
     for an unobserved region (exact exponential relaxation to the prior)."""
-    params = BOFParams(decay_rate_hz=1.0, prior_occupancy=0.1, velocity_max_mps=0.5)  # borders: 3 cells
+    params = BOFParams(decay_rate_hz=1.0, prior_occupancy=0.1, velocity_max_m_s=0.5)  # borders: 3 cells
     a = BayesianOccupancyFilter(STACK, params)
     b = BayesianOccupancyFilter(STACK, params)
     lo = np.full(STACK.shape, 3.0, np.float32)

@@ -44,7 +44,7 @@ def _print_scores(title: str, rows: list[tuple[str | None, dict]]) -> None:
     named = any(name for name, _ in rows)
     console.print(units_table(
         title, ("run",) * named + ("thr [m]", "frames", "GT", "TP", "FP", "FN", "MODA", "MODP", "prec.", "recall"),
-        [(name,) * named + (f"{s['threshold_m']:.2f}", s["frames"], s["gt"], s["tp"], s["fp"], s["fn"],
+        [(name,) * named + (f"{s['match_distance_m']:.2f}", s["frames"], s["gt"], s["tp"], s["fp"], s["fn"],
                             f"{s['moda']:.3f}", f"{s['modp']:.3f}", f"{s['precision']:.3f}", f"{s['recall']:.3f}")
          for name, s in rows],
         caption="thr: match distance [m]; GT: ground-truth people; MODA = 1 - (FN + FP) / GT; MODP: mean "
@@ -140,7 +140,7 @@ def simulated(
     heights: str = typer.Option("0.1,0.5,1.0,1.5", help="Plane heights [m] of the multi-plane run."),
     method: str = typer.Option("knn", help="Background subtraction: knn, mog2, or 'masks' (exact masks)."),
     warmup_s: float = typer.Option(2.0, help="Seconds left out of the scores while the background is learnt [s]."),
-    threshold_m: float = typer.Option(0.5, help="Match distance [m]."),
+    match_distance_m: float = typer.Option(0.5, "--match-distance-m", help="Match distance [m]."),
 ) -> None:
     """Score the camera pipeline on the simulator's default scene, multi-plane vs ground plane alone."""
     from ..sim import default_scene_config, simulate
@@ -156,5 +156,5 @@ def simulated(
                  for _, det in camera_detections(recording_frames(rec, masks=fg is None), lookups, stack,
                                                  CameraParams(foreground=fg), names=[c.name for c in rec.cameras])
                  if det.time_s >= warmup_s]
-        rows.append((name, detection_scores(pairs, threshold_m).as_dict()))
+        rows.append((name, detection_scores(pairs, match_distance_m).as_dict()))
     _print_scores(f"simulated default scene, seed {seed}, {duration_s:g} s, foreground: {method}", rows)

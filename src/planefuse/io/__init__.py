@@ -13,6 +13,8 @@ from ._manifest import (
     GroundTruthEntry,
     ImuEntry,
     LaserEntry,
+    LaserScannerDevice,
+    LaserUnitDevice,
     RecordingManifest,
     load_manifest,
 )
@@ -51,6 +53,8 @@ __all__ = [
     "GroundTruthEntry",
     "ImuEntry",
     "LaserEntry",
+    "LaserScannerDevice",
+    "LaserUnitDevice",
     "RecordingManifest",
     "load_manifest",
     "Event",

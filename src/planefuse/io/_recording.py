@@ -225,7 +225,7 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
             write_laser_npz(root / rel, chunk)
             files.append(rel)
             n += len(chunk)
-        sensors.append(LaserEntry(type="laser", name=s.name, T_world_base=_matrix(s.T_world_base), rate_hz=s.rate_hz,
+        sensors.append(LaserEntry(type="laser", name=s.name, T_world_laser=_matrix(s.T_world_laser), rate_hz=s.rate_hz,
                                   n_scans=n, files=files, model=s.model))
     for s in rec.audio.values():
         rel = f"audio/{s.name}.wav"

@@ -69,7 +69,8 @@ def sweep_recordings(signal, azimuths_rad, scene: SweepScene, head: HeadModel, f
 def rendered_azimuths_rad(head: HeadModel, azimuths_rad) -> np.ndarray:
     """Azimuths [rad] (R,) in [-pi/2, pi/2] that ``head`` really renders for direct sound from ``azimuths_rad``
     (R,) at elevation 0: the lateral angle of :meth:`rendered_directions` (the nearest measured direction of
-    a snapping head, the ``grid_deg`` / ``bin_deg`` quantised direction otherwise). Score a sweep against these.
+    a snapping head, the ``bin_deg`` bin of the spherical head, the direction itself when interpolated). Score a
+    sweep against these.
     """
     d = directions_from_azimuth_elevation(np.asarray(azimuths_rad, dtype=float).reshape(-1))
     return np.arcsin(np.clip(head.rendered_directions(d)[:, 1], -1.0, 1.0))

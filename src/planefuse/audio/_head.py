@@ -7,12 +7,15 @@ The *lateral angle* ``asin(d_y)`` of a unit direction ``d`` is what a pair of
 ears on the y axis can measure: azimuths ``theta`` and ``pi - theta`` (front and
 back) share it (the cone of confusion).
 
-Every head model answers two questions for the simulator and the calibration:
+Every head model answers three questions for the simulator and the calibration:
 
-* ``direction_bins(directions_head)`` -- quantise unit directions (K, 3) into
-  integer bins that share one head-related impulse response (HRIR);
-* ``bin_hrirs(bins)`` -- the HRIRs (n, 2, n_taps) of those bins at ``fs_hz``,
-  ear 0 = left, ear 1 = right; all of them share one bulk delay.
+* ``render_impulses(directions_head, delay_samples, gain)`` -- the two-ear sum of
+  the head-related impulse responses (HRIRs, ear 0 = left, ear 1 = right, one
+  bulk delay) of impulses arriving from unit directions (K, 3): a room response;
+* ``direction_bins(directions_head)`` / ``bin_hrirs(bins)`` -- integer bins of
+  directions that share one HRIR, and the HRIRs (n, 2, n_taps) of those bins;
+* ``rendered_directions(directions_head)`` -- the directions whose HRIRs render
+  the given ones.
 
 :class:`SphericalHead` is analytic (Woodworth ITD + Brown-Duda head shadow);
 :class:`MeasuredHrirs` holds a measured set (SOFA file via ``sofar`` or the
@@ -493,10 +496,13 @@ class MeasuredHrirs:
         return self.hrirs_at(self._bin_directions(b))
 
     def rendered_directions(self, directions_head) -> np.ndarray:
-        """Unit directions (K, 3) whose HRIRs render ``directions_head`` (K, 3): the nearest measured direction
-        (``"nearest"``) or the direction quantised to ``grid_deg`` (``"barycentric"``); horizontal sets render
-        the horizontal projection."""
-        return self._bin_directions(self.direction_bins(directions_head))
+        """Unit directions (K, 3) whose HRIRs :meth:`render_impulses` uses for ``directions_head`` (K, 3): the
+        nearest measured direction (``"nearest"``) or the direction itself (``"barycentric"``); horizontal sets
+        render the horizontal projection."""
+        d = _unit_directions(directions_head)
+        if self.horizontal_only:
+            d = _horizontal(d)
+        return self.directions_head[self._nearest(d)] if self.interpolation == "nearest" else d
 
     @classmethod
     def from_sofa(cls, path, fs_hz: float = 16000.0, **kwargs) -> "MeasuredHrirs":

@@ -46,7 +46,7 @@ def _model_of(unit: TiltingUnit) -> dict:
         "scanner": {"angle_min_rad": sc.angle_min_rad, "angle_increment_rad": sc.angle_increment_rad,
                     "n_beams": sc.n_beams, "range_min_m": sc.range_min_m, "range_max_m": sc.range_max_m,
                     "range_noise_sigma_m": sc.range_noise_sigma_m, "name": sc.name},
-        "offset_tilt_scanner_m": list(unit.offset_tilt_scanner_m),
+        "offset_tilt_scanner_m": tuple(unit.offset_tilt_scanner_m),
         "tilt_min_rad": unit.tilt_min_rad,
         "tilt_max_rad": unit.tilt_max_rad,
         "tilt_period_s": unit.tilt_period_s,

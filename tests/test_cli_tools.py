@@ -316,3 +316,15 @@ def test_calib_show_reads_every_calibration_kind(laboratory_like):
     assert code == 1 and "'image_width': missing; give --width-px and --height-px" in one_line_error(out)
     code, out = invoke(["calib-show", shared_data("imu_broad") / "02_undisturbed_slow_rotation_B.hdf5"])
     assert code == 1 and "unknown calibration file type '.hdf5'" in one_line_error(out)
+
+
+# --- audio ------------------------------------------------------------------------------------------------
+def test_audio_commands_name_a_wrong_file(tmp_path):
+    (tmp_path / "bad.sofa").write_bytes(b"garbage")
+    code, out = invoke(["audio", "calibrate", "--out", tmp_path / "m.npz", "--head", tmp_path / "bad.sofa"])
+    assert code == 2 and "bad.sofa: not a readable SOFA file" in one_line_error(out)
+    code, out = invoke(["audio", "evaluate", "--head", tmp_path / "bad.sofa", "--hrir-interpolation", "cubic"])
+    assert code == 2 and "--hrir-interpolation must be one of barycentric, nearest" in one_line_error(out)
+    (tmp_path / "scan.wav").write_text("not audio")
+    code, out = invoke(["audio", "localize", tmp_path / "scan.wav"])
+    assert code == 2 and "scan.wav: not a readable audio file" in one_line_error(out)

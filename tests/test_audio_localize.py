@@ -324,4 +324,4 @@ def test_cli_calibrate_and_localize(tmp_path):
     assert az == pytest.approx(-30.0, abs=6.0)
     sf.write(tmp_path / "mono.wav", x[:, 0], int(FS))
     r = runner.invoke(app, ["audio", "localize", str(tmp_path / "mono.wav")])
-    assert r.exit_code != 0 and "mono" in str(r.exception)
+    assert r.exit_code == 2 and r.output.startswith("error: ") and "mono" in r.output  # one line, no traceback

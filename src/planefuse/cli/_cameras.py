@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 
 import numpy as np
 import typer
-from rich.table import Table
 
 from ..eval import detection_scores
 from ..grid import PlaneStack
@@ -27,7 +25,7 @@ from ..vision import (
     recording_frames,
     wildtrack_frames,
 )
-from ._app import app, console, exit_with_error
+from ._app import app, console, exit_with_error, units_table, write_json
 
 cameras_app = typer.Typer(help="Camera pipeline: foreground -> plane stack -> people on the ground.",
                           no_args_is_help=True)
@@ -41,15 +39,16 @@ def _heights(text: str) -> list[float]:
         raise typer.BadParameter(f"heights must be comma-separated numbers, got {text!r}") from None
 
 
-def _print_scores(title: str, rows: list[tuple[str, dict]]) -> None:
-    table = Table(title=title)
-    for col in ("run", "frames", "GT", "TP", "FP", "FN", "MODA", "MODP", "precision", "recall", "thr [m]"):
-        table.add_column(col, justify="right")
-    for name, s in rows:
-        table.add_row(name, str(s["frames"]), str(s["gt"]), str(s["tp"]), str(s["fp"]), str(s["fn"]),
-                      f"{s['moda']:.3f}", f"{s['modp']:.3f}", f"{s['precision']:.3f}", f"{s['recall']:.3f}",
-                      f"{s['match_distance_m']:.2f}")
-    console.print(table)
+def _print_scores(title: str, rows: list[tuple[str | None, dict]]) -> None:
+    """Detection scores, one row per (run name, scores); the run column is left out when no row names one."""
+    named = any(name for name, _ in rows)
+    console.print(units_table(
+        title, ("run",) * named + ("thr [m]", "frames", "GT", "TP", "FP", "FN", "MODA", "MODP", "prec.", "recall"),
+        [(name,) * named + (f"{s['match_distance_m']:.2f}", s["frames"], s["gt"], s["tp"], s["fp"], s["fn"],
+                            f"{s['moda']:.3f}", f"{s['modp']:.3f}", f"{s['precision']:.3f}", f"{s['recall']:.3f}")
+         for name, s in rows],
+        caption="thr: match distance [m]; GT: ground-truth people; MODA = 1 - (FN + FP) / GT; MODP: mean "
+                "localisation precision of the matches (1 - distance / thr)"))
 
 
 #: Largest ground grid ``planefuse cameras epfl`` builds (a wrong ground unit gives millions of cells).
@@ -78,7 +77,7 @@ def epfl_stack(gt: dict, cell_m: float, margin_m: float = 1.0) -> PlaneStack:
 @cameras_app.command("epfl")
 def epfl(
     root: Path = typer.Argument(..., help="EPFL folder holding <sequence>-c*/Homography.txt and gt/gt.txt."),
-    sequence: str = typer.Option("terrace1", help="Sequence name prefix."),
+    sequence: str = typer.Option("terrace1", help="Sequence name prefix (the folder lists the ones it holds)."),
     ground_unit_m: float = typer.Option(None, help="Metres per Homography.txt ground unit [m]. Default for terrace "
                                         "sequences: the fitted map to the Tsai world (~0.0219); required for any "
                                         "other sequence (laboratory: 0.02)."),
@@ -109,10 +108,10 @@ def epfl(
                                     lookups, stack, params, names=seq.names):
         g, ign = gt[int(round(det.time_s * 25))]
         pairs.append((g, det.xy_m, ign))
-    rows = [(f"{sequence}", detection_scores(pairs, float(t)).as_dict()) for t in _heights(thresholds_m)]
+    rows = [(None, detection_scores(pairs, float(t)).as_dict()) for t in _heights(thresholds_m)]
     _print_scores(f"EPFL {sequence}: {len(frames)} frames, {len(seq.names)} cameras", rows)
     if json_out:
-        json_out.write_text(json.dumps([r for _, r in rows], indent=2))
+        write_json(json_out, [r for _, r in rows])
 
 
 @cameras_app.command("wildtrack")
@@ -124,16 +123,20 @@ def wildtrack(
                              "confidence, height_m)."),
 ) -> None:
     """Detect people in WILDTRACK frames (background subtraction, full camera model with distortion)."""
-    cameras, frames = wildtrack_frames(root)
-    stack = PlaneStack.from_extent(_heights(heights), (-3.0, 9.0), (-9.0, 27.0), cell_m)
     report = CameraReport()
-    with out.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["time_s", "x_m", "y_m", "confidence", "height_m"])
-        for _, det in camera_detections(frames, lookups_from_cameras(cameras, stack), stack, CameraParams(),
-                                        names=[c.name for c in cameras], report=report):
-            for (x, y), c, h in zip(det.xy_m, det.confidence, det.height_m):
-                w.writerow([f"{det.time_s:.3f}", f"{x:.3f}", f"{y:.3f}", f"{c:.3f}", f"{h:.2f}"])
+    try:
+        cameras, frames = wildtrack_frames(root)
+        stack = PlaneStack.from_extent(_heights(heights), (-3.0, 9.0), (-9.0, 27.0), cell_m)
+        lookups = lookups_from_cameras(cameras, stack)
+        with out.open("w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["time_s", "x_m", "y_m", "confidence", "height_m"])
+            for _, det in camera_detections(frames, lookups, stack, CameraParams(),
+                                            names=[c.name for c in cameras], report=report):
+                for (x, y), c, h in zip(det.xy_m, det.confidence, det.height_m):
+                    w.writerow([f"{det.time_s:.3f}", f"{x:.3f}", f"{y:.3f}", f"{c:.3f}", f"{h:.2f}"])
+    except ValueError as err:
+        exit_with_error(str(err))
     console.print(f"{report.instants} instants, {report.n_missing} missing frames, blind cameras: "
                   f"{report.blind_cameras or 'none'}; detections in {out}")
 
@@ -144,7 +147,7 @@ def simulated(
     seed: int = typer.Option(1, help="Scene seed."),
     heights: str = typer.Option("0.1,0.5,1.0,1.5", help="Plane heights [m] of the multi-plane run."),
     method: str = typer.Option("knn", help="Background subtraction: knn, mog2, or 'masks' (exact masks)."),
-    warmup_s: float = typer.Option(2.0, help="Seconds left out of the scores while the background is learnt."),
+    warmup_s: float = typer.Option(2.0, help="Seconds left out of the scores while the background is learnt [s]."),
     match_distance_m: float = typer.Option(0.5, "--match-distance-m", help="Match distance [m]."),
 ) -> None:
     """Score the camera pipeline on the simulator's default scene, multi-plane vs ground plane alone."""
@@ -154,7 +157,7 @@ def simulated(
     people = rec.groundtruth.people
     fg = None if method == "masks" else ForegroundParams(method=method)
     rows = []
-    for name, hs in (("multi-plane " + heights, _heights(heights)), ("ground only 0.1", [0.1])):
+    for name, hs in ((f"planes {heights} m", _heights(heights)), ("ground only, 0.1 m", [0.1])):
         stack = PlaneStack.from_extent(hs, rec.scene.room_xy_m[:2], rec.scene.room_xy_m[2:], 0.05)
         lookups = lookups_from_cameras(rec.cameras, stack)
         pairs = [(people.detections_at(det.time_s).xy_m, det.xy_m)

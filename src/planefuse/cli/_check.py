@@ -79,7 +79,7 @@ def check(
     if log_json:
         print(_report_json(report))
     else:
-        table = Table(title=f"planefuse check {config}")
+        table = Table(title=escape(f"planefuse check {config}"))
         for col in ("level", "subject", "finding"):
             table.add_column(col)
         style = {"error": "bold red", "warning": "yellow", "info": "green"}

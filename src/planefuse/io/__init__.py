@@ -20,6 +20,7 @@ from ._import import (
     read_ground_positions,
 )
 from ._validate import geometry_findings
+from ._imu_logs import IMU_REFERENCE_COLUMNS, XIO_COLUMNS, ImuLog, read_imu_log
 from ._groundtruth import BODY_COLUMNS, PEOPLE_COLUMNS, SOUND_COLUMNS, GroundTruth, PeopleTruth, SoundTruth
 from ._manifest import (
     MANIFEST_NAME,
@@ -68,6 +69,10 @@ __all__ = [
     "PEOPLE_COLUMNS",
     "SOUND_COLUMNS",
     "IMU_COLUMNS",
+    "IMU_REFERENCE_COLUMNS",
+    "XIO_COLUMNS",
+    "ImuLog",
+    "read_imu_log",
     "MANIFEST_NAME",
     "GroundTruth",
     "PeopleTruth",

@@ -33,6 +33,7 @@ __all__ = [
     "epfl_box_frames",
     "epfl_ground_truth",
     "epfl_lookups",
+    "epfl_sequences",
     "image_folder_frames",
     "load_epfl_sequence",
     "read_epfl_detections",
@@ -69,6 +70,16 @@ class EpflSequence:
         return np.unique(np.concatenate([b.frame for b in self.boxes]))
 
 
+def epfl_sequences(root) -> dict[str, int]:
+    """EPFL sequences under ``root``: name -> number of ``<name>-c<k>/Homography.txt`` camera folders."""
+    found: dict[str, int] = {}
+    for h in Path(root).rglob("Homography.txt"):
+        m = re.fullmatch(r"(.+)-c\d+", h.parent.name)
+        if m:
+            found[m.group(1)] = found.get(m.group(1), 0) + 1
+    return dict(sorted(found.items()))
+
+
 def load_epfl_sequence(root, sequence: str = "terrace1", *, ground_unit_m: float | None = None) -> EpflSequence:
     """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``, ground in metres.
 
@@ -84,15 +95,25 @@ def load_epfl_sequence(root, sequence: str = "terrace1", *, ground_unit_m: float
     Raises
     ------
     ValueError
-        No camera folder, or a sequence other than the terrace without ``ground_unit_m``.
+        ``root`` is not a folder, holds no camera folder of ``sequence`` (the message lists the sequences it
+        holds), a sequence other than the terrace comes without ``ground_unit_m``, or a homography /
+        ``gt.txt`` does not load.
     """
     root = Path(root)
+    if not root.is_dir():
+        raise ValueError(f"{root}: not a folder (EPFL data: <sequence>-c<k>/Homography.txt and gt/gt.txt)")
     dirs = sorted(p for p in root.rglob(f"{sequence}-c*") if p.is_dir() and (p / "Homography.txt").is_file())
     if not dirs:
-        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders")
+        there = epfl_sequences(root)
+        if there:
+            what = "it holds " + ", ".join(f"{k} ({n} cameras)" for k, n in there.items())
+        else:
+            entries = sorted(p.name for p in root.iterdir())[:8]
+            what = f"it holds no EPFL camera folder at all (entries: {entries})"
+        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders; {what}")
     if ground_unit_m is not None:
         if not (np.isfinite(ground_unit_m) and ground_unit_m > 0):
-            raise ValueError(f"ground_unit_m must be a positive number of metres, got {ground_unit_m}")
+            raise ValueError(f"ground_unit_m must be a positive length [m], got {ground_unit_m}")
         W = np.diag([ground_unit_m, ground_unit_m, 1.0])
     elif sequence.startswith("terrace"):
         W = H_WORLD_TOPVIEW_TERRACE
@@ -257,7 +278,9 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     names = sorted(rig)
     sub = Path(root) / "Image_subsets"
     if not sub.is_dir():
-        raise ValueError(f"{root}: no 'Image_subsets/' folder with the camera frames")
+        held = sorted(p.name for p in Path(root).iterdir())
+        raise ValueError(f"{root}: no 'Image_subsets/C<i>/' frame sequences (it holds {held}); background "
+                         "subtraction needs frames over time, single images per camera are not enough")
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 

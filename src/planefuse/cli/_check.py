@@ -109,5 +109,13 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
                f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
     sub = check_recording(rec.cameras if cfg.sensors.cameras.enabled else [], stack, times, expected, recording=rec)
     report.issues += sub.issues
+    if cfg.sensors.laser.enabled:
+        from ..laser import tilting_unit_from_device
+
+        for name in rec.lasers:
+            try:
+                tilting_unit_from_device(rec.laser(name).model)
+            except ValueError as err:
+                report.add("error", name, f"laser device entry: {err}")
     report.camera_visible_fraction = sub.camera_visible_fraction
     report.coverage_fraction = sub.coverage_fraction

@@ -136,29 +136,31 @@ class ImuEntry(_Entry):
 
 
 class LaserScannerDevice(BaseModel):
-    """The 2-D scanner of a laser unit (:class:`planefuse.laser.LaserScannerSpec`)."""
+    """The 2-D scanner of a laser unit: the fields of :class:`planefuse.laser.LaserScannerSpec`, whose rules
+    (positive increment and beams, ``0 <= range_min_m < range_max_m``) apply when the unit is built."""
 
     model_config = ConfigDict(extra="forbid")
     angle_min_rad: float
-    angle_increment_rad: float = Field(gt=0)
-    n_beams: int = Field(ge=1)
-    range_min_m: float = Field(ge=0)
-    range_max_m: float = Field(gt=0)
-    range_noise_sigma_m: float = Field(0.0, ge=0)
+    angle_increment_rad: float
+    n_beams: int
+    range_min_m: float
+    range_max_m: float
+    range_noise_sigma_m: float = 0.0
     name: str = "lrf"
 
 
 class LaserUnitDevice(BaseModel):
-    """A laser unit: its scanner on a tilt axis (:class:`planefuse.laser.TiltingUnit`; a fixed 2-D scanner has
-    tilt 0 and no offset). Frames in docs/conventions.md: {S} scanner, {L} unit (base)."""
+    """A laser unit: its scanner on a tilt axis (:class:`planefuse.laser.TiltingUnit`, built by
+    :func:`planefuse.laser.tilting_unit_from_device`; a fixed 2-D scanner has tilt 0 and no offset). Frames in
+    docs/conventions.md: {S} scanner, {L} unit (base)."""
 
     model_config = ConfigDict(extra="forbid")
     scanner: LaserScannerDevice
     offset_tilt_scanner_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     tilt_min_rad: float = 0.0
     tilt_max_rad: float = 0.0
-    tilt_period_s: float = Field(2.0, gt=0)
-    scan_duration_s: float | None = Field(None, gt=0)
+    tilt_period_s: float = 2.0
+    scan_duration_s: float | None = None
 
 
 class LaserEntry(_Entry):

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.distance import cdist
 
+from .._params import check_fields, require
 from ..eval import DetectionScores, detection_scores
 from ..grid import GroundDetections
 from ._scanner import LaserScan, points_world_from_scan
@@ -44,10 +45,11 @@ class LegDetectorParams:
     background_margin_m: float = 0.1
 
     def __post_init__(self) -> None:
-        if not 0 < self.min_width_m < self.max_width_m <= self.max_pair_width_m:
-            raise ValueError("need 0 < min_width_m < max_width_m <= max_pair_width_m")
-        if self.jump_m <= 0 or self.min_points < 1 or self.pair_distance_m <= 0 or self.background_margin_m < 0:
-            raise ValueError("jump_m, pair_distance_m must be > 0, background_margin_m >= 0 and min_points >= 1")
+        check_fields(self, jump_m=">0", min_points="int>=1", min_width_m=">0", pair_distance_m=">0",
+                     background_margin_m=">=0")
+        require(self.min_width_m < self.max_width_m <= self.max_pair_width_m, self, "min_width_m",
+                f"need min_width_m < max_width_m <= max_pair_width_m, got {self.min_width_m}, {self.max_width_m}, "
+                f"{self.max_pair_width_m}")
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,7 @@ def _times(rec: Path, cam: str, row: int, value: str) -> None:
     p = rec / "cameras" / cam / "times.csv"
     lines = p.read_text().splitlines()
     parts = lines[row + 1].split(",")
-    parts[-1] = value
+    parts[0] = value
     lines[row + 1] = ",".join(parts)
     p.write_text("\n".join(lines) + "\n")
 

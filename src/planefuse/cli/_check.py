@@ -98,6 +98,7 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
     except (ValueError, OSError) as err:
         report.add("error", "recording", f"cannot read the recording: {err}")
         return
+    _check_outputs(cfg, rec, report)
     try:
         stack = stack_for_recording(rec, cfg.system_params())
     except ValueError as err:
@@ -105,7 +106,25 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
         return
     report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
                f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
-    sub = check_recording(rec.cameras if cfg.sensors.cameras.enabled else [], stack, times, expected)
+    cams = cfg.sensors.cameras.enabled
+    sub = check_recording(rec.cameras if cams else [], stack, times, expected,
+                          frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues
     report.camera_visible_fraction = sub.camera_visible_fraction
     report.coverage_fraction = sub.coverage_fraction
+
+
+def _check_outputs(cfg: RunConfig, rec, report: CheckReport) -> None:
+    """What ``run`` would refuse about its output folder (as if run without --fresh/--force) and --rerun."""
+    from ..outputs import out_dir_problem
+    from ..pipeline import resume_key
+
+    plan = cfg.plan()
+    problem = out_dir_problem(plan.out_dir, config_hash=resume_key(plan, rec), protected=rec.root)
+    if problem is not None:
+        report.add("error", "outputs.out_dir", problem)
+    if plan.outputs.rerun:
+        try:
+            import rerun as _  # noqa: F401
+        except ImportError:
+            report.add("error", "outputs.rerun", "needs rerun-sdk: pip install 'planefuse[viz]'")

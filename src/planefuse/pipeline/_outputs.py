@@ -10,7 +10,8 @@ import numpy as np
 
 from ..io import Recording
 from ..io._paths import check_name
-from ..outputs import OutputSettings, OutputWriter, atomic_write_bytes, progress_steps, rows_by_step
+from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_write_bytes, atomic_write_text, \
+    progress_steps, rows_by_step
 from ..viz import FigureInputs
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
@@ -154,8 +155,11 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         figs = run_figures(out.stack, out.occupancy(), out.times_s(), out.detections_table(), out.tracks_table(),
                            out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
     if settings.figures:
-        for name, png in figs.items():
-            p = out.out_dir / "figures" / f"{check_name(name, 'figure name')}.png"
+        names = [f"{check_name(name, 'figure name')}.png" for name in figs]
+        # the list first: a later run deletes exactly these figures and never the user's own files there
+        atomic_write_text(out.out_dir / "figures" / FIGURES_WRITTEN, "\n".join(names) + "\n")
+        for name, file, png in zip(figs, names, figs.values()):
+            p = out.out_dir / "figures" / file
             atomic_write_bytes(p, png)
             written[name] = p
     if settings.animation != "none" and out.n_steps:
@@ -201,7 +205,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
     with progress_steps(progress_mode) as progress, OutputWriter(
         plan.out_dir, stack, config_hash=resume_key(plan, rec), chunk_steps=settings.chunk_steps,
         write_zarr=settings.zarr, config_text=text, person_radius_m=params.tracking.cluster.person_radius_m,
-        resume=plan.resume,
+        resume=plan.resume, force=plan.force, protected=rec.root,
     ) as out:
         if settings.rerun:
             from ..viz import RerunLogger
@@ -235,6 +239,13 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
                 advance(1)
             out.write_metrics(metrics)
         result.metrics = metrics
-        out.finish()
-        write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)
+        out.finish("presenting")
+        try:
+            write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)
+        except (KeyboardInterrupt, MemoryError):
+            raise
+        except Exception as exc:  # the tables are complete: say what failed, in one line, and keep them
+            raise ValueError(f"{out.out_dir}: the tables are written but the figures, animation or report failed "
+                             f"({type(exc).__name__}: {exc}); run_state.json says failed") from exc
+        out.mark_finished()  # the last thing written
     return result, metrics

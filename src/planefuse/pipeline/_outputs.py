@@ -15,8 +15,8 @@ from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_writ
 from ..viz import FigureInputs
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
-from ._system import SystemParams, SystemResult, SystemRun, evaluate_system, evaluate_steps, run_system, \
-    stack_for_recording
+from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_steps, \
+    evaluate_system, run_system, stack_for_recording
 
 __all__ = ["run_plan", "run_to_folder", "write_presentation"]
 
@@ -109,6 +109,11 @@ def _steps_from_tables(out: OutputWriter):
     return times, det_xy, tracks
 
 
+def _warn_no_evaluation(rec: Recording) -> None:
+    warnings.warn(f"{rec.source}: the recording ends within the first {EVAL_WARMUP_S:g} s skipped by the "
+                  "evaluation: no metrics computed", stacklevel=3)
+
+
 def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> tuple[SystemResult, dict]:
     """Run ``plan`` on ``rec``: into ``plan.out_dir`` (:func:`run_to_folder`), or in memory when it is None
     (the metrics of :func:`evaluate_system` where the recording has ground truth).
@@ -122,6 +127,9 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> t
         return run_to_folder(rec, plan, progress_mode=progress_mode)
     result = run_system(rec, plan.params)
     has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
+    if has_truth and not can_evaluate(rec, [o.time_s for o in result.outputs]):
+        _warn_no_evaluation(rec)
+        has_truth = False
     metrics = evaluate_system(rec, result, plan.params.match_distance_m) if has_truth else {}
     result.metrics = metrics
     return result, metrics
@@ -231,7 +239,10 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
         if out.rerun is not None:
             _log_modalities(out.rerun, rec, run.report, times)
         metrics = {}
-        if rec.groundtruth is not None and rec.groundtruth.people is not None:
+        has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
+        if has_truth and not can_evaluate(rec, times):
+            _warn_no_evaluation(rec)
+        elif has_truth:
             with progress.step("evaluate", total=1, unit="runs") as advance:
                 metrics = evaluate_steps(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)

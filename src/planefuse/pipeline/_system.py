@@ -23,7 +23,7 @@ from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_so
 
 __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system", "evaluate_steps",
            "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT", "check_cameras_against_stack",
-           "check_memory", "filter_memory_bytes", "available_memory_bytes"]
+           "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
 CHECKPOINT_FORMAT = 1
@@ -149,6 +149,20 @@ def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
         check_cameras_against_stack(rec.cameras, stack)
     check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
     return stack
+
+
+#: The evaluation skips this much of the start of a recording [s] (background models and filter learning).
+EVAL_WARMUP_S = 1.0
+
+
+def can_evaluate(rec: Recording, times_s) -> bool:
+    """True when ``rec`` has people ground truth and an output step at ``times_s`` falls in its evaluated span
+    (after the first :data:`EVAL_WARMUP_S`)."""
+    if rec.groundtruth is None or rec.groundtruth.people is None or not len(times_s):
+        return False
+    t = rec.groundtruth.people.times_s
+    times_s = np.asarray(times_s, dtype=float)
+    return bool(np.any((times_s >= t[0] + EVAL_WARMUP_S) & (times_s <= t[-1] + 1e-9)))
 
 
 #: A camera centre farther than this from the grid (horizontally or in height) [m] is taken for a unit error.
@@ -413,8 +427,11 @@ def evaluate_steps(rec: Recording, times_s: np.ndarray, detections_xy_m: Sequenc
                          f"({len(tracks)}) must have one entry per step")
     gt = rec.groundtruth.people
     # skip the first second: the background model and the filter are still learning
-    warm = gt.times_s[0] + 1.0
+    warm = gt.times_s[0] + EVAL_WARMUP_S
     keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
+    if not len(keep):
+        raise ValueError(f"no output step between {warm:g} s (after the first {EVAL_WARMUP_S:g} s, skipped by the "
+                         f"evaluation) and the end of the ground truth ({gt.times_s[-1]:g} s): nothing to evaluate")
     gt_frames = list(_gt_frames(rec, times_s[keep]))
     det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), match_distance_m)
     mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], match_distance_m=match_distance_m)

@@ -17,6 +17,7 @@ NumPy runtime warnings (NaN, division by zero) leaking from a case are counted t
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 import tempfile
@@ -67,6 +68,14 @@ def _times(rec: Path, cam: str, row: int, value: str) -> None:
     p.write_text("\n".join(lines) + "\n")
 
 
+def _drop_rows(rec: Path, cam: str, row: int, n: int) -> None:
+    p = rec / "cameras" / cam / "times.csv"
+    lines = p.read_text().splitlines()
+    kept = lines[: row + 1] + lines[row + 1 + n:]
+    p.write_text("\n".join(kept) + "\n")
+    _camera(rec, int(cam[-1]), "n_frames", len(kept) - 1)
+
+
 def _frame(rec: Path, i: int = 10) -> Path:
     return rec / "cameras" / "cam1" / "frames" / f"{i:06d}.jpg"
 
@@ -111,6 +120,7 @@ def _out_holds_foreign_files(rec: Path, cfg: dict, tmp: Path) -> None:
 
 def _no_rerun(rec: Path, cfg: dict, tmp: Path) -> None:
     sys.modules["rerun"] = None  # import rerun -> ImportError, as without rerun-sdk (restored by the caller)
+    cfg["outputs"]["rerun"] = True
 
 
 CASES = [
@@ -119,8 +129,11 @@ CASES = [
     Case("frame file truncated", lambda r, c, t: _frame(r).write_bytes(_frame(r).read_bytes()[:500]), run=True),
     Case("frame file garbage", lambda r, c, t: _frame(r).write_bytes(b"\x00garbage" * 100), run=True),
     Case("frame file empty", lambda r, c, t: _frame(r).write_bytes(b"")),
+    Case("frames dropped (a gap in the time stamps)", lambda r, c, t: _drop_rows(r, "cam1", 8, 5), run=True,
+         expect="repair"),
     Case("camera time stamp NaN", lambda r, c, t: _times(r, "cam1", 5, "nan")),
     Case("camera time stamps backwards", lambda r, c, t: _times(r, "cam1", 5, "0.0")),
+    Case("camera rate_hz in millihertz", lambda r, c, t: _camera(r, 1, "rate_hz", 25000.0e3)),
     Case("camera times_file outside the recording",
          lambda r, c, t: _camera(r, 0, "times_file", "../../../../etc/passwd")),
     Case("camera name with a slash", lambda r, c, t: _camera(r, 0, "name", "x/../../somewhere")),
@@ -164,7 +177,7 @@ CASES = [
     Case("out_dir not writable", lambda r, c, t: _set(c, "outputs.out_dir", "/proc/planefuse-out"), run=True),
     Case("out_dir holds another run's results", _out_holds_other_run, run=True),
     Case("out_dir holds the user's files", _out_holds_foreign_files, run=True),
-    Case("--rerun without rerun-sdk", _no_rerun, run=True, args=("--rerun",)),
+    Case("outputs.rerun without rerun-sdk", _no_rerun, run=True),
 ]
 
 
@@ -190,10 +203,17 @@ def _invoke(args: list[str], expect: str):
 
 
 def _last_line(result) -> str:
+    """The first error (``check --log-json``: its first error finding), else the output's last line."""
     if result.exception is not None and not isinstance(result.exception, SystemExit):
-        return f"{type(result.exception).__name__}: {result.exception}".splitlines()[0]
-    lines = [ln.strip(" │") for ln in result.output.splitlines() if "error" in ln.lower()]
-    return (lines[0] if lines else (result.output.strip().splitlines() or [""])[-1])[:110]
+        return f"{type(result.exception).__name__}: {result.exception}".splitlines()[0][:140]
+    lines = result.output.strip().splitlines() or [""]
+    try:
+        issues = json.loads(lines[-1])["issues"]
+        errors = [f"{i['subject']}: {i['message']}" for i in issues if i["level"] == "error"]
+        warns = [f"{i['subject']}: {i['message']}" for i in issues if i["level"] == "warning"]
+        return (errors or warns or ["OK"])[0][:140]
+    except (ValueError, KeyError, TypeError):
+        return " ".join(lines[-1].split())[:140]
 
 
 def run_cases(cases, rec_dir: Path, work: Path, with_run: bool = True):
@@ -212,7 +232,7 @@ def run_cases(cases, rec_dir: Path, work: Path, with_run: bool = True):
         try:
             case.corrupt(rec, cfg, tmp)
             (tmp / "run.yaml").write_text(yaml.safe_dump(cfg))
-            commands = [["check", str(tmp / "run.yaml")]]
+            commands = [["check", str(tmp / "run.yaml"), "--log-json"]]
             if with_run and case.run:
                 commands.append(["run", str(tmp / "run.yaml"), "--quiet", *case.args])
             for cmd in commands:

@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from ._app import app, console
+from ._app import app, console, exit_with_error
 
 
 @app.command()
@@ -45,8 +45,7 @@ def run(
     try:
         rec = read_recording(cfg.recording)
     except (ValueError, OSError) as exc:
-        console.print(f"[red]recording {escape(str(cfg.recording))}: {escape(str(exc))}[/red]")
-        raise typer.Exit(1) from None
+        exit_with_error(f"recording {cfg.recording}: {exc}", 1)
     plan = replace(cfg.plan(resume=not fresh), force=force)
     if rerun:
         plan = replace(plan, outputs=replace(plan.outputs, rerun=True))
@@ -54,15 +53,13 @@ def run(
         try:
             import rerun as _  # noqa: F401
         except ImportError:
-            console.print("[red]--rerun / outputs.rerun needs rerun-sdk: pip install 'planefuse[viz]'[/red]")
-            raise typer.Exit(2) from None
+            exit_with_error("--rerun / outputs.rerun needs rerun-sdk: pip install 'planefuse[viz]'", 2)
     try:
         _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json))
     except KeyboardInterrupt:
         console.print(f"interrupted: outputs so far are in {escape(str(plan.out_dir))}; re-run to resume")
         raise typer.Exit(130) from None
     except (ValueError, ImportError, OSError) as exc:
-        console.print(f"[red]{escape(str(exc))}[/red]")
-        raise typer.Exit(1) from None
+        exit_with_error(str(exc), 1)
     if metrics and not quiet:
         print_summary(metrics, plan.out_dir, f"planefuse run {config}")

@@ -31,6 +31,7 @@ import io
 import json
 import os
 import shutil
+import tempfile
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -98,8 +99,10 @@ def out_dir_problem(out_dir: Path | str, *, config_hash: str, resume: bool = Tru
         if p.exists():
             if not p.is_dir():
                 return f"out_dir {out}: {p} is a file, not a folder"
-            if not os.access(p, os.W_OK | os.X_OK):
-                return f"out_dir {out}: {p} is not writable"
+            try:  # os.access says yes to root everywhere: try it (read-only file systems, /proc, ...)
+                os.rmdir(tempfile.mkdtemp(prefix=f".planefuse-probe{TMP_MARK}", dir=p))
+            except OSError as exc:
+                return f"out_dir {out}: cannot write in {p} ({exc.strerror or exc})"
             break
     if not out.is_dir():
         return None

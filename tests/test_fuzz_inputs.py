@@ -26,7 +26,7 @@ from planefuse.io import read_recording
 from planefuse.pipeline import stack_for_recording
 from planefuse.sim import default_scene_config, simulate
 
-FUZZ = settings(max_examples=8, deadline=None, derandomize=True,
+FUZZ = settings(max_examples=10, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
 

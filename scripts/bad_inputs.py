@@ -237,7 +237,7 @@ def run_cases(cases, rec_dir: Path, work: Path, with_run: bool = True):
                 commands.append(["run", str(tmp / "run.yaml"), "--quiet", *case.args])
             for cmd in commands:
                 result, outcome, leaks = _invoke(cmd, case.expect)
-                rows.append((case.name, cmd[0], outcome, leaks, _last_line(result)))
+                rows.append((case.name, cmd[0], outcome, leaks, _last_line(result).replace(str(work), "<tmp>")))
         finally:
             sys.modules.clear()
             sys.modules.update(saved)

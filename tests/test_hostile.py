@@ -1,8 +1,26 @@
-"""Hostile inputs (issue 16): paths from data stay inside their folder, names that become file names are checked."""
+"""Hostile inputs (issue 16): paths from data stay inside their folder, names that become file names are checked;
+bad frames, geometry, grid sizes and output folders are clear errors; the run state is written last."""
 
+import json
+import shutil
+import sys
+import tracemalloc
+import warnings
+from pathlib import Path
+
+import numpy as np
 import pytest
+import yaml
+from typer.testing import CliRunner
 
+from planefuse.cli import app
+from planefuse.config import example_yaml
+from planefuse.geometry import apply_homography
+from planefuse.io import image_file_problem, read_recording
 from planefuse.io._paths import check_name, resolve_inside
+from planefuse.outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, out_dir_problem
+from planefuse.pipeline import RunPlan, SystemParams, _system, filter_memory_bytes, run_to_folder, stack_for_recording
+from planefuse.sim import default_scene_config, simulate
 
 
 @pytest.mark.parametrize("rel", ["../../../../etc/passwd", "/etc/passwd", "a/../../x", "C:\\x", ""])
@@ -28,29 +46,7 @@ def test_camera_name_that_would_escape_the_output_folder_is_refused(name):
         check_name(name, "sensor name")
 
 
-# -- recordings, configurations and output folders (issue 16) ---------------------------------------------------
-import json  # noqa: E402
-import shutil  # noqa: E402
-import sys  # noqa: E402
-import tracemalloc  # noqa: E402
-import warnings  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-import yaml  # noqa: E402
-from typer.testing import CliRunner  # noqa: E402
-
-from planefuse.cli import app  # noqa: E402
-from planefuse.config import example_yaml  # noqa: E402
-from planefuse.geometry import apply_homography  # noqa: E402
-from planefuse.io import image_file_problem, read_recording  # noqa: E402
-from planefuse.outputs import FIGURES_WRITTEN, OutputWriter, out_dir_problem  # noqa: E402
-from planefuse.pipeline import RunPlan, SystemParams, filter_memory_bytes, run_to_folder, stack_for_recording  # noqa: E402
-from planefuse.pipeline import _system  # noqa: E402
-from planefuse.outputs import OutputSettings  # noqa: E402
-from planefuse.sim import default_scene_config, simulate  # noqa: E402
-
-
+# -- recordings, configurations and output folders ---------------------------------------------------
 @pytest.fixture(scope="module")
 def recording_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("rec") / "scene"

@@ -71,6 +71,7 @@ CHANGED = {
     "sensors.cameras.attitude_source": "imu",
     "sensors.cameras.attitude_tolerance_px": 2.0,
     "sensors.cameras.imu_filter": "mahony",
+    "sensors.cameras.sensor_model": "generative",
     "sensors.laser.enabled": False,
     "sensors.laser.p_occupied_hit": 0.7,
     "sensors.laser.p_occupied_free": 0.3,
@@ -160,7 +161,8 @@ def _outputs(rec, cfg: RunConfig):
 #: model file; the tracker's gate, confirmation and misses only change tracks over longer runs
 #: (tests/test_tracking_tracker.py).
 RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cameras.p_foreground_given_free",
-              "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s", "models.filter.enabled",
+              "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
+              "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s"]
 
 

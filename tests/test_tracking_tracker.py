@@ -138,7 +138,7 @@ def test_empty_and_bad_input():
 
 def test_column_observed_free_on_one_body_plane_is_not_a_person():
     """A multi-camera ghost: occupied on three body planes, observed free on the fourth -> no cluster;
-    the same column with the fourth plane unobserved (at the prior) -> a cluster."""
+    the same column with the fourth plane unobserved (at the prior) -> a cluster (column threshold 2.5)."""
     centres = STACK.cell_centers_xy()
     inside = np.sum((centres - [3.0, 2.5]) ** 2, axis=-1) <= 0.25**2
     vel = np.zeros(STACK.shape + (2,))
@@ -146,4 +146,4 @@ def test_column_observed_free_on_one_body_plane_is_not_a_person():
         occ = np.full(STACK.shape, 0.05)
         occ[:3, inside] = 0.99
         occ[3, inside] = p_plane3
-        assert len(cluster_occupancy(0.0, occ, vel, STACK, 0.05)) == expected
+        assert len(cluster_occupancy(0.0, occ, vel, STACK, 0.05, ClusterParams(threshold=2.5))) == expected

@@ -13,6 +13,7 @@ from rich.table import Table
 from ..config import CheckReport, ConfigError, RunConfig, check_recording, load_config
 from ._app import app, console
 from ._config import exit_on_config_error
+from ._import import recording_check_config
 
 SCENE_FILE = "scene.yaml"
 
@@ -54,12 +55,13 @@ def _report_json(report: CheckReport) -> str:
 
 @app.command()
 def check(
-    config: Path = typer.Argument(..., help="Run configuration (YAML)."),
+    config: Path = typer.Argument(..., help="Run configuration (YAML), or a recording folder (checked with its "
+                                  "own plane stack and monitored area, 10 cm cells)."),
     log_json: bool = typer.Option(False, "--log-json", help="Print the findings as one JSON object."),
 ) -> None:
     """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running."""
     try:
-        cfg = load_config(config)
+        cfg = load_config(config) if not config.is_dir() else recording_check_config(config)
     except ConfigError as err:
         if log_json:
             print(json.dumps({"ok": False, "file": str(err.file), "issues": [
@@ -77,7 +79,7 @@ def check(
     if log_json:
         print(_report_json(report))
     else:
-        table = Table(title=f"planefuse check {config}")
+        table = Table(title=escape(f"planefuse check {config}"))
         for col in ("level", "subject", "finding"):
             table.add_column(col)
         style = {"error": "bold red", "warning": "yellow", "info": "green"}
@@ -107,7 +109,7 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
     report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
                f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
     cams = cfg.sensors.cameras.enabled
-    sub = check_recording(rec.cameras if cams else [], stack, times, expected,
+    sub = check_recording(rec.cameras if cams else [], stack, times, expected, recording=rec,
                           frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues
     report.camera_visible_fraction = sub.camera_visible_fraction

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry import PinholeCamera
 from ..grid import PlaneStack
-from ..io import image_file_problem
+from ..io import geometry_findings, image_file_problem
 from ..registration import ImagePlaneLookup
 
 __all__ = ["CheckIssue", "CheckReport", "check_recording"]
@@ -110,6 +110,7 @@ def check_recording(
     min_visible_fraction: float = 0.05,
     gap_factor: float = 10.0,
     frame_files: Mapping[str, Sequence[Path]] | None = None,
+    recording=None,
 ) -> CheckReport:
     """Check that a recording can be run with a configuration, without running it.
 
@@ -131,6 +132,9 @@ def check_recording(
     frame_files : mapping of str -> sequence of Path, optional
         Camera name -> the image file of every frame: each missing, empty, garbage or truncated file
         (:func:`planefuse.io.image_file_problem`, no decoding) is an error.
+    recording : planefuse.io.Recording, optional
+        Its control points and ground truth are checked against the cameras too
+        (:func:`planefuse.io.geometry_findings`: planes above a camera, reprojection).
 
     Returns
     -------
@@ -172,6 +176,10 @@ def check_recording(
         else:
             report.add("info", cam.name, "sees " + ", ".join(
                 f"{f:.0%} @ {h:g} m" for f, h in zip(frac, stack.heights_m)))
+    for level, subject, message in geometry_findings(
+            cameras, stack.heights_m, control_points=getattr(recording, "calibration_points", None),
+            people=getattr(getattr(recording, "groundtruth", None), "people", None)):
+        report.add(level, subject, message)
     if cameras:
         cov = (seen_by > 0).reshape(stack.n_planes, -1).mean(axis=1)
         report.coverage_fraction = cov

@@ -138,6 +138,11 @@ class CameraSensorConfig(_Model):
         expected="madgwick, mahony, ekf, complementary or ...",
         library="system.camera_params.registration.imu_filter",
     )
+    sensor_model: Literal["cell", "generative"] = _field(
+        description="Cameras' evidence on the planes: per cell (each cell scored on its own) or generative (people "
+                    "on the grid explain each whole foreground image, Fleuret et al. 2008; docs/cameras.md)",
+        expected="cell or generative", library="system.camera_params.sensor_model",
+    )
 
     @field_validator("foreground_method", mode="before")
     @classmethod

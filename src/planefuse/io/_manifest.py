@@ -108,6 +108,10 @@ class CameraEntry(_Entry):
     def _frames(self) -> CameraEntry:
         if self.times_file is None and self.video_file is None:
             raise ValueError(f"camera {self.name!r} needs a times_file (image frames) or a video_file")
+        for r in self.ignore_rects_px:
+            if r[2] > self.width_px or r[3] > self.height_px:
+                raise ValueError(f"camera {self.name!r}: ignore rectangle {list(r)} reaches past the "
+                                 f"{self.width_px}x{self.height_px} px image")
         return self
 
 class ImuEntry(_Entry):
@@ -219,6 +223,8 @@ class RecordingManifest(_Entry):
     wall_height_m: float | None = None
     sensors: list[SensorEntry] = []
     groundtruth: GroundTruthEntry | None = None
+    calibration_points_file: str | None = Field(
+        None, description="CSV camera,u_px,v_px,x_m,y_m,z_m: pixels of known world points (planefuse check)")
     source: str = ""
 
     @model_validator(mode="after")

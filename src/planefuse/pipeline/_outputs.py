@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..eval import system_metrics
 from ..io import Recording
 from ..io._paths import check_name
 from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_write_bytes, atomic_write_text, \
@@ -15,8 +16,8 @@ from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_writ
 from ..viz import FigureInputs
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
-from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_steps, \
-    evaluate_system, run_system, stack_for_recording
+from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
+    run_system, stack_for_recording
 
 __all__ = ["run_plan", "run_to_folder", "write_presentation"]
 
@@ -244,7 +245,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
             _warn_no_evaluation(rec)
         elif has_truth:
             with progress.step("evaluate", total=1, unit="runs") as advance:
-                metrics = evaluate_steps(rec, times, det_xy, tracks, run.report, result.elapsed_s,
+                metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)
                 metrics["resumed_at_step"] = run.resumed_at_step
                 advance(1)

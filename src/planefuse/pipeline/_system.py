@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -11,8 +11,7 @@ import numpy as np
 
 from .._params import check_fields, require
 from .._state import StateDict, get, sub_state, with_prefix
-from ..audio import lateral_from_azimuth
-from ..eval import detection_scores, tracking_metrics
+from ..eval import system_metrics
 from ..grid import PlaneStack
 from ..io import Recording
 from ..laser import LaserSensorModel
@@ -21,7 +20,7 @@ from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
 
-__all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system", "evaluate_steps",
+__all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system",
            "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT", "check_cameras_against_stack",
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
@@ -382,83 +381,9 @@ def run_system(
     return SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0)
 
 
-def _gt_frames(rec: Recording, times_s: np.ndarray):
-    gt = rec.groundtruth.people
-    for t in times_s:
-        yield float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]
-
-
 def evaluate_system(rec: Recording, result: SystemResult, match_distance_m: float = 0.5) -> dict:
-    """MODA/MODP/precision/recall of the filtered detections, MOTA/IDF1 of the tracks, the cameras-only
-    detection scores and the sound azimuth error, against the recording's ground truth
-    (:func:`evaluate_steps` on ``result.outputs``)."""
+    """The metrics of :func:`planefuse.eval.system_metrics` for the output steps of ``result``."""
     outs = result.outputs
-    return evaluate_steps(rec, np.array([o.time_s for o in outs]), [o.detections.xy_m for o in outs],
+    return system_metrics(rec, np.array([o.time_s for o in outs]), [o.detections.xy_m for o in outs],
                           [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outs], result.report,
                           result.elapsed_s, match_distance_m)
-
-
-def evaluate_steps(rec: Recording, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarray],
-                   tracks: Sequence[tuple[float, np.ndarray, np.ndarray]], report: ModalityReport,
-                   elapsed_s: float, match_distance_m: float = 0.5) -> dict:
-    """The metrics of :func:`evaluate_system` from the output steps alone (e.g. read back from a run folder).
-
-    Parameters
-    ----------
-    rec : Recording
-        With people ground truth.
-    times_s : ndarray, shape (T,)
-        Output step times [s].
-    detections_xy_m : sequence of ndarray (N_t, 2)
-        Filtered detections per step, world XY [m].
-    tracks : sequence of (time_s, ids (M_t,), xy_m (M_t, 2))
-        Reported tracks per step.
-    report : ModalityReport
-    elapsed_s : float
-        Computing time of the run [s] (reported as is).
-    match_distance_m : float
-        Largest distance [m] of a detection or track from the person it is matched to.
-    """
-    if rec.groundtruth is None or rec.groundtruth.people is None:
-        raise ValueError("recording has no people ground truth to evaluate against")
-    times_s = np.asarray(times_s, dtype=float)
-    if not (len(times_s) == len(detections_xy_m) == len(tracks)):
-        raise ValueError(f"times_s ({len(times_s)}), detections_xy_m ({len(detections_xy_m)}) and tracks "
-                         f"({len(tracks)}) must have one entry per step")
-    gt = rec.groundtruth.people
-    # skip the first second: the background model and the filter are still learning
-    warm = gt.times_s[0] + EVAL_WARMUP_S
-    keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
-    if not len(keep):
-        raise ValueError(f"no output step between {warm:g} s (after the first {EVAL_WARMUP_S:g} s, skipped by the "
-                         f"evaluation) and the end of the ground truth ({gt.times_s[-1]:g} s): nothing to evaluate")
-    gt_frames = list(_gt_frames(rec, times_s[keep]))
-    det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), match_distance_m)
-    mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], match_distance_m=match_distance_m)
-    m = {
-        "moda": det.moda, "modp": det.modp, "precision": det.precision, "recall": det.recall,
-        "mota": mot["mota"], "motp_m": mot.get("motp_m", float("nan")), "idf1": mot["idf1"],
-        "id_switches": int(mot.get("num_switches", 0)), "n_eval_steps": len(keep),
-        "n_people": int(len(gt.person_ids)), "elapsed_s": elapsed_s,
-        "n_camera_frames": report.n_camera_frames,
-        "n_missing_camera_frames": report.n_missing_camera_frames,
-        "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
-    }
-    cams = [d for d in report.camera_detections if d.time_s >= warm]
-    if cams:
-        cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), match_distance_m)
-        m.update(camera_only_moda=cd.moda, camera_only_modp=cd.modp)
-    snd = rec.groundtruth.sound
-    rep = report
-    if snd is not None and rep.n_sound_blocks:
-        errs = []
-        for t, az in zip(rep.sound_times_s, rep.sound_map_azimuth_rad):
-            i = int(np.argmin(np.abs(snd.times_s - t)))
-            talking = np.nonzero(snd.speaking[i])[0]
-            if len(talking) != 1 or not np.isfinite(az):
-                continue  # score single-talker blocks only
-            # lateral angles: two ears cannot tell front from back
-            errs.append(abs(lateral_from_azimuth(az) - lateral_from_azimuth(snd.azimuth_rad[i, talking[0]])))
-        m["azimuth_mae_deg"] = float(np.degrees(np.mean(errs))) if errs else float("nan")
-        m["n_sound_blocks_scored"] = len(errs)
-    return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in m.items()}

@@ -6,6 +6,7 @@ from ._datasets import (
     epfl_box_frames,
     epfl_ground_truth,
     epfl_lookups,
+    epfl_sequences,
     image_folder_frames,
     load_epfl_sequence,
     read_epfl_detections,
@@ -20,6 +21,7 @@ from ._foreground import (
     read_mot_detections,
 )
 from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio
+from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
 from ._pipeline import CameraParams, CameraReport, camera_detections, frame_is_dead, lookups_from_cameras
 
@@ -31,12 +33,15 @@ __all__ = [
     "EpflSequence",
     "ForegroundParams",
     "FusionParams",
+    "GenerativeCameraSensor",
+    "GenerativeSensorParams",
     "PersonParams",
     "camera_detections",
     "frame_is_dead",
     "epfl_box_frames",
     "epfl_ground_truth",
     "epfl_lookups",
+    "epfl_sequences",
     "foreground_from_boxes",
     "foreground_from_mask",
     "ground_detections_from_log_odds",

@@ -130,16 +130,17 @@ def test_camera_translations_in_millimetres_are_refused_naming_the_camera(rec_co
     assert code == 1 and "millimetres" in _errors(report) and "sees 100%" not in json.dumps(report)
 
 
-@pytest.mark.parametrize("heights, match", [([0.1, 1.0, 5.0], "above every camera"),
-                                            ([0.1, 1.0, 3.0], "at the height of camera 'cam0'")])
+@pytest.mark.parametrize("heights, match, check_match", [
+    ([0.1, 1.0, 5.0], "above every camera", "at or above the camera centre"),  # check: per camera
+    ([0.1, 1.0, 3.0], "at the height of camera 'cam0'", "at the height of camera 'cam0'")])
 def test_planes_above_or_level_with_the_cameras_are_refused_without_warnings(recording_dir, tmp_path, heights,
-                                                                              match):
+                                                                              match, check_match):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         with pytest.raises(ValueError, match=match):
             stack_for_recording(read_recording(recording_dir), SystemParams(heights_m=tuple(heights)))
         code, report = _check(_config(tmp_path, recording_dir, heights_m=heights))
-    assert code == 1 and match in _errors(report)
+    assert code == 1 and check_match in _errors(report)
 
 
 def test_a_grid_too_large_for_memory_is_refused_before_allocating(recording_dir, tmp_path, monkeypatch):

@@ -101,8 +101,12 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
         report.add("error", "recording", f"cannot read the recording: {err}")
         return
     _check_outputs(cfg, rec, report)
-    try:
-        stack = stack_for_recording(rec, cfg.system_params())
+    from ..pipeline import check_cameras_against_stack
+
+    try:  # planes above a camera are reported per camera by check_recording (geometry_findings)
+        stack = stack_for_recording(rec, cfg.system_params(), check_cameras=False)
+        if cfg.sensors.cameras.enabled:
+            check_cameras_against_stack(rec.cameras, stack, above=False)
     except ValueError as err:
         report.add("error", "planes", str(err))
         return

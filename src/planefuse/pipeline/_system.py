@@ -129,7 +129,7 @@ class SystemResult:
     metrics: dict = field(default_factory=dict)
 
 
-def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
+def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: bool = True) -> PlaneStack:
     """The plane stack of ``params`` on ``rec``: the configured extent, or else the recording's monitored
     area ``rec.room_xy_m`` less ``params.wall_margin_m`` on every side, so that the walls (static, seen by
     the laser) are not inside the grid; the configured heights, or else the recording's suggestion."""
@@ -144,7 +144,7 @@ def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
         x = x if x is not None else (x0 + m, x1 - m)
         y = y if y is not None else (y0 + m, y1 - m)
     stack = PlaneStack.from_extent(heights, x, y, params.cell_size_m)
-    if params.cameras:
+    if params.cameras and check_cameras:
         check_cameras_against_stack(rec.cameras, stack)
     check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
     return stack
@@ -170,7 +170,7 @@ FAR_FROM_GRID_M = 100.0
 EDGE_ON_M = 0.05
 
 
-def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack) -> None:
+def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack, *, above: bool = True) -> None:
     """Refuse camera poses and planes that cannot work together (a unit error, planes no camera looks down at).
 
     Raises
@@ -178,8 +178,9 @@ def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack) -> None:
     ValueError
         A camera centre more than :data:`FAR_FROM_GRID_M` from the grid (translations in millimetres in a
         metre recording, typically); a plane within :data:`EDGE_ON_M` of a camera's height (seen edge-on:
-        its image-plane homography is singular); a plane above every camera (none sees it from above).
-        The message names the camera or plane.
+        its image-plane homography is singular); a plane above every camera (none sees it from above; not
+        with ``above=False``: ``planefuse check`` reports a plane above any camera, per camera, with
+        :func:`planefuse.io.geometry_findings`). The message names the camera or plane.
     """
     if not cameras:
         return
@@ -201,9 +202,9 @@ def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack) -> None:
                 raise ValueError(f"the plane at {h:g} m is at the height of camera {name!r} ({hc:.3g} m), which "
                                  "sees it edge-on: move the plane (planes.heights_m)")
     top = max(heights.values())
-    above = [h for h in stack.heights_m if h > top]
-    if above:
-        raise ValueError(f"plane(s) at {', '.join(f'{h:g}' for h in above)} m above every camera (highest centre "
+    over = [h for h in stack.heights_m if h > top] if above else []
+    if over:
+        raise ValueError(f"plane(s) at {', '.join(f'{h:g}' for h in over)} m above every camera (highest centre "
                          f"{top:.3g} m): no camera sees them from above; lower them (planes.heights_m)")
 
 

@@ -71,9 +71,10 @@ def _stack(cfg) -> PlaneStack:
     return PlaneStack.from_extent(cfg.planes.heights_m, (0, 10), (0, 10), cfg.planes.cell_size_m)
 
 
-def _writer(cfg) -> OutputWriter:
+def _writer(cfg, resume: bool = True) -> OutputWriter:
     plan = cfg.plan()
-    return OutputWriter(plan.out_dir, _stack(cfg), config_hash=plan.config_key, chunk_steps=plan.outputs.chunk_steps)
+    return OutputWriter(plan.out_dir, _stack(cfg), config_hash=plan.config_key, chunk_steps=plan.outputs.chunk_steps,
+                        resume=resume)
 
 
 def _occ(stack: PlaneStack, k: int) -> np.ndarray:
@@ -160,7 +161,9 @@ def test_ctrl_c_leaves_valid_outputs_and_rerun_resumes(job, tmp_path):
     same = _writer(cfg)
     assert same.resumed and same.resume_step == 40  # only full chunks count: the short tail is recomputed
     changed = cfg.model_copy(update={"planes": cfg.planes.model_copy(update={"heights_m": [0.0, 0.7]})})
-    fresh = _writer(changed)
+    with pytest.raises(ValueError, match="results of another run"):
+        _writer(changed)  # another configuration's results are not replaced silently
+    fresh = _writer(changed, resume=False)  # --fresh
     assert not fresh.resumed and fresh.resume_step == 0 and fresh.n_steps == 0
     assert not (out_dir / "tracks.csv").exists() or read_table(out_dir / "tracks.csv")["step"].size == 0
 

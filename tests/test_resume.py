@@ -387,7 +387,7 @@ def test_killed_run_resumes_to_the_same_outputs(recording_dir, tmp_path):
 
 
 def test_a_changed_recording_is_not_resumed(recording_dir, tmp_path, monkeypatch):
-    """Same parameters, same source text and duration, but another manifest: start afresh."""
+    """Same parameters, same source text and duration, but another manifest: refused, or afresh with --fresh."""
     import shutil
 
     other = tmp_path / "other"
@@ -396,12 +396,12 @@ def test_a_changed_recording_is_not_resumed(recording_dir, tmp_path, monkeypatch
         f.write("# edited\n")
     out = tmp_path / "out"
     _run_interrupted(read_recording(recording_dir), out, monkeypatch, 6)
-    _, metrics = _run(read_recording(other), out)
+    with pytest.raises(ValueError, match="results of another run"):
+        _run(read_recording(other), out)  # neither resumed nor replaced silently
+    _, metrics = _run(read_recording(other), out, resume=False)  # `planefuse run --fresh`
     assert metrics["resumed_at_step"] == 0
     _, metrics = _run(read_recording(other), out)  # the same recording again: resumed
     assert metrics["resumed_at_step"] > 0
-    _, metrics = _run(read_recording(other), out, resume=False)  # `planefuse run --fresh`
-    assert metrics["resumed_at_step"] == 0
 
 
 def test_resumed_rerun_recording_covers_the_whole_run(recording_dir, tmp_path, monkeypatch):

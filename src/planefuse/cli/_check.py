@@ -100,14 +100,21 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
     except (ValueError, OSError) as err:
         report.add("error", "recording", f"cannot read the recording: {err}")
         return
-    try:
-        stack = stack_for_recording(rec, cfg.system_params())
+    _check_outputs(cfg, rec, report)
+    from ..pipeline import check_cameras_against_stack
+
+    try:  # planes above a camera are reported per camera by check_recording (geometry_findings)
+        stack = stack_for_recording(rec, cfg.system_params(), check_cameras=False)
+        if cfg.sensors.cameras.enabled:
+            check_cameras_against_stack(rec.cameras, stack, above=False)
     except ValueError as err:
         report.add("error", "planes", str(err))
         return
     report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
                f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
-    sub = check_recording(rec.cameras if cfg.sensors.cameras.enabled else [], stack, times, expected, recording=rec)
+    cams = cfg.sensors.cameras.enabled
+    sub = check_recording(rec.cameras if cams else [], stack, times, expected, recording=rec,
+                          frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues
     if cfg.sensors.laser.enabled:
         from ..laser import tilting_unit_from_device
@@ -119,3 +126,19 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
                 report.add("error", name, f"laser device entry: {err}")
     report.camera_visible_fraction = sub.camera_visible_fraction
     report.coverage_fraction = sub.coverage_fraction
+
+
+def _check_outputs(cfg: RunConfig, rec, report: CheckReport) -> None:
+    """What ``run`` would refuse about its output folder (as if run without --fresh/--force) and --rerun."""
+    from ..outputs import out_dir_problem
+    from ..pipeline import resume_key
+
+    plan = cfg.plan()
+    problem = out_dir_problem(plan.out_dir, config_hash=resume_key(plan, rec), protected=rec.root)
+    if problem is not None:
+        report.add("error", "outputs.out_dir", problem)
+    if plan.outputs.rerun:
+        try:
+            import rerun as _  # noqa: F401
+        except ImportError:
+            report.add("error", "outputs.rerun", "needs rerun-sdk: pip install 'planefuse[viz]'")

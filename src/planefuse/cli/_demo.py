@@ -9,7 +9,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ._app import app, console
+from ._app import app, console, exit_with_error
 
 
 @app.command()
@@ -20,7 +20,7 @@ def demo(
     quiet: bool = typer.Option(False, "--quiet", help="No progress bars."),
     rerun: bool = typer.Option(False, "--rerun", help="Also write planefuse.rrd for the rerun viewer."),
     fresh: bool = typer.Option(False, "--fresh", help="Start afresh in an --out folder holding an interrupted "
-                               "demo of the same scene (default: resume it)."),
+                               "demo of the same scene (default: resume it), replacing another run's results."),
 ) -> None:
     """Simulate the default scene (cameras+IMU, nodding laser, binaural head) and run it exactly as
     planefuse run runs a recording with the default configuration: register every modality on the plane
@@ -33,7 +33,10 @@ def demo(
     t0 = time.perf_counter()
     plan = demo_config(out, seed=seed, duration_s=duration_s, rerun=rerun).plan(resume=not fresh)
     rec = simulate(default_scene_config(duration_s=duration_s, seed=seed))
-    _, metrics = run_plan(rec, plan, progress_mode="quiet" if quiet else "rich")
+    try:
+        _, metrics = run_plan(rec, plan, progress_mode="quiet" if quiet else "rich")
+    except (ValueError, ImportError, OSError) as exc:  # a refused --out folder, a missing rerun-sdk, ...
+        exit_with_error(str(exc), 1)
     metrics["wall_time_s"] = time.perf_counter() - t0
     print_summary(metrics, out, f"planefuse demo: default simulated scene (seed {seed}, {duration_s:g} s)")
 

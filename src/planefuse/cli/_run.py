@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 from rich.markup import escape
 
-from ._app import app, console
+from ._app import app, console, exit_with_error
 
 
 @app.command()
@@ -17,13 +17,18 @@ def run(
     log_json: bool = typer.Option(False, "--log-json", help="Progress as JSON lines on stderr (for scripts)."),
     rerun: bool = typer.Option(False, "--rerun", help="Also write planefuse.rrd (overrides outputs.rerun)."),
     fresh: bool = typer.Option(False, "--fresh", help="Start afresh: do not resume the finished chunks of an "
-                               "interrupted run of the same configuration in outputs.out_dir."),
+                               "interrupted run of the same configuration in outputs.out_dir; replace the "
+                               "results of another run there."),
+    force: bool = typer.Option(False, "--force", help="Write into an outputs.out_dir holding another run's "
+                               "results (replaced) or files planefuse did not write (kept)."),
 ) -> None:
     """Register every modality of the configured recording on the planes, filter, track, evaluate (when the
     recording has ground truth) and write occupancy, detections, tracks, metrics, figures and report.html.
 
     An interrupted run (Ctrl-C, kill) re-run with the same configuration resumes after its last finished
-    chunk and ends with the same files as an uninterrupted run; --fresh starts afresh."""
+    chunk and ends with the same files as an uninterrupted run; --fresh starts afresh. An out_dir holding
+    another run's results or files planefuse did not write is refused unless --fresh/--force says so;
+    run_state.json says "finished" only once everything (figures, report included) is written."""
     from dataclasses import replace
 
     from ..config import ConfigError, load_config
@@ -40,18 +45,21 @@ def run(
     try:
         rec = read_recording(cfg.recording)
     except (ValueError, OSError) as exc:
-        console.print(f"[red]recording {escape(str(cfg.recording))}: {escape(str(exc))}[/red]")
-        raise typer.Exit(1) from None
-    plan = cfg.plan(resume=not fresh)
+        exit_with_error(f"recording {cfg.recording}: {exc}", 1)
+    plan = replace(cfg.plan(resume=not fresh), force=force)
     if rerun:
         plan = replace(plan, outputs=replace(plan.outputs, rerun=True))
+    if plan.outputs.rerun:
+        try:
+            import rerun as _  # noqa: F401
+        except ImportError:
+            exit_with_error("--rerun / outputs.rerun needs rerun-sdk: pip install 'planefuse[viz]'", 2)
     try:
         _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json))
     except KeyboardInterrupt:
         console.print(f"interrupted: outputs so far are in {escape(str(plan.out_dir))}; re-run to resume")
         raise typer.Exit(130) from None
-    except ValueError as exc:
-        console.print(f"[red]{escape(str(exc))}[/red]")
-        raise typer.Exit(1) from None
+    except (ValueError, ImportError, OSError) as exc:
+        exit_with_error(str(exc), 1)
     if metrics and not quiet:
         print_summary(metrics, plan.out_dir, f"planefuse run {config}")

@@ -9,13 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
 from ..geometry import PinholeCamera
 from ..grid import PlaneStack
-from ..io import geometry_findings
+from ..io import geometry_findings, image_file_problem
 from ..registration import ImagePlaneLookup
 
 __all__ = ["CheckIssue", "CheckReport", "check_recording"]
@@ -93,6 +94,13 @@ def _check_stream(report: CheckReport, name: str, t: np.ndarray, gap_factor: flo
     return float(t.min()), float(t.max())
 
 
+def _check_frame_files(report: CheckReport, name: str, files: Sequence[Path], shown: int = 3) -> None:
+    bad = [(p, why) for p in files if (why := image_file_problem(Path(p))) is not None]
+    if bad:
+        report.add("error", name, f"{len(bad)} of {len(files)} frame files unusable: " + "; ".join(
+            f"{p}: {why}" for p, why in bad[:shown]) + (" ..." if len(bad) > shown else ""))
+
+
 def check_recording(
     cameras: Sequence[PinholeCamera],
     stack: PlaneStack,
@@ -101,6 +109,7 @@ def check_recording(
     *,
     min_visible_fraction: float = 0.05,
     gap_factor: float = 10.0,
+    frame_files: Mapping[str, Sequence[Path]] | None = None,
     recording=None,
 ) -> CheckReport:
     """Check that a recording can be run with a configuration, without running it.
@@ -120,6 +129,9 @@ def check_recording(
         gets a warning (none at all on any plane is an error).
     gap_factor : float
         A sampling interval longer than this many median periods is reported.
+    frame_files : mapping of str -> sequence of Path, optional
+        Camera name -> the image file of every frame: each missing, empty, garbage or truncated file
+        (:func:`planefuse.io.image_file_problem`, no decoding) is an error.
     recording : planefuse.io.Recording, optional
         Its control points and ground truth are checked against the cameras too
         (:func:`planefuse.io.geometry_findings`: planes above a camera, reprojection).
@@ -134,6 +146,8 @@ def check_recording(
         if name not in stream_times_s:
             report.add("error", name, f"stream required by the configuration is missing (found: "
                        f"{', '.join(sorted(stream_times_s)) or 'none'})")
+    for name, files in (frame_files or {}).items():
+        _check_frame_files(report, name, files)
     spans = {}
     for name, t in stream_times_s.items():
         span = _check_stream(report, name, t, gap_factor)

@@ -46,12 +46,14 @@ from ._streams import (
     LaserStream,
     camera_from_entry,
     ignore_mask_from_entry,
+    image_file_problem,
 )
 from ._timestamps import Gap
 from ._video import VideoFrames, video_info
 from ._yaml import load_yaml_model
 
 __all__ = [
+    "image_file_problem",
     "CONTROL_POINT_COLUMNS",
     "IMAGE_SUFFIXES",
     "VIDEO_SUFFIXES",

@@ -65,7 +65,7 @@ class CameraEntry(_Entry):
     K: Matrix
     dist: list[float] = [0.0, 0.0, 0.0, 0.0, 0.0]
     T_world_cam: Matrix
-    rate_hz: float = Field(gt=0)
+    rate_hz: float = Field(gt=0, le=1e5)  # [Hz]; above 100 kHz is a unit error
     n_frames: int = Field(ge=0)
     times_file: str | None = Field(None, description="CSV: time_s,image_file[,mask_file] (image frames) or "
                                    "time_s,frame_index (video frames), relative to the recording")
@@ -122,7 +122,7 @@ class ImuEntry(_Entry):
     name: str
     attached_to: str
     T_cam_imu: Matrix
-    rate_hz: float = Field(gt=0)
+    rate_hz: float = Field(gt=0, le=1e5)  # [Hz]; above 100 kHz is a unit error
     n_samples: int = Field(ge=0)
     file: str
     gyro_noise_rad_s: float = Field(0.0, ge=0)
@@ -172,7 +172,7 @@ class LaserEntry(_Entry):
     type: Literal["laser"]
     name: str
     T_world_laser: Matrix = Field(validation_alias=AliasChoices("T_world_laser", "T_world_base"))
-    rate_hz: float = Field(gt=0)
+    rate_hz: float = Field(gt=0, le=1e5)  # [Hz]; above 100 kHz is a unit error
     n_scans: int = Field(ge=0)
     files: list[str]
     model: LaserUnitDevice

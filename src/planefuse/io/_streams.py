@@ -37,6 +37,7 @@ __all__ = [
     "IMU_COLUMNS",
     "camera_from_entry",
     "ignore_mask_from_entry",
+    "image_file_problem",
 ]
 
 IMU_COLUMNS = ["time_s", "gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s", "accel_x_m_s2", "accel_y_m_s2", "accel_z_m_s2"]
@@ -83,6 +84,9 @@ class CameraStream:
     ignore_mask : ndarray, shape (height_px, width_px), bool, or None
         Pixels that are not scene evidence (watermark, privacy zone...): the camera's sensor model treats
         the cells they see as unobserved. None when every pixel counts.
+    frame_files : list of Path
+        The image file of every frame of a stream recorded as images (empty for a video or a simulated
+        stream); ``planefuse check`` verifies them with :func:`image_file_problem` without decoding.
     """
 
     def __init__(self, camera: PinholeCamera, times_s, get: Callable[[int], tuple], has_masks: bool,
@@ -97,6 +101,7 @@ class CameraStream:
         self._cache: tuple[int, tuple] | None = None
         self._get_background = get_background
         self.ignore_mask: np.ndarray | None = None
+        self.frame_files: list[Path] = []  # image files of a recorded stream (empty: video or in memory)
 
     @property
     def has_background(self) -> bool:
@@ -142,10 +147,11 @@ class CameraStream:
     def from_files(cls, root: Path, entry: CameraEntry) -> CameraStream:
         """Open a recorded camera: reads ``times_file`` now (checking timestamps), images on demand
         (image files, or frames decoded from ``video_file``)."""
+        files: list[Path] = []
         if entry.video_file is not None:
             times, get, has_masks, source = _video_frames(root, entry)
         else:
-            times, get, has_masks, source = _image_frames(root, entry)
+            times, get, has_masks, source, files = _image_frames(root, entry)
         checker = TimeChecker(source, entry.rate_hz)
         checker.check(np.array(times), first_line=2)  # one row per line after the header
         if len(times) != entry.n_frames:
@@ -162,6 +168,7 @@ class CameraStream:
 
         stream = cls(camera_from_entry(entry), times, get, has_masks, entry.rate_hz, checker.gaps, bg)
         stream.ignore_mask = ignore_mask_from_entry(root, entry)
+        stream.frame_files = files
         return stream
 
 
@@ -222,7 +229,7 @@ def _image_frames(root: Path, entry: CameraEntry):
         mask = functools.partial(_read_png, masks[i], cv2.IMREAD_UNCHANGED) if masks else None
         return img, mask
 
-    return times, get, masks is not None, str(path)
+    return times, get, masks is not None, str(path), images
 
 
 def _video_frames(root: Path, entry: CameraEntry):
@@ -250,9 +257,46 @@ def _resolve(mask):
     return mask() if callable(mask) else mask
 
 
+_JPEG_START, _JPEG_END = b"\xff\xd8\xff", b"\xff\xd9"
+_PNG_START, _PNG_END = b"\x89PNG\r\n\x1a\n", b"IEND\xaeB`\x82"
+
+
+def image_file_problem(path: Path) -> str | None:
+    """What is wrong with an image file, without decoding it: missing, empty, or -- for JPEG and PNG -- not
+    starting with the format's signature (garbage) or not ending with its end marker (truncated). None when
+    nothing is (other formats are checked for existence and size only)."""
+    try:
+        size = path.stat().st_size
+        if not path.is_file():
+            return "not a file"
+        if size == 0:
+            return "empty file"
+        with open(path, "rb") as f:
+            head = f.read(8)
+            f.seek(max(0, size - 32))
+            tail = f.read()
+    except FileNotFoundError:
+        return "file not found (missing frame)"
+    except OSError as exc:
+        return f"cannot read ({exc.strerror or exc})"
+    suffix = path.suffix.lower()
+    if suffix in (".jpg", ".jpeg"):
+        if not head.startswith(_JPEG_START):
+            return "not a JPEG file (corrupt file)"
+        if _JPEG_END not in tail:
+            return "JPEG end marker missing (truncated file)"
+    elif suffix == ".png":
+        if not head.startswith(_PNG_START):
+            return "not a PNG file (corrupt file)"
+        if _PNG_END not in tail:
+            return "PNG end chunk missing (truncated file)"
+    return None
+
+
 def _read_png(path: Path, flags: int) -> np.ndarray:
-    if not path.is_file():
-        raise ValueError(f"{path}: file not found (missing frame)")
+    problem = image_file_problem(path)
+    if problem is not None:
+        raise ValueError(f"{path}: {problem}")
     img = cv2.imread(str(path), flags)
     if img is None:
         raise ValueError(f"{path}: cannot decode image (truncated or corrupt file)")

@@ -31,6 +31,7 @@ import io
 import json
 import os
 import shutil
+import tempfile
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -41,9 +42,10 @@ import numpy as np
 import zarr
 
 from ..grid import GroundDetections, PlaneStack
-from ._atomic import atomic_open, atomic_write_json, atomic_write_text, remove_stale_temporaries
+from ._atomic import TMP_MARK, atomic_open, atomic_write_json, atomic_write_text, remove_stale_temporaries
 
-__all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table", "rows_by_step"]
+__all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table", "rows_by_step",
+           "out_dir_problem", "FIGURES_WRITTEN"]
 
 DETECTION_COLUMNS = ("step", "time_s", "x_m", "y_m", "height_m", "confidence", "source")
 TRACK_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
@@ -53,6 +55,75 @@ PREVIOUS_CHECKPOINT_FILE = "checkpoint.prev.npz"
 _OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
           CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE, "metrics.json", "figures", "report.html", "animation.gif",
           "animation.mp4", "planefuse.rrd", "config.yaml", STATE_FILE)
+#: In ``figures/``: the names of the figures planefuse wrote there (the only files of it a new run deletes).
+FIGURES_WRITTEN = ".planefuse-figures"
+
+
+def _foreign_entries(out_dir: Path, owned_by_a_run: bool) -> list[str]:
+    """Entries of ``out_dir`` no planefuse run wrote (all of them in a folder without a run's state)."""
+    names = [p.name for p in out_dir.iterdir() if TMP_MARK not in p.name]
+    if not owned_by_a_run:
+        return sorted(names)
+    foreign = [n for n in names if n not in _OWNED]
+    figures = out_dir / "figures"
+    if figures.is_dir():
+        ours = _written_figures(figures)
+        foreign += [f"figures/{p.name}" for p in figures.iterdir()
+                    if p.name not in ours and p.name != FIGURES_WRITTEN and TMP_MARK not in p.name]
+    return sorted(foreign)
+
+
+def _written_figures(figures: Path) -> set[str]:
+    try:
+        return set((figures / FIGURES_WRITTEN).read_text(encoding="utf-8").split())
+    except OSError:
+        return set()
+
+
+def out_dir_problem(out_dir: Path | str, *, config_hash: str, resume: bool = True, force: bool = False,
+                    protected: Path | str | None = None) -> str | None:
+    """Why a run with ``config_hash`` must not write into ``out_dir`` (None when it may), without writing.
+
+    Refused: a folder equal to or inside ``protected`` (the recording); a path that is a file, lies below a
+    file or cannot be written; a folder holding files no planefuse run wrote (unless ``force``: they are kept);
+    a folder holding another run's results -- a different configuration or recording (unless ``force``, or
+    ``resume=False``: ``--fresh`` starts afresh and replaces them).
+    """
+    out = Path(out_dir).absolute()
+    if protected is not None:
+        rec = Path(protected).resolve()
+        if out.resolve() == rec or rec in out.resolve().parents:
+            return (f"out_dir {out} is {'the' if out.resolve() == rec else 'inside the'} recording folder {rec}: "
+                    "outputs would mix with the recording; choose another folder (outputs.out_dir)")
+    for p in (out, *out.parents):
+        if p.exists():
+            if not p.is_dir():
+                return f"out_dir {out}: {p} is a file, not a folder"
+            try:  # os.access says yes to root everywhere: try it (read-only file systems, /proc, ...)
+                os.rmdir(tempfile.mkdtemp(prefix=f".planefuse-probe{TMP_MARK}", dir=p))
+            except OSError as exc:
+                return f"out_dir {out}: cannot write in {p} ({exc.strerror or exc})"
+            break
+    if not out.is_dir():
+        return None
+    state_path = out / STATE_FILE
+    state = None
+    if state_path.exists():
+        try:
+            state = json.loads(state_path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            state = None
+    if force:
+        return None
+    foreign = _foreign_entries(out, isinstance(state, dict))
+    if foreign:
+        shown = ", ".join(foreign[:5]) + (" ..." if len(foreign) > 5 else "")
+        return (f"out_dir {out} holds files planefuse did not write ({shown}): choose an empty folder, or pass "
+                "--force to write beside them (they are kept)")
+    if resume and isinstance(state, dict) and state.get("config_hash") != config_hash:
+        return (f"out_dir {out} holds the results of another run (a different configuration or recording, "
+                f"{state.get('status', '?')}): choose another folder, or pass --fresh (or --force) to replace them")
+    return None
 
 
 def mot_rows(steps, ids, xy_m, confidence, person_radius_m: float) -> np.ndarray:
@@ -148,6 +219,15 @@ class OutputWriter:
     resume : bool
         False: start afresh even where a previous run of the same configuration left finished chunks
         (they are deleted).
+    force : bool
+        Write into a folder holding another run's results (replaced) or files no run wrote (kept).
+    protected : path-like, optional
+        A folder the outputs must not go into (the recording).
+
+    Raises
+    ------
+    ValueError
+        ``out_dir`` is refused (:func:`out_dir_problem`) or cannot be created.
 
     Attributes
     ----------
@@ -168,9 +248,15 @@ class OutputWriter:
         config_text: str = "",
         person_radius_m: float = 0.3,
         resume: bool = True,
+        force: bool = False,
+        protected: Path | str | None = None,
     ):
         if int(chunk_steps) < 1:
             raise ValueError(f"chunk_steps must be >= 1, got {chunk_steps}")
+        problem = out_dir_problem(out_dir, config_hash=str(config_hash), resume=resume, force=force,
+                                  protected=protected)
+        if problem is not None:
+            raise ValueError(problem)
         self.out_dir = Path(out_dir)
         self.stack = stack
         self.config_hash = str(config_hash)
@@ -179,7 +265,10 @@ class OutputWriter:
         self.config_text = config_text
         self.person_radius_m = float(person_radius_m)
         self.metrics: dict[str, Any] = {}
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"out_dir {self.out_dir}: cannot create the folder ({exc.strerror or exc})") from None
         remove_stale_temporaries(self.out_dir)
 
         state = self._read_state()
@@ -248,8 +337,18 @@ class OutputWriter:
         })
 
     def _clear(self) -> None:
+        """Delete what an earlier run wrote here; in ``figures/`` only the figures it listed (the user's own
+        files there are kept)."""
+        figures = self.out_dir / "figures"
+        if figures.is_dir():
+            for name in _written_figures(figures) | {FIGURES_WRITTEN}:
+                (figures / name).unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                figures.rmdir()  # only when empty
         for name in _OWNED:
             p = self.out_dir / name
+            if name == "figures":
+                continue
             if p.is_dir():
                 shutil.rmtree(p)
             elif p.exists():
@@ -467,20 +566,25 @@ class OutputWriter:
         return _columns(self._tracks.columns, self._tracks.rows)
 
     # -- ending ----------------------------------------------------------------------------------------------------
-    def finish(self) -> None:
-        """Flush the last steps and the tables, mark the run finished and close the rerun recording.
+    def finish(self, status: str = "finished") -> None:
+        """Flush the last steps and the tables, record ``status`` and close the rerun recording.
 
-        Figures, animation and report are built from the finished folder by the pipeline
-        (:func:`planefuse.pipeline.run_to_folder`), not here.
+        Figures, animation and report are built from the folder by the pipeline
+        (:func:`planefuse.pipeline.run_to_folder`), not here: it finishes with ``status="presenting"`` and
+        calls :meth:`mark_finished` when they are written, so that ``finished`` is the last thing written.
         """
         self._flush_buffer()
         self._write_tables()
         # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
         self.n_chunks_done = self._steps_written // self.chunk_steps
-        self._write_state("finished")
+        self._write_state(status)
         if self.rerun is not None:
             self.rerun.close()
             self.rerun = None
+
+    def mark_finished(self) -> None:
+        """Record the run as finished (after everything else is written)."""
+        self._write_state("finished")
 
     def summary(self) -> dict[str, Any]:
         """Counts for the report: steps, planes, grid, detections, tracks, resume information."""

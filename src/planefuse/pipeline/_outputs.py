@@ -11,12 +11,13 @@ import numpy as np
 from ..eval import system_metrics
 from ..io import Recording
 from ..io._paths import check_name
-from ..outputs import OutputSettings, OutputWriter, atomic_write_bytes, progress_steps, rows_by_step
+from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_write_bytes, atomic_write_text, \
+    progress_steps, rows_by_step
 from ..viz import FigureInputs
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
-from ._system import SystemParams, SystemResult, SystemRun, evaluate_system, run_system, \
-    stack_for_recording
+from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
+    run_system, stack_for_recording
 
 __all__ = ["run_plan", "run_to_folder", "write_presentation"]
 
@@ -109,6 +110,11 @@ def _steps_from_tables(out: OutputWriter):
     return times, det_xy, tracks
 
 
+def _warn_no_evaluation(rec: Recording) -> None:
+    warnings.warn(f"{rec.source}: the recording ends within the first {EVAL_WARMUP_S:g} s skipped by the "
+                  "evaluation: no metrics computed", stacklevel=3)
+
+
 def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> tuple[SystemResult, dict]:
     """Run ``plan`` on ``rec``: into ``plan.out_dir`` (:func:`run_to_folder`), or in memory when it is None
     (the metrics of :func:`evaluate_system` where the recording has ground truth).
@@ -122,6 +128,9 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> t
         return run_to_folder(rec, plan, progress_mode=progress_mode)
     result = run_system(rec, plan.params)
     has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
+    if has_truth and not can_evaluate(rec, [o.time_s for o in result.outputs]):
+        _warn_no_evaluation(rec)
+        has_truth = False
     metrics = evaluate_system(rec, result, plan.params.match_distance_m) if has_truth else {}
     result.metrics = metrics
     return result, metrics
@@ -155,8 +164,11 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         figs = run_figures(out.stack, out.occupancy(), out.times_s(), out.detections_table(), out.tracks_table(),
                            out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
     if settings.figures:
-        for name, png in figs.items():
-            p = out.out_dir / "figures" / f"{check_name(name, 'figure name')}.png"
+        names = [f"{check_name(name, 'figure name')}.png" for name in figs]
+        # the list first: a later run deletes exactly these figures and never the user's own files there
+        atomic_write_text(out.out_dir / "figures" / FIGURES_WRITTEN, "\n".join(names) + "\n")
+        for name, file, png in zip(figs, names, figs.values()):
+            p = out.out_dir / "figures" / file
             atomic_write_bytes(p, png)
             written[name] = p
     if settings.animation != "none" and out.n_steps:
@@ -202,7 +214,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
     with progress_steps(progress_mode) as progress, OutputWriter(
         plan.out_dir, stack, config_hash=resume_key(plan, rec), chunk_steps=settings.chunk_steps,
         write_zarr=settings.zarr, config_text=text, person_radius_m=params.tracking.cluster.person_radius_m,
-        resume=plan.resume,
+        resume=plan.resume, force=plan.force, protected=rec.root,
     ) as out:
         if settings.rerun:
             from ..viz import RerunLogger
@@ -228,7 +240,10 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
         if out.rerun is not None:
             _log_modalities(out.rerun, rec, run.report, times)
         metrics = {}
-        if rec.groundtruth is not None and rec.groundtruth.people is not None:
+        has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
+        if has_truth and not can_evaluate(rec, times):
+            _warn_no_evaluation(rec)
+        elif has_truth:
             with progress.step("evaluate", total=1, unit="runs") as advance:
                 metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)
@@ -236,6 +251,13 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
                 advance(1)
             out.write_metrics(metrics)
         result.metrics = metrics
-        out.finish()
-        write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)
+        out.finish("presenting")
+        try:
+            write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)
+        except (KeyboardInterrupt, MemoryError):
+            raise
+        except Exception as exc:  # the tables are complete: say what failed, in one line, and keep them
+            raise ValueError(f"{out.out_dir}: the tables are written but the figures, animation or report failed "
+                             f"({type(exc).__name__}: {exc}); run_state.json says failed") from exc
+        out.mark_finished()  # the last thing written
     return result, metrics

@@ -37,7 +37,9 @@ class RunPlan:
         config_hash`; "" = a hash of ``params``). With the recording's fingerprint it is the resume key: a
         run resumes a folder holding an interrupted run with the same key.
     resume : bool
-        False: start afresh even where the folder holds a resumable run.
+        False: start afresh even where the folder holds a resumable run (or another run's results).
+    force : bool
+        Write into an out_dir holding another run's results (replaced) or files no run wrote (kept).
     """
 
     params: SystemParams = field(default_factory=SystemParams)
@@ -46,6 +48,7 @@ class RunPlan:
     config_text: str = ""
     config_key: str = ""
     resume: bool = True
+    force: bool = False
 
     def text(self) -> str:
         """:attr:`config_text`, or the parameters as JSON."""

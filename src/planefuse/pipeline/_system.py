@@ -21,7 +21,8 @@ from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_so
                        laser_sources, sound_sources)
 
 __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system",
-           "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT"]
+           "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT", "check_cameras_against_stack",
+           "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
 CHECKPOINT_FORMAT = 1
@@ -128,7 +129,7 @@ class SystemResult:
     metrics: dict = field(default_factory=dict)
 
 
-def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
+def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: bool = True) -> PlaneStack:
     """The plane stack of ``params`` on ``rec``: the configured extent, or else the recording's monitored
     area ``rec.room_xy_m`` less ``params.wall_margin_m`` on every side, so that the walls (static, seen by
     the laser) are not inside the grid; the configured heights, or else the recording's suggestion."""
@@ -142,7 +143,116 @@ def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
         m = params.wall_margin_m
         x = x if x is not None else (x0 + m, x1 - m)
         y = y if y is not None else (y0 + m, y1 - m)
-    return PlaneStack.from_extent(heights, x, y, params.cell_size_m)
+    stack = PlaneStack.from_extent(heights, x, y, params.cell_size_m)
+    if params.cameras and check_cameras:
+        check_cameras_against_stack(rec.cameras, stack)
+    check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
+    return stack
+
+
+#: The evaluation skips this much of the start of a recording [s] (background models and filter learning).
+EVAL_WARMUP_S = 1.0
+
+
+def can_evaluate(rec: Recording, times_s) -> bool:
+    """True when ``rec`` has people ground truth and an output step at ``times_s`` falls in its evaluated span
+    (after the first :data:`EVAL_WARMUP_S`)."""
+    if rec.groundtruth is None or rec.groundtruth.people is None or not len(times_s):
+        return False
+    t = rec.groundtruth.people.times_s
+    times_s = np.asarray(times_s, dtype=float)
+    return bool(np.any((times_s >= t[0] + EVAL_WARMUP_S) & (times_s <= t[-1] + 1e-9)))
+
+
+#: A camera centre farther than this from the grid (horizontally or in height) [m] is taken for a unit error.
+FAR_FROM_GRID_M = 100.0
+#: A plane closer than this to a camera's centre height [m] is seen edge-on by it.
+EDGE_ON_M = 0.05
+
+
+def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack, *, above: bool = True) -> None:
+    """Refuse camera poses and planes that cannot work together (a unit error, planes no camera looks down at).
+
+    Raises
+    ------
+    ValueError
+        A camera centre more than :data:`FAR_FROM_GRID_M` from the grid (translations in millimetres in a
+        metre recording, typically); a plane within :data:`EDGE_ON_M` of a camera's height (seen edge-on:
+        its image-plane homography is singular); a plane above every camera (none sees it from above; not
+        with ``above=False``: ``planefuse check`` reports a plane above any camera, per camera, with
+        :func:`planefuse.io.geometry_findings`). The message names the camera or plane.
+    """
+    if not cameras:
+        return
+    x0, x1, y0, y1 = stack.extent_m
+    far = []
+    for cam in cameras:
+        cx, cy, cz = (float(v) for v in cam.center_world)
+        d = max(np.hypot(max(x0 - cx, 0.0, cx - x1), max(y0 - cy, 0.0, cy - y1)), abs(cz))
+        if d > FAR_FROM_GRID_M:
+            far.append(f"{cam.name!r} at ({cx:.4g}, {cy:.4g}, {cz:.4g}) m")
+    if far:
+        raise ValueError(f"camera {', '.join(far)} is more than {FAR_FROM_GRID_M:g} m from the grid "
+                         f"x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m: are its translations (T_world_cam) in "
+                         "millimetres? The recording's unit is the metre")
+    heights = {cam.name: float(cam.center_world[2]) for cam in cameras}
+    for h in stack.heights_m:
+        for name, hc in heights.items():
+            if abs(h - hc) < EDGE_ON_M:
+                raise ValueError(f"the plane at {h:g} m is at the height of camera {name!r} ({hc:.3g} m), which "
+                                 "sees it edge-on: move the plane (planes.heights_m)")
+    top = max(heights.values())
+    over = [h for h in stack.heights_m if h > top] if above else []
+    if over:
+        raise ValueError(f"plane(s) at {', '.join(f'{h:g}' for h in over)} m above every camera (highest centre "
+                         f"{top:.3g} m): no camera sees them from above; lower them (planes.heights_m)")
+
+
+def filter_memory_bytes(stack: PlaneStack, params: SystemParams, n_cameras: int = 0) -> int:
+    """Estimated memory [bytes] of a run's per-cell state on ``stack``, before allocating it.
+
+    Per cell: the filter state, float32 ``P(occ, v_k)`` for the K velocity hypotheses and ``P(free)``, held
+    twice (the state and its update): ``2 (K + 1) 4`` bytes; the outputs (occupancy, mean velocity x and
+    y): ``3 x 4`` bytes; each camera's plane lookup (pixel u, v float32 and visibility): ``12`` bytes.
+    """
+    K = params.tracking.bof.n_velocities
+    per_cell = 2 * (K + 1) * 4 + 3 * 4 + 12 * int(n_cameras)
+    return int(stack.n_planes * stack.ny * stack.nx) * per_cell
+
+
+def available_memory_bytes() -> int:
+    """Memory available to a new allocation [bytes]: psutil's ``available``, else ``MemAvailable`` of
+    /proc/meminfo; a very large number where neither can be read (no refusal then)."""
+    try:
+        import psutil
+
+        return int(psutil.virtual_memory().available)
+    except ImportError:
+        pass
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return 2**62
+
+
+def check_memory(stack: PlaneStack, params: SystemParams, n_cameras: int = 0) -> None:
+    """Refuse a grid whose state (:func:`filter_memory_bytes`) would not fit in the available memory.
+
+    Raises
+    ------
+    ValueError
+        One line: the estimate, what is available and what to change.
+    """
+    need, have = filter_memory_bytes(stack, params, n_cameras), available_memory_bytes()
+    if need > 0.8 * have:
+        K = params.tracking.bof.n_velocities
+        raise ValueError(f"the grid of {stack.n_planes} planes x {stack.ny} x {stack.nx} cells x {K} velocities "
+                         f"needs about {need / 2**30:.3g} GiB, more than 80 % of the {have / 2**30:.3g} GiB "
+                         "available: coarsen planes.cell_size_m, shrink planes.x_range_m/y_range_m, or reduce "
+                         "models.filter.n_velocities_per_axis")
 
 
 class SystemRun:

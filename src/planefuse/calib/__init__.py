@@ -10,6 +10,7 @@ from ._epfl import (
     load_epfl_homography,
 )
 from ._filestorage import load_opencv_camera, load_opencv_intrinsics, save_opencv_camera
+from ._tsai import TERRACE_TSAI, TsaiParams, pinhole_from_tsai, terrace_cameras
 from ._wildtrack import WILDTRACK_CAMERAS, load_wildtrack_camera, load_wildtrack_rig
 
 __all__ = [
@@ -25,6 +26,10 @@ __all__ = [
     "load_opencv_camera",
     "load_opencv_intrinsics",
     "save_opencv_camera",
+    "TERRACE_TSAI",
+    "TsaiParams",
+    "pinhole_from_tsai",
+    "terrace_cameras",
     "WILDTRACK_CAMERAS",
     "load_wildtrack_camera",
     "load_wildtrack_rig",

@@ -15,6 +15,7 @@ from ._datasets import (
 from ._foreground import (
     BackgroundSubtractor,
     ForegroundParams,
+    GainCompensator,
     foreground_from_boxes,
     foreground_from_mask,
     read_mot_detections,
@@ -30,6 +31,7 @@ __all__ = [
     "CameraReport",
     "EpflSequence",
     "ForegroundParams",
+    "GainCompensator",
     "FusionParams",
     "PersonParams",
     "camera_detections",

@@ -162,7 +162,8 @@ class BackgroundSubtractor:
         self._n_learned = 0
         self._gain = GainCompensator(params.gain_blocks, params.gain_rate) if params.gain_compensation else None
         self._relearn_left = 0
-        #: Sudden global changes detected (frames that gave no evidence and restarted a fast relearning).
+        #: Sudden global changes detected after the first ``relearn_frames`` frames (each gave no evidence and
+        #: restarted a fast relearning).
         self.n_sudden_changes = 0
 
     def prime(self, empty_frame, n_frames: int = 30) -> None:
@@ -246,7 +247,8 @@ class BackgroundSubtractor:
         if p.relearn_fraction is not None and not relearning and np.count_nonzero(mask == _CV_FOREGROUND) > \
                 p.relearn_fraction * mask.size:
             self._relearn_left = p.relearn_frames
-            self.n_sudden_changes += 1
+            # a cold model (OpenCV's KNN) calls its first few frames all foreground: not a change of the scene
+            self.n_sudden_changes += int(self._n_learned > p.relearn_frames)
             relearning = True
         if relearning:  # the model is being rebuilt: no evidence either way
             return np.full(mask.shape, 0.5, dtype=np.float32)

@@ -1,0 +1,121 @@
+"""Foreground front end under lighting changes (gain compensation, sudden-change relearning) and the Tsai cameras."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from planefuse.calib import TERRACE_TSAI, TsaiParams, pinhole_from_tsai, terrace_cameras
+from planefuse.vision import BackgroundSubtractor, ForegroundParams, GainCompensator
+
+
+def _scene(rng, h=96, w=128):
+    """A textured background (tiles of random colours, 8 px, like a paved floor)."""
+    tiles = rng.uniform(60, 180, (h // 8 + 1, w // 8 + 1, 3)).astype(np.float32)
+    return cv2.GaussianBlur(np.repeat(np.repeat(tiles, 8, 0), 8, 1)[:h, :w], (0, 0), 1)
+
+
+def _frame(img, rng):
+    return np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("compensate", [False, True])
+def test_exposure_step_is_divided_out(compensate, rng):
+    """A camera's automatic exposure raises the whole image by 15 % while a person walks in: without
+    compensation the subtractor calls most of the image foreground, with it only the person."""
+    bg = _scene(rng)
+    params = ForegroundParams(history=100, gain_compensation=compensate)
+    bs = BackgroundSubtractor(128, 96, params)
+    for _ in range(40):
+        bs.apply(_frame(bg, rng))
+    frame = bg * 1.15
+    frame[30:70, 50:70] = (30, 40, 220)  # a red jacket
+    like = bs.apply(_frame(frame, rng))
+    person = like[35:65, 55:65].mean()
+    rest = np.delete(like, np.s_[25:75], axis=0).mean()
+    assert person > 0.9
+    if compensate:
+        assert rest < 0.1
+    else:
+        assert rest > 0.5  # the failure the compensation removes
+
+
+def test_gain_field_follows_a_smooth_illumination_gradient(rng):
+    """A cloud darkening the left half progressively: the blockwise gain field divides it out to a few grey levels."""
+    bg = _scene(rng, 120, 180)
+    comp = GainCompensator((3, 4), 0.05)
+    comp.compensate(bg.astype(np.uint8))
+    comp.learn(bg.astype(np.uint8), np.ones((120, 180), bool))
+    ramp = np.linspace(0.7, 1.0, 180)[None, :, None]
+    out = comp.compensate(np.clip(bg * ramp, 0, 255).astype(np.uint8)).astype(float)
+    err = np.abs(out - bg)
+    assert np.median(err) < 3.0
+    assert np.median(np.abs(bg * ramp - bg)) > 10.0  # the change was large
+
+
+def test_sudden_change_gives_no_evidence_then_relearns(rng):
+    """A change no gain explains (the scene's texture replaced, e.g. the camera bumped): that frame is
+    'unobserved' (0.5 everywhere) and the model relearns within relearn_frames frames."""
+    a = _scene(rng)
+    b = 240.0 - a  # a different scene: bright where the old one was dark
+    params = ForegroundParams(history=100, gain_compensation=True, relearn_fraction=0.4, relearn_frames=5,
+                              relearn_rate=0.5)
+    bs = BackgroundSubtractor(128, 96, params)
+    for _ in range(30):
+        bs.apply(_frame(a, rng))
+    like = bs.apply(_frame(b, rng))
+    assert bs.n_sudden_changes == 1
+    np.testing.assert_array_equal(like, 0.5)
+    outs = [bs.apply(_frame(b, rng)) for _ in range(12)]
+    assert all(np.all(o == 0.5) for o in outs[:5])
+    assert outs[-1].mean() < 0.1 and bs.n_sudden_changes == 1
+
+
+def test_foreground_params_reject_bad_values():
+    for kw, match in [(dict(gain_blocks=(0, 3)), "gain_blocks"), (dict(gain_rate=0.0), "gain_rate"),
+                      (dict(relearn_fraction=1.5), "relearn_fraction"), (dict(relearn_frames=0), "relearn_frames"),
+                      (dict(relearn_rate=2.0), "relearn_rate")]:
+        with pytest.raises(ValueError, match=match):
+            ForegroundParams(**kw)
+
+
+# -- Tsai cameras ---------------------------------------------------------------------------------------------
+def _tsai_project(p: TsaiParams, X_mm: np.ndarray) -> np.ndarray:
+    """Tsai's model written out directly (distortion inverted by fixed-point iteration): full-size pixels."""
+    Xc = X_mm @ p.R_cam_world.T + [p.tx_mm, p.ty_mm, p.tz_mm]
+    xu = p.focal_mm * Xc[:, :2] / Xc[:, 2:]
+    xd = xu.copy()
+    for _ in range(100):
+        xd = xu / (1.0 + p.kappa1_per_mm2 * (xd ** 2).sum(axis=1, keepdims=True))
+    return np.c_[p.sx * xd[:, 0] / p.dpx_mm + p.cx_px, xd[:, 1] / p.dpy_mm + p.cy_px]
+
+
+@pytest.mark.parametrize("index", [0, 1, 2, 3])
+def test_tsai_camera_matches_tsai_projection_and_opencv(index, rng):
+    p = TERRACE_TSAI[index]
+    cam = pinhole_from_tsai(p, scale=0.5)
+    # points on the ground and at head height in front of the camera, inside the image
+    X_m = np.c_[rng.uniform(-1, 8, 4000), rng.uniform(-2, 11, 4000), rng.choice([0.0, 1.7], 4000)]
+    uv_full = _tsai_project(p, X_m * 1000.0)
+    inside = (uv_full[:, 0] > 0) & (uv_full[:, 0] < 719) & (uv_full[:, 1] > 0) & (uv_full[:, 1] < 575)
+    uv_full = uv_full[inside]
+    X_m = X_m[inside]
+    assert len(X_m) > 300
+    expected = (uv_full + 0.5) * 0.5 - 0.5
+    np.testing.assert_allclose(cam.project(X_m), expected, atol=0.05)
+    T_cam_world = np.linalg.inv(cam.T_world_cam)
+    rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
+    uv_cv, _ = cv2.projectPoints(X_m, rvec, T_cam_world[:3, 3], cam.K, cam.intrinsics.dist)
+    np.testing.assert_allclose(cam.project(X_m), uv_cv.reshape(-1, 2), atol=1e-6)
+
+
+def test_terrace_cameras_are_about_two_metres_up():
+    centres = np.array([c.center_world for c in terrace_cameras((0, 1, 2, 3))])
+    # the camera centres quoted in ../shared/data/epfl_pom/SOURCE.md [mm]
+    quoted = np.array([[6466, -1563, 2046], [-1034, -1225, 2109], [6500, 10581, 2073], [348, 9409, 2003]]) / 1000
+    np.testing.assert_allclose(centres, quoted, atol=0.002)
+    with pytest.raises(ValueError, match="scale"):
+        pinhole_from_tsai(TERRACE_TSAI[0], scale=0.0)
+    with pytest.raises(ValueError, match="non-finite"):
+        TsaiParams(float("nan"), 0, 0, 0, 0, 0, 0, 0, 0, 1)

@@ -123,6 +123,12 @@ class CameraSensorConfig(_Model):
     p_foreground_given_free: float = _field(
         0.2, description="Sensor model P(foreground | cell free)", expected="in (0, 1)", gt=0.0, lt=1.0
     )
+    sensor_model: Literal["cell", "generative"] = _field(
+        "cell",
+        description="Cameras' evidence on the planes: per cell (each cell scored on its own) or generative (people "
+                    "on the grid explain each whole foreground image, Fleuret et al. 2008; docs/cameras.md)",
+        expected="cell or generative",
+    )
 
 
 class LaserSensorConfig(_Model):

@@ -18,13 +18,20 @@ expected pseudo-distance is replaced by the pseudo-distance of the expected (ave
     Abar_c^{k,0} = Abar_c outside R_ck, 1 - (1 - Abar_c) / (1 - q_k) inside    (location k removed)
     q_k <- 1 / (1 + exp(log((1 - eps) / eps) + sum_c [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma))
 
-iterated to a fixed point from ``q = eps``, with damping ``q <- damping q_old + (1 - damping) q_new``.
+iterated to a fixed point from ``q = eps``, with damping ``q <- damping q_old + (1 - damping) q_new``, until no
+marginal moves by more than ``tolerance * max(q_k, eps)`` (relative: on fine grids every q_k is small).
 
 Every sum over a silhouette is four look-ups in an integral image. ``Abar`` itself is built without a loop over
 the pixels of each box: each box multiplies its four corners of a 2-D "difference" array by ``(1 - q_k)`` or
 ``1 / (1 - q_k)``, and a running 2-D product turns it into ``prod_k (1 - q_k R_ck)`` for every pixel in one pass
 (the multiplicative analogue of a summed-area table). One iteration therefore costs O(pixels + K C), in a
-single numba kernel with no Python loop over locations or iterations.
+single numba kernel with no Python loop over locations or iterations. Three exact-or-bounded economies:
+
+* the pass covers only the bounding region of the boxes in the synthetic image (``Abar = 0`` outside it, where
+  the integral images are its edge values: look-ups are clamped into it);
+* marginals below ``1e-3 eps`` (and below ``ignored_below``) are left out of ``Abar``;
+* a location whose last target marginal was below 1e-13 is *dormant*: damped towards 0 without evaluation,
+  evaluated again every 5th iteration and before convergence is declared.
 
 A box covering no observed pixel, or an image whose synthetic image is empty, is guarded by ``|W A| >= 1`` pixel
 (the pseudo-distance of an empty synthetic image is otherwise undefined).
@@ -42,6 +49,13 @@ __all__ = ["GenerativeParams", "MeanFieldResult", "MeanFieldSolver", "Silhouette
 
 #: Largest marginal the solver holds (1 - q_k divides the synthetic image; see module notes).
 Q_MAX = 1.0 - 1e-6
+#: Marginals below this fraction of the prior are left out of the average synthetic image (each would change it
+#: by less than 1e-3 of what the prior's expected covering does).
+Q_NEGLIGIBLE = 1e-3
+#: A location whose log-odds of absence exceed this (target marginal < 1e-13) is dormant: only damped towards 0,
+#: evaluated again on every REFRESH-th iteration and on the iteration that confirms convergence.
+E_DORMANT = 30.0
+REFRESH = 5
 
 
 @dataclass(frozen=True)
@@ -204,7 +218,8 @@ class MeanFieldSolver:
         self._ii_off = np.concatenate([[0], np.cumsum(self._n_ii)]).astype(np.int64)
         self._hw = np.array(sizes, dtype=np.int64).reshape(-1, 2)
         n_ii = int(self._ii_off[-1])
-        self._work = np.zeros((5, n_ii), dtype=np.float64)  # D, I_W, I_WB, I_WA, I_WBA
+        self._D = np.zeros(n_ii, dtype=np.float64)        # difference array (and the constant integral images)
+        self._I2 = np.zeros(2 * n_ii, dtype=np.float64)   # interleaved integral images of W Abar, W B Abar
 
     def solve(self, foregrounds: Sequence[np.ndarray], observed: Sequence[np.ndarray | None] | None = None,
               initial=None) -> MeanFieldResult:
@@ -243,9 +258,10 @@ class MeanFieldSolver:
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
-        n_iter, converged = _solve(B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._work,
+        n_iter, converged = _solve(B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
                                    float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations),
-                                   float(p.damping), float(p.tolerance), float(p.ignored_below), Q_MAX)
+                                   float(p.damping), float(p.tolerance), float(p.ignored_below), Q_MAX,
+                                   float(p.prior))
         return MeanFieldResult(q, int(n_iter), bool(converged))
 
 
@@ -264,7 +280,7 @@ def _box_sum(I, o, w1, x0, y0, x1, y1):  # pragma: no cover - compiled
 
 @njit(cache=True, boundscheck=False)
 def _integral(img, W, h, w, po, I, o):  # pragma: no cover - compiled
-    # I = integral image of W * img (img=None-like handled by caller passing ones)
+    # I = integral image (h+1, w+1) of W * img
     w1 = w + 1
     for x in range(w1):
         I[o + x] = 0.0
@@ -277,76 +293,125 @@ def _integral(img, W, h, w, po, I, o):  # pragma: no cover - compiled
 
 
 @njit(cache=True, boundscheck=False)
-def _solve(B, W, hw, px_off, ii_off, boxes, q, work, log_prior_ratio, inv_sigma, max_iter, damping, tol,
-           ignored_below, q_max):  # pragma: no cover - compiled
+def _solve(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
+           ignored_below, q_max, prior):  # pragma: no cover - compiled
     n_cam, K = boxes.shape[0], boxes.shape[1]
-    D, IW, IB, IA, IBA = work[0], work[1], work[2], work[3], work[4]
+    # constant per frame: |W R_ck|, |W B R_ck| and |W B| (integral images built once, in D's storage)
     ones = np.ones(B.shape[0])
+    RW = np.zeros((n_cam, K))
+    RB = np.zeros((n_cam, K))
     SB = np.zeros(n_cam)
     for c in range(n_cam):
         h, w = hw[c, 0], hw[c, 1]
-        _integral(ones, W, h, w, px_off[c], IW, ii_off[c])
-        _integral(B, W, h, w, px_off[c], IB, ii_off[c])
-        SB[c] = IB[ii_off[c] + (h + 1) * (w + 1) - 1]
-        for x in range(w + 1):
-            IA[ii_off[c] + x] = 0.0
-            IBA[ii_off[c] + x] = 0.0
+        o, w1 = ii_off[c], w + 1
+        for pass_ in range(2):
+            _integral(ones if pass_ == 0 else B, W, h, w, px_off[c], D, o)
+            for k in range(K):
+                x0 = boxes[c, k, 0]
+                if x0 < 0:
+                    continue
+                v = _box_sum(D, o, w1, x0, boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3])
+                if pass_ == 0:
+                    RW[c, k] = v
+                else:
+                    RB[c, k] = v
+        SB[c] = D[o + (h + 1) * w1 - 1]
     acc = np.zeros(K)
     prev = np.empty(hw[:, 1].max())
+    # a location whose last target marginal was below 1e-13 is dormant: damped towards 0 without evaluation,
+    # evaluated again on every REFRESH-th iteration (and before convergence is declared)
+    skip = np.zeros(K, dtype=np.bool_)
+    cut = max(ignored_below, Q_NEGLIGIBLE * prior)
     converged = False
+    full = True
     it = 0
     while it < max_iter:
         it += 1
+        if it % REFRESH == 0 or it == max_iter:
+            full = True
+        if full:
+            skip[:] = False
         acc[:] = 0.0
         for c in range(n_cam):
             h, w = hw[c, 0], hw[c, 1]
             w1 = w + 1
             o, po = ii_off[c], px_off[c]
-            # 1. difference array of prod_k (1 - q_k R_ck): each box scales its four corners
-            for i in range(o, o + (h + 1) * w1):
+            # 1. the region [X0, X1] x [Y0, Y1] covered by some box in the synthetic image (Abar = 0 elsewhere,
+            # so the integral images need only cover it: outside, they are its values clamped to its edges)
+            X0, Y0, X1, Y1 = w, h, -1, -1
+            for k in range(K):
+                x0 = boxes[c, k, 0]
+                if x0 < 0 or q[k] < cut:
+                    continue
+                X0 = min(X0, x0)
+                Y0 = min(Y0, boxes[c, k, 1])
+                X1 = max(X1, boxes[c, k, 2])
+                Y1 = max(Y1, boxes[c, k, 3])
+            if X1 < 0:
+                X0, Y0, X1, Y1 = 0, 0, -1, -1
+            wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
+            wl1 = wl + 1
+            # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each box scales its four corners
+            for i in range(o, o + (hl + 1) * wl1):
                 D[i] = 1.0
             for k in range(K):
                 x0 = boxes[c, k, 0]
-                if x0 < 0 or q[k] < ignored_below:
+                if x0 < 0 or q[k] < cut:
                     continue
-                y0, x1, y1 = boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3]
+                y0, x1, y1 = boxes[c, k, 1] - Y0, boxes[c, k, 2] - X0, boxes[c, k, 3] - Y0
+                x0 -= X0
                 f = 1.0 - q[k]
                 g = 1.0 / f
-                D[o + y0 * w1 + x0] *= f
-                D[o + y0 * w1 + x1 + 1] *= g
-                D[o + (y1 + 1) * w1 + x0] *= g
-                D[o + (y1 + 1) * w1 + x1 + 1] *= f
-            # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass
-            for x in range(w):
+                D[o + y0 * wl1 + x0] *= f
+                D[o + y0 * wl1 + x1 + 1] *= g
+                D[o + (y1 + 1) * wl1 + x0] *= g
+                D[o + (y1 + 1) * wl1 + x1 + 1] *= f
+            # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
+            # interleaved so that one box corner of both is one cache line
+            for x in range(wl):
                 prev[x] = 1.0
-            for y in range(h):
+            for x in range(wl1):
+                I2[2 * (o + x)] = 0.0
+                I2[2 * (o + x) + 1] = 0.0
+            for y in range(hl):
                 r = 1.0
                 ra = 0.0
                 rba = 0.0
-                IA[o + (y + 1) * w1] = 0.0
-                IBA[o + (y + 1) * w1] = 0.0
-                for x in range(w):
-                    r *= D[o + y * w1 + x]
+                row = 2 * (o + (y + 1) * wl1)
+                up = 2 * (o + y * wl1)
+                I2[row] = 0.0
+                I2[row + 1] = 0.0
+                pix = po + (y + Y0) * w + X0
+                for x in range(wl):
+                    r *= D[o + y * wl1 + x]
                     pr = r * prev[x]
                     prev[x] = pr
-                    a = (1.0 - pr) * W[po + y * w + x]
+                    a = (1.0 - pr) * W[pix + x]
                     ra += a
-                    rba += a * B[po + y * w + x]
-                    IA[o + (y + 1) * w1 + x + 1] = IA[o + y * w1 + x + 1] + ra
-                    IBA[o + (y + 1) * w1 + x + 1] = IBA[o + y * w1 + x + 1] + rba
-            last = o + (h + 1) * w1 - 1
-            SA, SBA, sb = IA[last], IBA[last], SB[c]
+                    rba += a * B[pix + x]
+                    j = 2 * (x + 1)
+                    I2[row + j] = I2[up + j] + ra
+                    I2[row + j + 1] = I2[up + j + 1] + rba
+            last = 2 * (o + (hl + 1) * wl1 - 1)
+            SA, SBA, sb = I2[last], I2[last + 1], SB[c]
             # 3. per location: pseudo-distance with the location present and absent
             for k in range(K):
                 x0 = boxes[c, k, 0]
-                if x0 < 0:
+                if x0 < 0 or skip[k]:
                     continue
-                y0, x1, y1 = boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3]
-                rW = _box_sum(IW, o, w1, x0, y0, x1, y1)
-                rB = _box_sum(IB, o, w1, x0, y0, x1, y1)
-                rA = _box_sum(IA, o, w1, x0, y0, x1, y1)
-                rBA = _box_sum(IBA, o, w1, x0, y0, x1, y1)
-                t = 1.0 / (1.0 - q[k]) if q[k] >= ignored_below else 1.0
+                # box corners in the local integral image, clamped to it
+                lx0 = min(max(x0 - X0, 0), wl)
+                lx1 = min(max(boxes[c, k, 2] + 1 - X0, 0), wl)
+                ly0 = min(max(boxes[c, k, 1] - Y0, 0), hl)
+                ly1 = min(max(boxes[c, k, 3] + 1 - Y0, 0), hl)
+                i00 = 2 * (o + ly0 * wl1 + lx0)
+                i01 = 2 * (o + ly0 * wl1 + lx1)
+                i10 = 2 * (o + ly1 * wl1 + lx0)
+                i11 = 2 * (o + ly1 * wl1 + lx1)
+                rA = I2[i11] - I2[i01] - I2[i10] + I2[i00]
+                rBA = I2[i11 + 1] - I2[i01 + 1] - I2[i10 + 1] + I2[i00 + 1]
+                rW, rB = RW[c, k], RB[c, k]
+                t = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
                 in0 = rW - (rW - rA) * t
                 if in0 < 0.0:
                     in0 = 0.0
@@ -362,9 +427,13 @@ def _solve(B, W, hw, px_off, ii_off, boxes, q, work, log_prior_ratio, inv_sigma,
                 psi1 = (sb + a1 - 2.0 * ba1) / max(a1, 1.0)
                 psi0 = (sb + a0 - 2.0 * ba0) / max(a0, 1.0)
                 acc[k] += (psi1 - psi0) * inv_sigma
-        # 4. damped fixed-point update
+        # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
+        # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
         delta = 0.0
         for k in range(K):
+            if skip[k]:
+                q[k] *= damping  # its target is below 1e-13: the damped update without evaluating it
+                continue
             e = log_prior_ratio + acc[k]
             if e > 700.0:
                 e = 700.0
@@ -372,11 +441,17 @@ def _solve(B, W, hw, px_off, ii_off, boxes, q, work, log_prior_ratio, inv_sigma,
             qn = damping * q[k] + (1.0 - damping) * qn
             if qn > q_max:
                 qn = q_max
-            d = abs(qn - q[k])
+            d = abs(qn - q[k]) / max(q[k], prior)
             if d > delta:
                 delta = d
             q[k] = qn
+            if e > E_DORMANT:
+                skip[k] = True
         if delta <= tol:
-            converged = True
-            break
+            if full:
+                converged = True
+                break
+            full = True  # confirm on an iteration that evaluates every location
+        else:
+            full = False
     return it, converged

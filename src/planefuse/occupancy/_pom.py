@@ -175,7 +175,7 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
     if (w, h) == (-1, -1):
         if len(cams) != n_cam:
             raise ValueError(f"{path}: ROOM -1 -1 needs {n_cam} CAMERA lines, found {len(cams)}")
-        ids = sorted(cams)
+        ids = list(cams)  # in the order of the CAMERA lines
         sizes = tuple((cams[i][1], cams[i][0]) for i in ids)
     else:
         ids = list(range(n_cam))

@@ -19,6 +19,7 @@ def system_params_from_config(cfg) -> SystemParams:
         foreground=ForegroundParams(method=cam.foreground_method.lower(), history=cam.history_frames,
                                     threshold=cam.var_threshold, detect_shadows=cam.detect_shadows),
         fusion=FusionParams(p_detect=cam.p_foreground_given_occupied, p_false_alarm=cam.p_foreground_given_free),
+        sensor_model=cam.sensor_model,
     )
     laser_model = LaserSensorModel(p_occupied_hit=las.p_occupied_hit, p_occupied_free=las.p_occupied_free,
                                    no_return_free_m=las.no_return_free_m)

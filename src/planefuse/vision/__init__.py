@@ -21,6 +21,7 @@ from ._foreground import (
     read_mot_detections,
 )
 from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio
+from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
 from ._pipeline import CameraParams, CameraReport, camera_detections, frame_is_dead, lookups_from_cameras
 
@@ -33,6 +34,8 @@ __all__ = [
     "ForegroundParams",
     "GainCompensator",
     "FusionParams",
+    "GenerativeCameraSensor",
+    "GenerativeSensorParams",
     "PersonParams",
     "camera_detections",
     "frame_is_dead",

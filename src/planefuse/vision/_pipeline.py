@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Iterable, Iterator, Sequence
+from typing import Iterable, Iterator, Literal, Sequence
 
 import numpy as np
 
@@ -13,6 +13,7 @@ from ..grid import Evidence, GroundDetections, PlaneStack
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
 from ._foreground import BackgroundSubtractor, ForegroundParams
 from ._fusion import CameraFusion, FusionParams, max_log_ratio
+from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds
 
 __all__ = ["CameraParams", "CameraReport", "camera_detections", "frame_is_dead", "lookups_from_cameras"]
@@ -87,12 +88,24 @@ class CameraParams:
         Multi-plane person model and peak extraction.
     registration : RegistrationParams
         Where each camera's attitude comes from (calibration or IMU) when registering a recording.
+    sensor_model : {"cell", "generative"}
+        The cameras' evidence on the stack: ``"cell"`` scores every cell of every plane on its own
+        (``fusion``, ``person``); ``"generative"`` explains each whole foreground image by people standing on
+        the grid's cells (``generative``; Fleuret et al. 2008, docs/cameras.md).
+    generative : GenerativeSensorParams
+        The generative model's parameters (used when ``sensor_model == "generative"``).
     """
 
     foreground: ForegroundParams | None = field(default_factory=ForegroundParams)
     fusion: FusionParams = field(default_factory=FusionParams)
     person: PersonParams = field(default_factory=PersonParams)
     registration: RegistrationParams = field(default_factory=RegistrationParams)
+    sensor_model: Literal["cell", "generative"] = "cell"
+    generative: GenerativeSensorParams = field(default_factory=GenerativeSensorParams)
+
+    def __post_init__(self) -> None:
+        if self.sensor_model not in ("cell", "generative"):
+            raise ValueError(f"CameraParams.sensor_model must be 'cell' or 'generative', got {self.sensor_model!r}")
 
 
 @dataclass
@@ -131,6 +144,8 @@ def camera_detections(
     backgrounds: Sequence[np.ndarray | None] | None = None,
     replay: int = 0,
     registration: CameraRegistration | None = None,
+    cameras: Sequence[PinholeCamera] | None = None,
+    ignore_masks: Sequence[np.ndarray | None] | None = None,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -161,6 +176,12 @@ def camera_detections(
     registration : CameraRegistration, optional
         Lookups that follow the cameras' attitudes: at every registered instant, the lookups of cameras
         that moved beyond its tolerance are replaced (``lookups`` must be its lookups at the first one).
+    cameras : sequence of PinholeCamera, optional
+        The calibrated cameras (same order as ``lookups``); needed by ``params.sensor_model == "generative"``
+        (taken from ``registration`` when given).
+    ignore_masks : sequence of (bool ndarray or None), optional
+        Per camera, pixels that are not scene evidence, for the generative model (taken from ``registration``
+        when given; the per-cell model has them in its lookups).
 
     Yields
     ------
@@ -179,6 +200,13 @@ def camera_detections(
         fusion = CameraFusion(lookups, stack, params.fusion, names)
     for w in caught:
         warnings.warn(w.message, stacklevel=2)
+    generative = None
+    if params.sensor_model == "generative":
+        if registration is not None:
+            cameras, ignore_masks = registration.cameras, registration.ignore_masks
+        if cameras is None:
+            raise ValueError("sensor_model 'generative' needs the calibrated cameras (cameras= or registration=)")
+        generative = GenerativeCameraSensor(cameras, stack, params.generative, ignore_masks, fusion.names)
     if report is not None:
         report.blind_cameras = list(fusion.blind_cameras)
     subtractors = None
@@ -213,6 +241,11 @@ def camera_detections(
         if registration is not None:
             for c, lookup in registration.updates(time_s):
                 fusion.set_lookup(c, lookup)
+                if generative is not None:
+                    cam = registration.cameras[c]
+                    T = np.eye(4)
+                    T[:3, :3], T[:3, 3] = registration.lookup_attitudes[c], cam.center_world
+                    generative.set_camera(c, PinholeCamera(cam.intrinsics, T, name=cam.name))
         fgs: list[np.ndarray | None] = []
         for c, img in enumerate(images):
             if img is None or dead[c]:
@@ -224,9 +257,14 @@ def camera_detections(
                 fgs.append(None)
             else:
                 fgs.append(img if subtractors is None else subtractors[c].apply(img))
-        evidence = fusion.evidence(fgs, time_s)
-        detections = ground_detections_from_log_odds(evidence.log_odds, fusion.cameras_seeing(fusion.active), stack,
-                                                     time_s, max_log_ratio(params.fusion), params.person)
+        if generative is None:
+            evidence = fusion.evidence(fgs, time_s)
+            detections = ground_detections_from_log_odds(evidence.log_odds, fusion.cameras_seeing(fusion.active),
+                                                         stack, time_s, max_log_ratio(params.fusion), params.person)
+        else:
+            q = generative.marginals(fgs)
+            evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q))
+            detections = generative.detections(q, time_s, params.person.nms_radius_m)
         if report is not None:
             report.instants += 1
         yield evidence, detections

@@ -1,0 +1,230 @@
+"""The generative camera sensor model on the plane stack: mean-field marginals -> per-plane evidence.
+
+Where the per-cell model (:class:`CameraFusion`) scores every cell of every plane on its own, this one explains
+the whole foreground image of every camera at once (Fleuret et al. 2008; :mod:`planefuse.occupancy`): a person
+standing on ground location k (a cell of the stack's grid) is a cylinder of radius ``radius_m`` across the
+stack's height bands, its silhouette in camera c the box ``R_ck`` (:func:`silhouettes_from_cameras`), and the
+mean-field posterior marginals ``q_k = P(X_k = 1 | B)`` of all locations explain each foreground pixel once.
+Its output on the stack, for the Bayesian occupancy filter (docs/cameras.md, "Generative sensor model")::
+
+    eps      = people_per_m2 * cell_size_m^2                        prior of a location
+    P_occ(X) = 1 - prod_{k: |x_k - X| <= radius_m} (1 - q_k)         a body covers cell X (some person within r)
+    P_0(X)   = 1 - (1 - eps)^{n_disc(X)}                            the same before the images (disc cut at the edge)
+    L_l(X)   = clip(logit P_occ(X) - logit P_0, +-max_log_odds)     on every plane l inside the person's volume
+
+i.e. the posterior log-odds of the cell minus its prior log-odds: the log-likelihood ratio the images carry
+about the cell, in the form the BOF update adds (``bof_update``: log-odds of the evidence). Cells no camera
+sees, and planes outside the person's height range, get 0 (unknown). People on the ground are the local
+maxima of the expected number of people within ``radius_m`` of a cell, ``M(X) = sum_{disc} q_k``, above
+``detection_mass``, at least ``PersonParams.nms_radius_m`` apart, placed at the q-weighted centroid of their disc.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import cv2
+import numpy as np
+from scipy import ndimage
+
+from ..geometry import PinholeCamera
+from ..grid import Evidence, GroundDetections, PlaneStack
+from ..occupancy import GenerativeParams, MeanFieldSolver, PersonVolume, Silhouettes, silhouettes_from_cameras
+
+__all__ = ["GenerativeCameraSensor", "GenerativeSensorParams"]
+
+
+@dataclass(frozen=True)
+class GenerativeSensorParams:
+    """Parameters of the generative camera sensor model on a plane stack.
+
+    Attributes
+    ----------
+    people_per_m2 : float
+        Prior density of people [1/m^2]; a location's prior is ``people_per_m2 * cell_size_m**2``.
+    sigma : float
+        Scale of the image pseudo-distance (:class:`~planefuse.occupancy.GenerativeParams` ``sigma``).
+    radius_m : float
+        Radius of the person's cylinder [m] (silhouettes, and the disc a person covers on the stack).
+    height_range_m : tuple of (float, float) or None
+        Bottom and top of the person's cylinder [m]; None = the stack's height bands.
+    max_log_odds : float
+        Bound on the evidence of one instant per cell (so that one frame cannot saturate the filter).
+    detection_mass : float
+        A person is reported where the expected number of people within ``radius_m`` reaches this.
+    foreground_threshold : float or None
+        Foreground likelihoods at or above this are foreground (1), the rest background (0), as POM's binary
+        masks; None keeps the likelihoods. A subtractor's floor (0.02 on every background pixel) otherwise
+        sums, over a whole image, to more than the silhouettes of several people.
+    """
+
+    people_per_m2: float = 0.05
+    sigma: float = GenerativeParams.sigma
+    radius_m: float = 0.25
+    height_range_m: tuple[float, float] | None = None
+    max_log_odds: float = 6.0
+    detection_mass: float = 0.5
+    foreground_threshold: float | None = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"GenerativeSensorParams.{name} must be finite and > 0, got {v}")
+
+    def person(self, stack: PlaneStack) -> PersonVolume:
+        """The person's volume on ``stack``."""
+        if self.height_range_m is None:
+            return PersonVolume.from_stack(stack, radius_m=self.radius_m)
+        return PersonVolume(radius_m=self.radius_m, height_range_m=self.height_range_m)
+
+    def solver_params(self, stack: PlaneStack) -> GenerativeParams:
+        """Solver parameters with the prior of one location of ``stack``."""
+        prior = self.people_per_m2 * stack.cell_size_m ** 2
+        if not 0.0 < prior < 0.5:
+            raise ValueError(f"people_per_m2 {self.people_per_m2} with {stack.cell_size_m} m cells gives a location "
+                             f"prior of {prior}; expected below 0.5")
+        return GenerativeParams(prior=prior, sigma=self.sigma)
+
+
+def _likelihood(image) -> np.ndarray:
+    """Foreground likelihood in [0, 1] of a bool, uint8 (0..255) or float image."""
+    a = np.asarray(image)
+    return a / 255.0 if a.dtype == np.uint8 else a
+
+
+def _disc(radius_cells: float) -> np.ndarray:
+    r = int(np.floor(radius_cells))
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    return (yy * yy + xx * xx <= radius_cells * radius_cells + 1e-9).astype(np.float64)
+
+
+class GenerativeCameraSensor:
+    """The generative sensor model of C calibrated cameras on a plane stack (see module notes).
+
+    Parameters
+    ----------
+    cameras : sequence of PinholeCamera
+        Calibrated cameras (lens distortion included: frames are raw).
+    stack : PlaneStack
+        Ground locations are the cells of its grid.
+    params : GenerativeSensorParams
+    ignore_masks : sequence of (bool ndarray (height_px, width_px) or None), optional
+        Per camera, pixels that are not scene evidence (no evidence either way).
+    names : sequence of str, optional
+    """
+
+    def __init__(self, cameras: Sequence[PinholeCamera], stack: PlaneStack,
+                 params: GenerativeSensorParams = GenerativeSensorParams(),
+                 ignore_masks: Sequence[np.ndarray | None] | None = None,
+                 names: Sequence[str] | None = None) -> None:
+        self.cameras = list(cameras)
+        self.stack = stack
+        self.params = params
+        self.names = list(names) if names is not None else [c.name for c in self.cameras]
+        self.person = params.person(stack)
+        C = len(self.cameras)
+        masks = [None] * C if ignore_masks is None else list(ignore_masks)
+        if len(masks) != C:
+            raise ValueError(f"ignore_masks: expected {C} entries (None where absent), got {len(masks)}")
+        self._observed = []
+        for cam, m in zip(self.cameras, masks):
+            shape = (cam.intrinsics.height_px, cam.intrinsics.width_px)
+            if m is not None and np.shape(m) != shape:
+                raise ValueError(f"{cam.name}: ignore mask is {np.shape(m)}, the image is {shape}")
+            self._observed.append(np.ones(shape, bool) if m is None else ~np.asarray(m, bool))
+        self._blind = [np.zeros(s.shape, bool) for s in self._observed]
+        self._disc = _disc(params.radius_m / stack.cell_size_m)
+        self._solver_params = params.solver_params(stack)
+        # the prior's log P(no person within r) per cell, with the same truncation of the disc at the grid's edge
+        self._log_free0 = cv2.filter2D(np.full((stack.ny, stack.nx), np.log1p(-self._solver_params.prior)),
+                                       cv2.CV_64F, self._disc, borderType=cv2.BORDER_CONSTANT)
+        band_mid = 0.5 * (np.asarray(stack.band_edges_m[:-1]) + np.asarray(stack.band_edges_m[1:]))
+        lo, hi = self.person.height_range_m
+        self._planes = (band_mid >= lo) & (band_mid <= hi)
+        self._set_silhouettes(silhouettes_from_cameras(self.cameras, stack, self.person))
+        self.last_marginals: np.ndarray | None = None
+
+    def _set_silhouettes(self, sil: Silhouettes) -> None:
+        self.silhouettes = sil
+        self._solver = MeanFieldSolver(sil, self._solver_params)
+        self._seen = sil.visible.any(axis=0).reshape(self.stack.ny, self.stack.nx)
+
+    @property
+    def n_cameras(self) -> int:
+        return len(self.cameras)
+
+    @property
+    def blind_cameras(self) -> list[str]:
+        """Cameras in which no location has a silhouette."""
+        return [n for n, v in zip(self.names, self.silhouettes.visible) if not v.any()]
+
+    def set_camera(self, camera_index: int, camera: PinholeCamera) -> None:
+        """Replace camera ``camera_index`` (its attitude moved): its silhouettes are projected again."""
+        c = int(camera_index)
+        one = silhouettes_from_cameras([camera], self.stack, self.person)
+        if one.image_sizes[0] != self.silhouettes.image_sizes[c]:
+            raise ValueError(f"{self.names[c]}: new camera must keep the {self.silhouettes.image_sizes[c]} image")
+        boxes = self.silhouettes.boxes_px.copy()
+        boxes[c] = one.boxes_px[0]
+        self.cameras[c] = camera
+        self._set_silhouettes(Silhouettes(boxes, self.silhouettes.image_sizes))
+
+    def marginals(self, foregrounds: Sequence[np.ndarray | None]) -> np.ndarray:
+        """Posterior marginals ``q`` (ny, nx) of one instant; a camera with no frame (None) gives no evidence."""
+        if len(foregrounds) != self.n_cameras:
+            raise ValueError(f"expected {self.n_cameras} foreground images (None for missing), got {len(foregrounds)}")
+        thr = self.params.foreground_threshold
+        fg = [np.zeros(o.shape) if f is None else f if thr is None else _likelihood(f) >= thr
+              for f, o in zip(foregrounds, self._observed)]
+        obs = [b if f is None else o for f, o, b in zip(foregrounds, self._observed, self._blind)]
+        q = self._solver.solve(fg, obs).marginals.reshape(self.stack.ny, self.stack.nx)
+        self.last_marginals = q
+        return q
+
+    def log_odds_from_marginals(self, q: np.ndarray) -> np.ndarray:
+        """Per-plane evidence (L, ny, nx) float32 from marginals (ny, nx) (module notes)."""
+        eps = self._solver_params.prior
+        log_free = cv2.filter2D(np.log1p(-np.clip(q, 0.0, 1.0 - 1e-12)), cv2.CV_64F, self._disc,
+                                borderType=cv2.BORDER_CONSTANT)
+        log_free0 = self._log_free0
+        # logit(1 - e^a) - logit(1 - e^a0), written with expm1 for the small-mass cells
+        ev = (np.log(-np.expm1(np.minimum(log_free, -1e-300))) - log_free) \
+            - (np.log(-np.expm1(log_free0)) - log_free0)
+        ev = np.where(self._seen, np.clip(ev, -self.params.max_log_odds, self.params.max_log_odds), 0.0)
+        out = np.zeros(self.stack.shape, np.float32)
+        out[self._planes] = ev.astype(np.float32)
+        return out
+
+    def evidence(self, foregrounds: Sequence[np.ndarray | None], time_s: float,
+                 sensor: str = "cameras") -> Evidence:
+        """The :class:`~planefuse.grid.Evidence` of one instant."""
+        return Evidence(float(time_s), sensor, self.log_odds_from_marginals(self.marginals(foregrounds)))
+
+    def detections(self, q: np.ndarray, time_s: float, nms_radius_m: float,
+                   source: str = "cameras") -> GroundDetections:
+        """People on the ground from marginals (ny, nx): peaks of the expected number of people within
+        ``radius_m``, at least ``nms_radius_m`` apart."""
+        mass = cv2.filter2D(q, cv2.CV_64F, self._disc, borderType=cv2.BORDER_CONSTANT)
+        r_nms = nms_radius_m / self.stack.cell_size_m
+        peak = ndimage.maximum_filter(mass, footprint=_disc(r_nms), mode="constant", cval=-np.inf)
+        iy, ix = np.nonzero((mass >= peak) & (mass >= self.params.detection_mass) & self._seen)
+        order = np.argsort(-mass[iy, ix], kind="stable")
+        iy, ix = iy[order], ix[order]
+        keep = np.ones(len(iy), bool)
+        for i in range(len(iy)):
+            if keep[i]:
+                keep[i + 1:] &= (iy[i + 1:] - iy[i]) ** 2 + (ix[i + 1:] - ix[i]) ** 2 > r_nms * r_nms
+        iy, ix = iy[keep], ix[keep]
+        r = self._disc.shape[0] // 2
+        wq = cv2.copyMakeBorder(q, r, r, r, r, cv2.BORDER_CONSTANT, value=0.0)
+        yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+        fy, fx = iy.astype(float), ix.astype(float)
+        for i in range(len(iy)):
+            w = wq[iy[i]:iy[i] + 2 * r + 1, ix[i]:ix[i] + 2 * r + 1] * self._disc
+            fy[i] += (w * yy).sum() / w.sum()
+            fx[i] += (w * xx).sum() / w.sum()
+        n = len(iy)
+        return GroundDetections(float(time_s), self.stack.xy_from_index(fy, fx).reshape(-1, 2),
+                                np.clip(mass[iy, ix], 0.0, 1.0), np.full(n, self.person.height_range_m[1]), source)

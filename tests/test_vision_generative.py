@@ -1,0 +1,83 @@
+"""The generative camera sensor model on the plane stack (planefuse.vision.GenerativeCameraSensor): two cameras,
+people rendered as ray-cast cylinders (independent of the silhouette boxes); people found, the per-cell model's
+ghost at the crossing of their lines of sight suppressed, evidence in the BOF's form, pipeline selection."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _cylinders import render_cylinder_mask
+
+from planefuse.geometry import default_camera_ring
+from planefuse.grid import PlaneStack
+from planefuse.vision import (
+    CameraParams,
+    GenerativeCameraSensor,
+    GenerativeSensorParams,
+    camera_detections,
+    lookups_from_cameras,
+)
+
+STACK = PlaneStack.from_extent([0.1, 0.9, 1.6], (0, 10), (0, 10), 0.1)
+
+
+def _ghost_scene():
+    """Cameras in two adjacent corners of the room and two people; the ghost is where the ray from camera 0
+    through person A meets the ray from camera 1 through person B (beyond both people, inside the room)."""
+    cams = [default_camera_ring(4)[i] for i in (0, 1)]
+    people = np.array([[4.0, 3.5], [6.5, 4.0]])
+    c0, c1 = cams[0].center_world[:2], cams[1].center_world[:2]
+    d0, d1 = people[0] - c0, people[1] - c1
+    t = np.linalg.solve(np.stack([d0, -d1], 1), c1 - c0)
+    ghost = c0 + t[0] * d0
+    frames = [render_cylinder_mask(c, people, 1.75, radius_m=0.22).astype(float) for c in cams]
+    return cams, people, ghost, frames
+
+
+def test_scene_has_a_ghost_for_the_per_cell_model():
+    cams, people, ghost, frames = _ghost_scene()
+    assert 0 < ghost[0] < 10 and 0 < ghost[1] < 10 and np.linalg.norm(people - ghost, axis=1).min() > 1.0
+    lookups = lookups_from_cameras(cams, STACK)
+    (_, det), = camera_detections([(0.0, frames)], lookups, STACK, CameraParams(foreground=None))
+    assert np.linalg.norm(det.xy_m - ghost, axis=1).min() < 0.4   # the column model reports the ghost
+
+
+def test_generative_finds_the_people_and_not_their_ghost():
+    cams, people, ghost, frames = _ghost_scene()
+    sensor = GenerativeCameraSensor(cams, STACK, GenerativeSensorParams(height_range_m=(0.0, 1.75),
+                                                                        radius_m=0.22))
+    q = sensor.marginals(frames)
+    det = sensor.detections(q, 0.0, nms_radius_m=0.45)
+    assert len(det.xy_m) == 2
+    d = np.linalg.norm(det.xy_m[:, None] - people[None], axis=2)
+    assert d.min(axis=0).max() < 0.2
+    ev = sensor.log_odds_from_marginals(q)
+    iy, ix = STACK.index_from_xy(np.vstack([people, ghost]))
+    assert (ev[:, iy[:2], ix[:2]] > 2.0).all()        # strong evidence for the people on every plane
+    assert (ev[:, iy[2], ix[2]] < 0.0).all()          # the ghost's cell is evidence of free space
+    assert ev.dtype == np.float32 and ev.shape == STACK.shape
+
+
+def test_missing_camera_gives_no_evidence_and_unseen_cells_are_unknown():
+    cams, people, _, frames = _ghost_scene()
+    sensor = GenerativeCameraSensor(cams, STACK)
+    # with no frame at all every marginal stays at the prior: the evidence is 0 everywhere
+    ev = sensor.log_odds_from_marginals(sensor.marginals([None, None]))
+    assert np.abs(ev).max() < 1e-3
+    seen = sensor.silhouettes.visible.any(0).reshape(STACK.ny, STACK.nx)
+    ev = sensor.log_odds_from_marginals(sensor.marginals(frames))
+    assert (ev[:, ~seen] == 0).all()
+
+
+def test_pipeline_selects_the_generative_model():
+    cams, people, _, frames = _ghost_scene()
+    lookups = lookups_from_cameras(cams, STACK)
+    params = CameraParams(foreground=None, sensor_model="generative")
+    with pytest.raises(ValueError, match="needs the calibrated cameras"):
+        next(camera_detections([(0.0, frames)], lookups, STACK, params))
+    out = list(camera_detections([(0.0, frames), (0.04, frames)], lookups, STACK, params, cameras=cams))
+    assert len(out) == 2
+    ev, det = out[1]
+    assert ev.sensor == "cameras" and ev.time_s == 0.04 and len(det.xy_m) == 2
+    with pytest.raises(ValueError, match="sensor_model"):
+        CameraParams(sensor_model="column")

@@ -47,7 +47,8 @@ from planefuse.eval import detection_scores, match_detections, tracking_metrics
 from planefuse.grid import PlaneStack
 from planefuse.io import read_recording
 from planefuse.pipeline import SystemParams, run_system
-from planefuse.vision import BackgroundSubtractor, CameraParams, ForegroundParams, recording_frames
+from planefuse.vision import (BackgroundSubtractor, CameraParams, ForegroundParams, GenerativeSensorParams,
+                              recording_frames)
 
 FPS = 25.0
 #: The converter's watermark, (u_min, v_min, u_max, v_max) px, max exclusive (../shared/data/epfl_video/SOURCE.md).
@@ -56,6 +57,8 @@ WATERMARK_PX = (130, 230, 356, 285)
 AREA_X_M, AREA_Y_M = (-0.5, 7.0), (-1.5, 9.5)
 PLANES_M = (0.1, 0.5, 1.0, 1.5)
 CELL_M = 0.05
+COLUMN_THRESHOLD = 1.5
+ROWS = ("knn", "gain", "ground", "nofilter", "gen", "gen-ground", "gen-nofilter", "generative")
 
 #: Front ends compared (parameters chosen on frames 0-1499, docs/results.md).
 FRONT_ENDS = {
@@ -230,10 +233,13 @@ def ignore_mask(cam) -> np.ndarray:
 def _generative_params():
     from planefuse.occupancy import GenerativeParams
 
-    return GenerativeParams(sigma=0.005)
+    return GenerativeParams(sigma=0.005, prior=0.003)
 
 
 GENERATIVE = _generative_params()
+#: The generative sensor of the run (planefuse.vision): same sigma; its prior density, 0.05 people/m^2, is
+#: 0.003 per 25 cm location, the prior chosen on frames 0-1499.
+GENERATIVE_SENSOR = GenerativeSensorParams(sigma=0.005, people_per_m2=0.05)
 
 
 def markdown(rows: list[dict]) -> str:
@@ -257,7 +263,10 @@ def main(argv=None) -> int:
     ap.add_argument("--last", type=int, default=3000, help="end frame (exclusive)")
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
     ap.add_argument("--out", type=Path, default=None, help="folder for terrace.json, table.md and masks")
-    ap.add_argument("--rows", default="all", help="comma-separated subset: knn,gain,ground,nofilter,generative")
+    ap.add_argument("--rows", default="all", help="comma-separated subset of " + ",".join(ROWS))
+    ap.add_argument("--cell", type=float, default=CELL_M, help="grid cell side of the plane stack [m]")
+    ap.add_argument("--column-threshold", type=float, default=COLUMN_THRESHOLD,
+                    help="BOF column log-odds of a person (models.detection.column_threshold)")
     ap.add_argument("--pom", action="store_true", help="also run POM on the same masks (needs g++, make, libpng)")
     args = ap.parse_args(argv)
     video_root, pom_root = args.data / "epfl_video", args.data / "epfl_pom" / "EPFL-Terrace"
@@ -275,21 +284,27 @@ def main(argv=None) -> int:
         rows = _rows(args.rows)
         results = []
         tuned = FRONT_ENDS["KNN + gain compensation"]
-        for key, front, heights, use_filter in [("knn", "KNN defaults", PLANES_M, True),
-                                                ("gain", "KNN + gain compensation", PLANES_M, True),
-                                                ("ground", "KNN + gain compensation", (0.0,), True),
-                                                ("nofilter", "KNN + gain compensation", PLANES_M, False)]:
+        gain = "KNN + gain compensation"
+        for key, front, heights, use_filter, model in [
+                ("knn", "KNN defaults", PLANES_M, True, "cell"), ("gain", gain, PLANES_M, True, "cell"),
+                ("ground", gain, (0.0,), True, "cell"), ("nofilter", gain, PLANES_M, False, "cell"),
+                ("gen", gain, PLANES_M, True, "generative"), ("gen-ground", gain, (0.0,), True, "generative"),
+                ("gen-nofilter", gain, PLANES_M, False, "generative")]:
             if key not in rows:
                 continue
-            params = SystemParams(heights_m=heights, cell_size_m=CELL_M, laser=False, sound=False,
-                                  use_filter=use_filter, camera_params=CameraParams(foreground=FRONT_ENDS[front]))
+            cp = CameraParams(foreground=FRONT_ENDS[front], sensor_model=model, generative=GENERATIVE_SENSOR)
+            params = SystemParams(heights_m=heights, cell_size_m=args.cell, laser=False, sound=False,
+                                  use_filter=use_filter, camera_params=cp)
+            params = replace(params, tracking=replace(params.tracking, cluster=replace(
+                params.tracking.cluster, threshold=args.column_threshold)))
             filt, raw = run_row(rec, params, truth, frames)
             planes = "/".join(f"{h:g}" for h in heights)
+            name = "per cell" if model == "cell" else "generative"
             results.append(dict(front_end=front, planes=planes, filter="BOF" if use_filter else "off",
-                                sensor_model="per cell", scores=filt))
+                                sensor_model=name, scores=filt))
             if use_filter:
                 results.append(dict(front_end=front, planes=planes, filter="none (per frame)",
-                                    sensor_model="per cell", scores=raw))
+                                    sensor_model=name, scores=raw))
             print(markdown(results[-2:] if use_filter else results[-1:]).split("\n", 2)[-1], flush=True)
         if "generative" in rows or args.pom:
             masks, _, mask_cpu_s = foreground_masks(rec, tuned)
@@ -321,7 +336,7 @@ def main(argv=None) -> int:
 
 
 def _rows(spec: str) -> set[str]:
-    allowed = {"knn", "gain", "ground", "nofilter", "generative"}
+    allowed = set(ROWS)
     rows = allowed if spec == "all" else set(spec.split(","))
     if rows - allowed:
         raise SystemExit(f"--rows: unknown {sorted(rows - allowed)}; choose from {sorted(allowed)}")

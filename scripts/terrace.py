@@ -42,13 +42,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from planefuse.calib import load_epfl_boxes, terrace_cameras
+from planefuse.calib import terrace_cameras
 from planefuse.eval import detection_scores, match_detections, tracking_metrics
 from planefuse.grid import PlaneStack
 from planefuse.io import read_recording
 from planefuse.pipeline import SystemParams, run_system
 from planefuse.vision import (BackgroundSubtractor, CameraParams, ForegroundParams, GenerativeSensorParams,
-                              recording_frames)
+                              epfl_ground_truth_from_cameras, load_epfl_sequence, recording_frames)
 
 FPS = 25.0
 #: The converter's watermark, (u_min, v_min, u_max, v_max) px, max exclusive (../shared/data/epfl_video/SOURCE.md).
@@ -56,15 +56,13 @@ WATERMARK_PX = (130, 230, 356, 285)
 #: The monitored area [m, Tsai world]: POM's terrace grid, 7.5 m x 11 m from (-0.5, -1.5).
 AREA_X_M, AREA_Y_M = (-0.5, 7.0), (-1.5, 9.5)
 PLANES_M = (0.1, 0.5, 1.0, 1.5)
-CELL_M = 0.05
-COLUMN_THRESHOLD = 1.5
+CELL_M = 0.1
 ROWS = ("knn", "gain", "ground", "nofilter", "gen", "gen-ground", "gen-nofilter", "generative")
 
 #: Front ends compared (parameters chosen on frames 0-1499, docs/results.md).
 FRONT_ENDS = {
     "KNN defaults": ForegroundParams(),
-    "KNN + gain compensation": ForegroundParams(gain_compensation=True, shadow_likelihood=0.5,
-                                                relearn_fraction=0.5),
+    "KNN + gain compensation": ForegroundParams(gain_compensation=True, shadow_likelihood=0.5),
 }
 
 
@@ -78,36 +76,12 @@ class TerraceTruth:
 
 
 def terrace_truth(pom_root: Path, frames) -> TerraceTruth:
-    """Ground truth from the four cameras' boxes: the median of the feet back-projected through the Tsai models.
-
-    A person seen by neither c0 nor c1 is "ignore" (outside what the two videos can detect).
-    """
-    cams = terrace_cameras((0, 1, 2, 3))
-    rows = []
-    for i, cam in enumerate(cams):
-        b = load_epfl_boxes(pom_root / f"terrace1-c{i}" / "gt" / "gt.txt")
-        vis = ~b.lost
-        xy = cam.backproject_to_height(b.foot_uv()[vis], 0.0)[:, :2]
-        rows.append(np.c_[b.frame[vis], b.track_id[vis], xy, np.full(int(vis.sum()), i)])
-    a = np.concatenate(rows)
-    a = a[np.isfinite(a[:, 2:4]).all(axis=1)]
-    wanted = set(int(f) for f in frames)
-    ids, xy, ign = {}, {}, {}
-    for f in wanted:
-        r = a[a[:, 0] == f]
-        keep_id, keep_xy, ignore = [], [], []
-        for pid in np.unique(r[:, 1]):
-            s = r[r[:, 1] == pid]
-            m = np.median(s[:, 2:4], axis=0)
-            if np.isin(s[:, 4], (0, 1)).any():
-                keep_id.append(int(pid))
-                keep_xy.append(m)
-            else:
-                ignore.append(m)
-        ids[f] = np.array(keep_id, dtype=int)
-        xy[f] = np.array(keep_xy).reshape(-1, 2)
-        ign[f] = np.array(ignore).reshape(-1, 2)
-    return TerraceTruth(ids, xy, ign)
+    """Ground truth from the four cameras' boxes: the median of the feet back-projected through the Tsai models
+    (:func:`planefuse.vision.epfl_ground_truth_from_cameras`); a person seen by neither c0 nor c1 is "ignore"."""
+    seq = load_epfl_sequence(pom_root, "terrace1")
+    gt = epfl_ground_truth_from_cameras(seq, terrace_cameras((0, 1, 2, 3)), (0, 1), frames)
+    return TerraceTruth({f: v[0] for f, v in gt.items()}, {f: v[1] for f, v in gt.items()},
+                        {f: v[2] for f, v in gt.items()})
 
 
 def write_recording(folder: Path, video_root: Path, truth: TerraceTruth, frames: np.ndarray, step: int) -> Path:
@@ -239,7 +213,11 @@ def _generative_params():
 GENERATIVE = _generative_params()
 #: The generative sensor of the run (planefuse.vision): same sigma; its prior density, 0.05 people/m^2, is
 #: 0.003 per 25 cm location, the prior chosen on frames 0-1499.
-GENERATIVE_SENSOR = GenerativeSensorParams(sigma=0.005, people_per_m2=0.05)
+GENERATIVE_SENSOR = GenerativeSensorParams(sigma=0.005, people_per_m2=0.05,
+                                           evidence_prior=0.5)
+#: BOF column log-odds of a person, per sensor model (generative: chosen on frames 0-1499 every 10th, 3 vs 1.5;
+#: per cell: the system's default).
+COLUMN_THRESHOLDS = {"cell": 1.5, "generative": 3.0}
 
 
 def markdown(rows: list[dict]) -> str:
@@ -265,8 +243,9 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="folder for terrace.json, table.md and masks")
     ap.add_argument("--rows", default="all", help="comma-separated subset of " + ",".join(ROWS))
     ap.add_argument("--cell", type=float, default=CELL_M, help="grid cell side of the plane stack [m]")
-    ap.add_argument("--column-threshold", type=float, default=COLUMN_THRESHOLD,
-                    help="BOF column log-odds of a person (models.detection.column_threshold)")
+    ap.add_argument("--column-threshold", type=float, default=None,
+                    help="BOF column log-odds of a person (models.detection.column_threshold); default per sensor "
+                         "model: " + str(COLUMN_THRESHOLDS))
     ap.add_argument("--pom", action="store_true", help="also run POM on the same masks (needs g++, make, libpng)")
     args = ap.parse_args(argv)
     video_root, pom_root = args.data / "epfl_video", args.data / "epfl_pom" / "EPFL-Terrace"
@@ -295,8 +274,9 @@ def main(argv=None) -> int:
             cp = CameraParams(foreground=FRONT_ENDS[front], sensor_model=model, generative=GENERATIVE_SENSOR)
             params = SystemParams(heights_m=heights, cell_size_m=args.cell, laser=False, sound=False,
                                   use_filter=use_filter, camera_params=cp)
+            threshold = args.column_threshold or COLUMN_THRESHOLDS[model]
             params = replace(params, tracking=replace(params.tracking, cluster=replace(
-                params.tracking.cluster, threshold=args.column_threshold)))
+                params.tracking.cluster, threshold=threshold)))
             filt, raw = run_row(rec, params, truth, frames)
             planes = "/".join(f"{h:g}" for h in heights)
             name = "per cell" if model == "cell" else "generative"

@@ -66,7 +66,9 @@ class ForegroundParams:
         compensated frames' background pixels, so it stays in the units the subtractor learnt) over
         ``gain_blocks`` blocks, interpolated between block centres.
     gain_blocks : tuple of int
-        ``(rows, cols)`` of the gain field's blocks.
+        ``(rows, cols)`` of the gain field's blocks. One block (a global gain per channel) was the most robust on
+        the EPFL terrace's tuning frames (0-1499; docs/results.md): with several, a person filling much of a
+        block biases its median.
     gain_rate : float
         Rate of the reference background's running average, per frame, in (0, 1].
     relearn_fraction : float or None
@@ -92,7 +94,7 @@ class ForegroundParams:
     ceiling: float = 0.98
     learning_rate: float = -1.0
     gain_compensation: bool = False
-    gain_blocks: tuple[int, int] = (4, 6)
+    gain_blocks: tuple[int, int] = (1, 1)
     gain_rate: float = 0.05
     relearn_fraction: float | None = None
     relearn_frames: int = 5
@@ -282,6 +284,10 @@ class GainCompensator:
 
     #: Pixels darker than this in the reference, or saturated in either image, say nothing about the gain [grey level].
     DARK, SATURATED = 16.0, 250.0
+    #: Fewest background pixels (fraction of the image) the gain is measured on; below it all pixels are used.
+    MIN_VALID = 0.05
+    #: Bound on the gain of a block (and its inverse): beyond it the frame is not the same scene.
+    MAX_GAIN = 4.0
 
     def __init__(self, blocks: tuple[int, int], rate: float) -> None:
         self.blocks = (int(blocks[0]), int(blocks[1]))
@@ -299,12 +305,12 @@ class GainCompensator:
         ok = (ref > self.DARK) & (ref < self.SATURATED) & (img < self.SATURATED)
         if ok.ndim == 3:
             ok = ok.all(axis=2)
-        if self._valid is not None:
-            ok &= self._valid
+        if self._valid is not None and np.count_nonzero(ok & self._valid) >= self.MIN_VALID * ok.size:
+            ok &= self._valid  # else the subtractor called (nearly) everything foreground: a cold model
         if ok.ndim < img.ndim:
             ok = ok[..., None]
         ratio = np.where(ok, img / np.maximum(ref, 1.0), np.nan)
-        gain = _block_medians(ratio, self.blocks)
+        gain = np.clip(_block_medians(ratio, self.blocks), 1.0 / self.MAX_GAIN, self.MAX_GAIN)
         field = cv2.resize(gain, (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
         return np.clip(img / field.reshape(img.shape), 0, 255).astype(np.uint8)
 

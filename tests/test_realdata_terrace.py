@@ -1,15 +1,17 @@
 """The camera detector on real video: EPFL terrace1 c0 + c1, 100 frames, against the four-camera ground truth.
 
-Frames 1500-1995, every 5th (the first 100 of the reported range, lighting changes included: KNN with OpenCV's
-defaults calls 50-80 % of c0 foreground around frame 1500). Nothing is tuned here; the bounds sit below the
-values measured when this test was written (``scripts/terrace.py`` reproduces the full range):
+Frames 1500-1995, every 5th (the first 100 of the reported range; the background model starts cold at frame
+1500, during a lighting change). Front end: KNN with gain compensation (``scripts/terrace.py``'s, chosen on frames
+0-1499); sensor model: generative (mean-field marginals on 10 cm locations), per frame, no filter. Nothing is
+tuned here; the bounds sit below the values measured when this test was written (``scripts/terrace.py``
+reproduces the full range, docs/results.md):
 
-=========================================  ===========  ===========  ==============
-front end / sensor model (per frame)       MODA 0.5 m   MODA 1.0 m   foreground c0
-=========================================  ===========  ===========  ==============
-KNN defaults / generative                  see below    see below    see below
-KNN + gain compensation / generative       see below    see below    see below
-=========================================  ===========  ===========  ==============
+=====================  ==========  ===========  ========  ===============================
+threshold              MODA        precision    recall    c0 foreground share (median)
+=====================  ==========  ===========  ========  ===============================
+0.5 m                  0.420       0.727        0.672     0.157 (max 0.34, frame 1525)
+1.0 m                  0.576       0.811        0.750
+=====================  ==========  ===========  ========  ===============================
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from planefuse.calib import terrace_cameras
 from planefuse.eval import detection_scores
 from planefuse.grid import PlaneStack
 from planefuse.vision import (
+    BackgroundSubtractor,
     CameraParams,
     ForegroundParams,
     GenerativeSensorParams,
@@ -33,7 +36,8 @@ from planefuse.vision import (
 )
 
 FRAMES = np.arange(1500, 2000, 5)
-TUNED = ForegroundParams(gain_compensation=True, shadow_likelihood=0.5, relearn_fraction=0.5)
+#: scripts/terrace.py's front end (chosen on frames 0-1499).
+TUNED = ForegroundParams(gain_compensation=True, shadow_likelihood=0.5)
 
 
 def _frames(video_dir):
@@ -65,25 +69,30 @@ def _run(fg: ForegroundParams):
     ignore[230:285, 130:356] = True  # the converter's watermark (epfl_video/SOURCE.md)
     stack = PlaneStack.from_extent((0.1, 0.5, 1.0, 1.5), (-0.5, 7.0), (-1.5, 9.5), 0.1)
     lookups = lookups_from_cameras(cams, stack, ignore_masks=[ignore, ignore])
-    params = CameraParams(foreground=fg, sensor_model="generative",
-                          generative=GenerativeSensorParams(sigma=0.005, foreground_threshold=None))
-    dets = [d for _, d in camera_detections(_frames(video), lookups, stack, params, cameras=cams,
+    params = CameraParams(foreground=fg, sensor_model="generative", generative=GenerativeSensorParams(sigma=0.005))
+    fractions = []
+
+    def frames():  # the foreground share of c0 as the front end sees each frame
+        sub = BackgroundSubtractor(360, 288, fg)
+        for t, imgs in _frames(video):
+            fractions.append(float(np.mean(sub.apply(imgs[0])[~ignore] > 0.5)))
+            yield t, imgs
+
+    dets = [d for _, d in camera_detections(frames(), lookups, stack, params, cameras=cams,
                                             ignore_masks=[ignore, ignore], names=["c0", "c1"])]
-    frames = [int(round(d.time_s * 25)) for d in dets]
-    return {thr: detection_scores([(truth[f][1], d.xy_m, truth[f][2]) for f, d in zip(frames, dets)], thr)
-            for thr in (0.5, 1.0)}
+    idx = [int(round(d.time_s * 25)) for d in dets]
+    scores = {thr: detection_scores([(truth[f][1], d.xy_m, truth[f][2]) for f, d in zip(idx, dets)], thr)
+              for thr in (0.5, 1.0)}
+    return scores, np.array(fractions)
 
 
 @pytest.mark.realdata
-def test_gain_compensated_front_end_detects_people_on_real_video():
-    s = _run(TUNED)
-    print({t: (round(v.moda, 3), round(v.precision, 3), round(v.recall, 3)) for t, v in s.items()})
-    assert s[0.5].moda > 0.0
-    assert s[1.0].moda > 0.0
-
-
-@pytest.mark.realdata
-def test_gain_compensation_beats_opencv_defaults_on_real_video():
-    tuned, plain = _run(TUNED), _run(ForegroundParams())
-    print(tuned[1.0].moda, plain[1.0].moda)
-    assert tuned[1.0].moda > plain[1.0].moda
+def test_gain_compensated_front_end_on_real_video():
+    """From a cold start in a lighting change, the compensated front end keeps c0's foreground share near the
+    people's, and the generative detector finds most people with few false alarms."""
+    scores, fraction = _run(TUNED)
+    print({t: (round(v.moda, 3), round(v.precision, 3), round(v.recall, 3)) for t, v in scores.items()},
+          np.median(fraction))
+    assert np.median(fraction) < 0.25
+    assert scores[0.5].moda > 0.3 and scores[0.5].recall > 0.55
+    assert scores[1.0].moda > 0.45 and scores[1.0].precision > 0.7

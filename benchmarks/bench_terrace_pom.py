@@ -38,20 +38,13 @@ from planefuse.grid import PlaneStack  # noqa: E402
 from planefuse.occupancy import silhouettes_from_cameras, write_pom  # noqa: E402
 
 
-def _peaks(q: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    from scipy import ndimage
-
-    peak = ndimage.maximum_filter(q, size=3, mode="constant")
-    return xy[((q >= peak) & (q >= 0.5)).ravel()]
-
-
 def pom_row(rec, masks, frames, scorer, out: Path, area_x_m=(-0.5, 7.0), area_y_m=(-1.5, 9.5), cell_m=0.25,
             params=None) -> dict | None:
     """Build and run POM on ``masks`` ((F, H, W) uint8 per camera of ``rec``); ``scorer(detections)`` scores the
     per-frame detections. Returns the scores with ``seconds_per_frame``, or None (with the reason printed) where
     POM cannot be built here."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-    from terrace import GENERATIVE, ignore_mask
+    from terrace import GENERATIVE, ignore_mask, peaks_from_marginals
 
     params = params or GENERATIVE
     try:
@@ -75,7 +68,7 @@ def pom_row(rec, masks, frames, scorer, out: Path, area_x_m=(-0.5, 7.0), area_y_
               result_format=str(work / "result" / "proba-f%f.dat"), process=(0, len(frames)),
               comment="EPFL terrace1 c0+c1, planefuse masks (benchmarks/bench_terrace_pom.py)")
     q, seconds = run_pom_program(exe, pom_file, sil.n_locations, range(len(frames)), work / "result")
-    dets = [_peaks(qk.reshape(stack.ny, stack.nx), xy) for qk in q]
+    dets = [peaks_from_marginals(qk.reshape(stack.ny, stack.nx), xy) for qk in q]
     scores = scorer(dets)
     scores.update(seconds_per_frame=seconds / len(frames), pom_wall_s=seconds)
     np.save(out / "pom_marginals.npy", q)

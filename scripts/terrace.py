@@ -162,7 +162,7 @@ def run_row(rec, params: SystemParams, truth: TerraceTruth, frames) -> tuple[dic
     return filt, raw
 
 
-def foreground_masks(rec, fg: ForegroundParams) -> tuple[list[np.ndarray], list[np.ndarray], float]:
+def foreground_masks(rec, fg: ForegroundParams) -> tuple[list[np.ndarray], float]:
     """The front end's foreground likelihoods of every recorded frame, per camera ((F, H, W) uint8 0..255), as the
     camera pipeline computes them, and the CPU seconds it took (decode included)."""
     t0 = time.process_time()
@@ -171,15 +171,13 @@ def foreground_masks(rec, fg: ForegroundParams) -> tuple[list[np.ndarray], list[
     for _, imgs in recording_frames(rec):
         for c, (sub, img) in enumerate(zip(subs, imgs)):
             out[c].append(np.round(sub.apply(img) * 255).astype(np.uint8))
-    return [np.stack(o) for o in out], [], time.process_time() - t0
+    return [np.stack(o) for o in out], time.process_time() - t0
 
 
 def generative_row(rec, masks, truth: TerraceTruth, frames, cell_m: float = 0.25) -> tuple[dict, np.ndarray]:
     """Mean-field marginals per frame on the ground locations (silhouettes from the same cameras), detections at
     local maxima with marginal >= 0.5; returns the scores and the marginals (F, ny, nx)."""
-    from scipy import ndimage
-
-    from planefuse.occupancy import GenerativeParams, MeanFieldSolver, silhouettes_from_cameras
+    from planefuse.occupancy import MeanFieldSolver, silhouettes_from_cameras
 
     stack = PlaneStack.from_extent((0.0,), AREA_X_M, AREA_Y_M, cell_m)
     xy = stack.cell_centers_xy().reshape(-1, 2)
@@ -189,15 +187,24 @@ def generative_row(rec, masks, truth: TerraceTruth, frames, cell_m: float = 0.25
     dets, qs = [], []
     for k in range(len(frames)):
         q = solver.solve([m[k] for m in masks], observed).marginals.reshape(stack.ny, stack.nx)
-        peak = ndimage.maximum_filter(q, size=3, mode="constant")
-        dets.append(xy[((q >= peak) & (q >= 0.5)).ravel()])
+        dets.append(peaks_from_marginals(q, xy))
         qs.append(q)
     out = score(truth, frames, dets)
     out.update(cpu_s=time.process_time() - t0)
     return out, np.stack(qs)
 
 
+def peaks_from_marginals(q: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Locations (M, 2) [m] of the local maxima (3 x 3) of marginals ``q`` (ny, nx) that reach 0.5; ``xy`` (ny nx, 2)
+    are the locations' positions."""
+    from scipy import ndimage
+
+    peak = ndimage.maximum_filter(q, size=3, mode="constant")
+    return xy[((q >= peak) & (q >= 0.5)).ravel()]
+
+
 def ignore_mask(cam) -> np.ndarray:
+    """The watermark as an ignore mask (height_px, width_px) bool."""
     m = np.zeros((cam.intrinsics.height_px, cam.intrinsics.width_px), bool)
     u0, v0, u1, v1 = WATERMARK_PX
     m[v0:v1, u0:u1] = True
@@ -287,7 +294,7 @@ def main(argv=None) -> int:
                                     sensor_model=name, scores=raw))
             print(markdown(results[-2:] if use_filter else results[-1:]).split("\n", 2)[-1], flush=True)
         if "generative" in rows or args.pom:
-            masks, _, mask_cpu_s = foreground_masks(rec, tuned)
+            masks, mask_cpu_s = foreground_masks(rec, tuned)
             np.savez_compressed(out / "masks.npz", frames=frames, c0=masks[0], c1=masks[1])
             gen, q = generative_row(rec, masks, truth, frames)
             gen["mask_cpu_s"] = mask_cpu_s

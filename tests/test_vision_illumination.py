@@ -119,3 +119,29 @@ def test_terrace_cameras_are_about_two_metres_up():
         pinhole_from_tsai(TERRACE_TSAI[0], scale=0.0)
     with pytest.raises(ValueError, match="non-finite"):
         TsaiParams(float("nan"), 0, 0, 0, 0, 0, 0, 0, 0, 1)
+
+
+# -- generative evidence measured against even odds ------------------------------------------------------------
+def test_generative_evidence_prior_makes_weak_marginals_evidence_against():
+    """``evidence_prior=0.5``: a cell whose disc holds a total marginal below one half (a ghost the explaining-away
+    left at q ~ 0.3) gets negative evidence, a person (q ~ 1) positive; with the model's prior both are positive
+    (the filter then accumulates the ghost)."""
+    from planefuse.geometry import default_camera_ring
+    from planefuse.grid import PlaneStack
+    from planefuse.vision import GenerativeCameraSensor, GenerativeSensorParams
+
+    stack = PlaneStack.from_extent([0.1, 0.9, 1.6], (0, 10), (0, 10), 0.1)
+    cams = [default_camera_ring(4)[i] for i in (0, 1)]
+    q = np.zeros((stack.ny, stack.nx))
+    person, ghost = (30, 40), (70, 60)
+    q[person] = 0.99
+    q[ghost] = 0.3
+    ev = {}
+    for ref in (None, 0.5):
+        sensor = GenerativeCameraSensor(cams, stack, GenerativeSensorParams(evidence_prior=ref))
+        ev[ref] = sensor.log_odds_from_marginals(q)[0]
+    assert ev[None][person] > 0 and ev[None][ghost] > 0
+    assert ev[0.5][person] > 0 > ev[0.5][ghost]
+    assert ev[0.5][50, 50] < ev[0.5][ghost]  # an empty cell says "nobody" more firmly
+    with pytest.raises(ValueError, match="evidence_prior"):
+        GenerativeSensorParams(evidence_prior=1.0)

@@ -11,8 +11,8 @@ folder (GPL: nothing of it enters planefuse; ``benchmarks/_pom_reference.py``). 
 * the same PRIOR and SIGMA_IMAGE_DENSITY as planefuse's mean-field row,
 
 and its ``proba-f<frame>.dat`` marginals become detections exactly as planefuse's (local maxima >= 0.5), scored by
-the caller's scorer. POM's time per frame is wall-clock over the whole program run (start-up, reading the PNGs and
-writing the results included), on one core.
+the caller's scorer. POM's time per frame: wall-clock and CPU (its process's user + system time) over the whole
+program run (start-up, reading the PNGs and writing the results included), on one core.
 
 Run alone (skips cleanly without g++/make or the POM source)::
 
@@ -23,6 +23,8 @@ or as the POM row of ``scripts/terrace.py --pom``.
 
 from __future__ import annotations
 
+import resource
+import shutil
 import sys
 import tempfile
 import time
@@ -39,23 +41,24 @@ from planefuse.occupancy import silhouettes_from_cameras, write_pom  # noqa: E40
 
 
 def pom_row(rec, masks, frames, scorer, out: Path, area_x_m=(-0.5, 7.0), area_y_m=(-1.5, 9.5), cell_m=0.25,
-            params=None) -> dict | None:
+            params=None, person=None) -> dict | None:
     """Build and run POM on ``masks`` ((F, H, W) uint8 per camera of ``rec``); ``scorer(detections)`` scores the
-    per-frame detections. Returns the scores with ``seconds_per_frame``, or None (with the reason printed) where
-    POM cannot be built here."""
+    per-frame detections; ``person`` (PersonVolume) shapes the silhouettes. Returns the scores with
+    ``seconds_per_frame``, or None (with the reason printed) where POM cannot be built here."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
     from terrace import GENERATIVE, ignore_mask, peaks_from_marginals
 
     params = params or GENERATIVE
+    work = Path(tempfile.mkdtemp(prefix="pom-terrace-"))
     try:
-        work = Path(tempfile.mkdtemp(prefix="pom-terrace-"))
         exe = build_pom(work)
     except RuntimeError as exc:
+        shutil.rmtree(work, ignore_errors=True)
         print(f"POM row skipped: {exc}", file=sys.stderr)
         return None
     stack = PlaneStack.from_extent((0.0,), area_x_m, area_y_m, cell_m)
     xy = stack.cell_centers_xy().reshape(-1, 2)
-    sil = silhouettes_from_cameras(list(rec.cameras), xy)
+    sil = silhouettes_from_cameras(list(rec.cameras), xy, person)
     (work / "masks").mkdir()
     (work / "result").mkdir()
     for c, cam in enumerate(rec.cameras):
@@ -67,10 +70,16 @@ def pom_row(rec, masks, frames, scorer, out: Path, area_x_m=(-0.5, 7.0), area_y_
     write_pom(pom_file, sil, params, input_view_format=str(work / "masks" / "c%c-f%f.png"),
               result_format=str(work / "result" / "proba-f%f.dat"), process=(0, len(frames)),
               comment="EPFL terrace1 c0+c1, planefuse masks (benchmarks/bench_terrace_pom.py)")
-    q, seconds = run_pom_program(exe, pom_file, sil.n_locations, range(len(frames)), work / "result")
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    try:
+        q, seconds = run_pom_program(exe, pom_file, sil.n_locations, range(len(frames)), work / "result")
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
     dets = [peaks_from_marginals(qk.reshape(stack.ny, stack.nx), xy) for qk in q]
     scores = scorer(dets)
-    scores.update(seconds_per_frame=seconds / len(frames), pom_wall_s=seconds)
+    cpu_s = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    scores.update(seconds_per_frame=seconds / len(frames), pom_wall_s=seconds, cpu_s_per_frame=cpu_s / len(frames))
     np.save(out / "pom_marginals.npy", q)
     return scores
 

@@ -174,14 +174,15 @@ def foreground_masks(rec, fg: ForegroundParams) -> tuple[list[np.ndarray], float
     return [np.stack(o) for o in out], time.process_time() - t0
 
 
-def generative_row(rec, masks, truth: TerraceTruth, frames, cell_m: float = 0.25) -> tuple[dict, np.ndarray]:
+def generative_row(rec, masks, truth: TerraceTruth, frames, cell_m: float = 0.25,
+                   person=None) -> tuple[dict, np.ndarray]:
     """Mean-field marginals per frame on the ground locations (silhouettes from the same cameras), detections at
     local maxima with marginal >= 0.5; returns the scores and the marginals (F, ny, nx)."""
     from planefuse.occupancy import MeanFieldSolver, silhouettes_from_cameras
 
     stack = PlaneStack.from_extent((0.0,), AREA_X_M, AREA_Y_M, cell_m)
     xy = stack.cell_centers_xy().reshape(-1, 2)
-    solver = MeanFieldSolver(silhouettes_from_cameras(list(rec.cameras), xy), GENERATIVE)
+    solver = MeanFieldSolver(silhouettes_from_cameras(list(rec.cameras), xy, person), GENERATIVE)
     observed = [~ignore_mask(c) for c in rec.cameras]
     t0 = time.process_time()
     dets, qs = [], []

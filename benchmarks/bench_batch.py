@@ -10,7 +10,7 @@ import argparse
 import time
 
 from planefuse.batch import BatchJob, SceneSpec, run_batch
-from planefuse.pipeline import SystemParams
+from planefuse.pipeline import RunPlan, SystemParams
 
 TIMING = {"elapsed_s"}
 
@@ -22,7 +22,7 @@ def main() -> None:
     args = ap.parse_args()
     lo, hi = (int(x) for x in args.seeds.split("-"))
     configs = {"filter": SystemParams(sound=False), "no filter": SystemParams(sound=False, use_filter=False)}
-    jobs = [BatchJob(f"seed{s} {name}", SceneSpec(seed=s, duration_s=args.duration_s), p)
+    jobs = [BatchJob(f"seed{s} {name}", SceneSpec(seed=s, duration_s=args.duration_s), RunPlan(p))
             for s in range(lo, hi + 1) for name, p in configs.items()]
     wall, results = {}, {}
     for n in (1, 2):

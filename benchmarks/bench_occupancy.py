@@ -3,7 +3,8 @@
 POM, the reference program, is built from ``../shared/reference/pom`` in a temporary folder (GPL: nothing of it
 enters planefuse; see ``benchmarks/_pom_reference.py``) and run on the same ``.pom`` file and masks as
 ``planefuse.occupancy.run_pom``. Both run on one core, frame after frame, reading the PNG masks and writing
-``proba-f<frame>.dat``; times are wall-clock seconds per frame of the whole run (POM's includes its start-up).
+``proba-f<frame>.dat``; times are CPU seconds (user + system) per frame of the whole run (POM's includes its
+start-up): on a machine shared with other jobs CPU time compares the two where wall time does not.
 
 Cases:
 
@@ -49,9 +50,9 @@ from planefuse.occupancy import (  # noqa: E402
 def _ours(pom_file: Path, frames) -> tuple[np.ndarray, float, float]:
     cfg = read_pom(pom_file)
     list(run_pom(cfg, frames[:1], write=False))  # numba compilation out of the timing
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     res = list(run_pom(cfg, frames))
-    dt = (time.perf_counter() - t0) / len(frames)
+    dt = (time.process_time() - t0) / len(frames)
     return np.array([r.marginals for _, r in res]), dt, float(np.median([r.n_iterations for _, r in res]))
 
 

@@ -22,8 +22,8 @@ import numpy as np
 import zarr
 
 from planefuse.io import read_recording
-from planefuse.outputs import OutputWriter
-from planefuse.pipeline import SystemParams, run_to_folder
+from planefuse.outputs import OutputSettings, OutputWriter
+from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
 from planefuse.sim import default_scene_config, simulate
 
 
@@ -38,8 +38,8 @@ def run(rec, out: Path, chunk_steps: int, stop_at: int | None = None) -> float:
     OutputWriter.write_occupancy = write
     t0 = time.perf_counter()
     try:
-        run_to_folder(rec, SystemParams(), out, progress_mode="quiet", animation="none", figures=False,
-                      report=False, chunk_steps=chunk_steps)
+        run_to_folder(rec, RunPlan(SystemParams(), out, OutputSettings(animation="none", figures=False, report=False,
+                                                              chunk_steps=chunk_steps)), progress_mode="quiet")
     except KeyboardInterrupt:
         pass
     finally:

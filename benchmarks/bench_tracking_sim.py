@@ -52,7 +52,7 @@ def scores(rec, outputs, warm_s: float = 1.0) -> dict:
         ok = np.isfinite(gt.xy_m[k]).all(axis=1)
         frames.append((o.time_s, gt.person_ids[ok], gt.xy_m[k][ok]))
     det = detection_scores([(f[2], o.detections.xy_m) for f, o in zip(frames, outs)], 0.5)
-    mot = tracking_metrics(frames, [o.tracks for o in outs], max_distance_m=0.5)
+    mot = tracking_metrics(frames, [o.tracks for o in outs], match_distance_m=0.5)
     return {"moda": det.moda, "recall": det.recall, "mota": mot["mota"], "idf1": mot["idf1"]}
 
 

@@ -4,7 +4,7 @@ Usage: ``PYTHONPATH=src python scripts/ablation.py [--duration-s 10] [--seed 1]`
 
 Rows: cameras only; cameras + laser; cameras + laser + sound (the demo); laser only; laser + sound;
 a single plane (1.0 m) instead of the stack; no temporal filter (``use_filter=False``). Scores are those
-of :func:`planefuse.pipeline.evaluate_system` (first second skipped, 0.5 m match distance).
+of :func:`planefuse.eval.system_metrics` (first second skipped, 0.5 m match distance).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from planefuse.pipeline import SystemParams, evaluate_system, run_system
+from planefuse.pipeline import RunPlan, SystemParams, run_plan
 from planefuse.sim import default_scene_config, simulate
 
 ROWS = [
@@ -37,7 +37,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|")
     for name, params in ROWS:
         t0 = time.process_time()
-        m = evaluate_system(rec, run_system(rec, params))
+        _, m = run_plan(rec, RunPlan(params))  # what `planefuse run` runs, in memory
         cpu = time.process_time() - t0
         print(f"| {name} | {m['moda']:.3f} | {m['mota']:.3f} | {m['idf1']:.3f} | {m['precision']:.3f} | "
               f"{m['recall']:.3f} | {m['id_switches']} | {cpu:.1f} |", flush=True)

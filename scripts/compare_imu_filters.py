@@ -1,87 +1,86 @@
-"""Compare the attitude filters of :func:`planefuse.geometry.attitude_from_imu` on real IMU logs.
+"""Compare the attitude filters of :func:`planefuse.geometry.attitude_from_imu` on real IMU logs (docs/results.md).
 
-BROAD trials (optical ground truth): inclination RMSE over the movement phase.
-x-io Fusion log (no ground truth): inclination difference to ``imufusion.Ahrs`` with default settings, and the
-error against the accelerometer's gravity direction while the device is still.
+Every IMU log given, or found under DATA_ROOT (``imu_broad/*.hdf5``, ``imu_xio_fusion/*.csv``), is read with
+:func:`planefuse.io.read_imu_log` and scored with :func:`planefuse.eval.score_attitude`, as
+``planefuse imu attitude FILE --filter all`` does. Logs with a reference attitude (BROAD): inclination error over
+the scored samples. Logs without one (x-io): inclination difference to ``imufusion.Ahrs`` with its default
+settings, and the error against the accelerometer while the device is still.
 
-Run: ``PYTHONPATH=src python scripts/compare_imu_filters.py [../shared/data]`` (about a minute on one core).
+Run: ``PYTHONPATH=src python scripts/compare_imu_filters.py DATA_ROOT`` or ``... FILE [FILE ...]`` (about a
+minute per log on one core).
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 import time
 from pathlib import Path
 
-import h5py
-import numpy as np
-from scipy.spatial.transform import Rotation
+from planefuse.eval import score_attitude
+from planefuse.geometry import ATTITUDE_METHODS, attitude_from_imu
+from planefuse.io import read_imu_log
 
-from planefuse.geometry import ATTITUDE_METHODS, attitude_from_imu, inclination_error_rad
-
-G = 9.80665
-
-
-def rms(x) -> float:
-    return float(np.sqrt(np.mean(np.square(x))))
+# imufusion.Ahrs with its own default settings (no gyro range, no acceleration rejection); the test
+# test_xio_inclination_agrees_with_imufusion drives imufusion directly and checks the same numbers.
+IMUFUSION_DEFAULTS = dict(gyroscope_range_deg_s=0.0, acceleration_rejection_deg=0.0, rejection_timeout_s=0.0)
 
 
-def broad_rows(path: Path) -> list[str]:
-    with h5py.File(path, "r") as f:
-        fs_hz = float(f.attrs["sampling_rate"])
-        gyr, acc, q = f["imu_gyr"][:], f["imu_acc"][:], f["opt_quat"][:]
-        movement = f["movement"][:].astype(bool)
-    nan_rows = np.isnan(q).any(axis=1)
-    scored = movement & ~nan_rows
-    R_true = Rotation.from_quat(q[scored][:, [1, 2, 3, 0]]).as_matrix()
-    t = np.arange(len(gyr)) / fs_hz
+def imu_logs(paths: list[Path]) -> list[Path]:
+    """The files given, with each folder expanded to the IMU logs of its imu_broad/ and imu_xio_fusion/."""
+    out = []
+    for p in paths:
+        if p.is_dir():
+            out += sorted((p / "imu_broad").glob("*.hdf5")) + sorted((p / "imu_xio_fusion").glob("*.csv"))
+        else:
+            out.append(p)
+    return out
+
+
+def rows_for(path: Path) -> tuple[str, list[str]]:
+    log = read_imu_log(path)
+    with_reference = log.R_ref_gravity_imu is not None
+    R_ref = None if with_reference else attitude_from_imu(log.time_s, log.gyro_rad_s, log.accel_m_s2,
+                                                          method="imufusion", params=IMUFUSION_DEFAULTS)
     rows = []
     for method in ATTITUDE_METHODS:
         t0 = time.perf_counter()
-        R = attitude_from_imu(t, gyr, acc, method=method)
+        R = attitude_from_imu(log.time_s, log.gyro_rad_s, log.accel_m_s2, method=method)
         run_s = time.perf_counter() - t0
-        e = np.degrees(inclination_error_rad(R[scored], R_true))
-        rows.append(
-            f"| {path.stem} | {method} | {rms(e):.3f} | {np.percentile(e, 95):.2f} | {e.max():.2f} | "
-            f"{scored.sum()} ({nan_rows.sum()} NaN GT rows, {(nan_rows & movement).sum()} in movement) | {run_s:.1f} |"
-        )
-    return rows
-
-
-def xio_rows(path: Path) -> list[str]:
-    d = np.genfromtxt(path, delimiter=",", skip_header=1)
-    t, gyr_deg_s, acc_g = d[:, 0], d[:, 1:4], d[:, 4:7]
-    # imufusion.Ahrs with its own default settings (no gyro range, no acceleration rejection); the test
-    # test_xio_inclination_agrees_with_imufusion drives imufusion directly and checks the same numbers.
-    imufusion_defaults = dict(gyroscope_range_deg_s=0.0, acceleration_rejection_deg=0.0, rejection_timeout_s=0.0)
-    R_ref = attitude_from_imu(t, np.radians(gyr_deg_s), acc_g * G, method="imufusion", params=imufusion_defaults)
-    settled = t > 5.0
-    still = settled & (np.linalg.norm(gyr_deg_s, axis=1) < 2.0) & (np.abs(np.linalg.norm(acc_g, axis=1) - 1) < 0.02)
-    up_body = acc_g[still] / np.linalg.norm(acc_g[still], axis=1, keepdims=True)
-    rows = []
-    for method in ATTITUDE_METHODS:
-        R = attitude_from_imu(t, np.radians(gyr_deg_s), acc_g * G, method=method)
-        e = np.degrees(inclination_error_rad(R[settled], R_ref[settled]))
-        rest = np.degrees(np.arccos(np.clip(np.einsum("nj,nj->n", R[still][:, 2, :], up_body), -1, 1)))
-        rows.append(f"| {method} | {rms(e):.3f} | {np.percentile(e, 95):.2f} | {e.max():.1f} | {rms(rest):.3f} |")
-    return rows
-
-
-def main(data_root: Path) -> None:
-    print("| trial | filter | inclination RMSE [deg] | p95 [deg] | max [deg] | scored samples | run time [s] |")
-    print("|---|---|---|---|---|---|---|")
-    for name in ("02_undisturbed_slow_rotation_B", "07_undisturbed_fast_rotation_B"):
-        path = data_root / "imu_broad" / f"{name}.hdf5"
-        if path.exists():
-            print("\n".join(broad_rows(path)))
+        s = score_attitude(log, method, R_gravity_imu=R, R_reference=R_ref,
+                           reference_name=None if with_reference else "imufusion defaults")
+        if with_reference:
+            rows.append(f"| {path.stem} | {method} | {s.rmse_deg:.3f} | {s.p95_deg:.2f} | {s.max_deg:.2f} | "
+                        f"{s.n_scored} ({s.n_reference_missing} NaN reference rows) | {run_s:.1f} |")
         else:
-            print(f"| {name} | (file absent) | | | | | |")
-    print()
-    print("| filter | vs imufusion RMS [deg] | p95 [deg] | max [deg] | at rest vs accelerometer RMS [deg] |")
-    print("|---|---|---|---|---|")
-    print("\n".join(xio_rows(data_root / "imu_xio_fusion" / "sensor_data.csv")))
+            rows.append(f"| {path.stem} | {method} | {s.rmse_deg:.3f} | {s.p95_deg:.2f} | {s.max_deg:.1f} | "
+                        f"{s.rest_rms_deg:.3f} ({s.n_rest} samples at rest) |")
+    return ("with", rows) if with_reference else ("without", rows)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("paths", nargs="+", type=Path, help="data root (holding imu_broad/, imu_xio_fusion/) or IMU files")
+    args = ap.parse_args(argv)
+    logs = imu_logs(args.paths)
+    if not logs:
+        raise SystemExit(f"no IMU log under {', '.join(map(str, args.paths))} (imu_broad/*.hdf5, imu_xio_fusion/*.csv)")
+    tables: dict[str, list[str]] = {"with": [], "without": []}
+    for path in logs:
+        try:
+            kind, rows = rows_for(path)
+        except ValueError as err:
+            raise SystemExit(f"error: {err}") from None
+        tables[kind] += rows
+    if tables["with"]:
+        print("| log | filter | inclination RMSE [deg] | p95 [deg] | max [deg] | scored samples | run time [s] |")
+        print("|---|---|---|---|---|---|---|")
+        print("\n".join(tables["with"]))
+        print()
+    if tables["without"]:
+        print("| log | filter | vs imufusion RMS [deg] | p95 [deg] | max [deg] | at rest vs accelerometer RMS [deg] |")
+        print("|---|---|---|---|---|---|")
+        print("\n".join(tables["without"]))
 
 
 if __name__ == "__main__":
-    root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "shared" / "data"
-    main(root)
+    main()

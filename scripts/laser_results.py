@@ -1,22 +1,22 @@
 """Accuracy numbers of planefuse.laser for docs/results.md (## Laser).
 
-Run: ``PYTHONPATH=src python scripts/laser_results.py`` (needs ../shared/data beside the checkout).
+Run: ``PYTHONPATH=src python scripts/laser_results.py DATA_ROOT`` (DATA_ROOT holds lrf2d_carmen/,
+lrf2d_people_leg_tracker/, lrf3d_camera_lcct/; sections whose files are absent say so). The real-data sections
+use the library functions behind ``planefuse laser-map``, ``planefuse laser legs`` and ``planefuse laser
+camera-check`` with the same arguments.
 """
 
 from __future__ import annotations
 
+import argparse
 import warnings
 from pathlib import Path
 
-import cv2
 import numpy as np
-import scipy.io
 
-from planefuse.geometry import apply_transform
-from planefuse.grid import PlaneStack
 from planefuse import laser
-
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+from planefuse.calib import load_bouguet_calibration
+from planefuse.grid import PlaneStack
 
 
 def simulated_tilting_scanner() -> None:
@@ -74,10 +74,19 @@ def simulated_tilting_scanner() -> None:
         print(f"  | {h:.1f} | {occ.sum()} | {100 * good.mean():.1f} % | {seen} of {present} |")
 
 
-def intel_map() -> None:
+def _absent(title: str, *paths: Path) -> bool:
+    missing = [str(p) for p in paths if not p.exists()]
+    if missing:
+        print(f"### {title}: skipped, {', '.join(missing)} absent")
+    return bool(missing)
+
+
+def intel_map(log_path: Path) -> None:
+    if _absent("Intel Research Lab map", log_path):
+        return
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        log = laser.read_carmen_log(DATA / "lrf2d_carmen" / "intel-corrected.log.gz")
+        log = laser.read_carmen_log(log_path)
     m, pts = laser.map_from_carmen_log(log)
     rng = np.random.default_rng(0)
     pose = log.pose_xy_theta + rng.normal(0, [0.05, 0.05, np.deg2rad(1.0)], log.pose_xy_theta.shape)
@@ -92,20 +101,23 @@ def intel_map() -> None:
           f"{1e3 * np.median(laser.wall_spread_m(bad)):.1f} mm")
 
 
-def legs() -> None:
-    bag = DATA / "lrf2d_people_leg_tracker" / "positive_1_extracted.bag"
-    _, scans = laser.read_rosbag(bag, "/training_scan")
-    _, labels = laser.read_rosbag(bag, "/leg_cluster_positions")
-    sc = laser.evaluate_leg_detection(scans, labels, max_distance_m=0.3)
-    tp, fp, fn, p, r = sc.tp, sc.fp, sc.fn, sc.precision, sc.recall
-    print("### Leg detection, positive_1_extracted.bag (197 scans, labels = leg-cluster centroids, "
-          "evaluated within +-15 deg and 5 m as labelled)")
-    print(f"- TP {tp}, FP {fp}, FN {fn}: precision {p:.3f}, recall {r:.3f}, F1 {2 * p * r / (p + r):.3f} at 0.3 m")
-    _, demo = laser.read_rosbag(DATA / "lrf2d_people_leg_tracker" / "demo_stationary_simple_environment.bag", "/scan")
+def legs(bag: Path, labels_topic: str, demo_bag: Path) -> None:
+    """As ``planefuse laser legs BAG --labels-topic ...`` (scores) and ``planefuse laser legs DEMO_BAG`` (counts)."""
+    if not _absent("Leg detection", bag):
+        scans, _ = laser.read_laser_scans(bag)
+        _, labels = laser.read_rosbag(bag, labels_topic)
+        sc = laser.evaluate_leg_detection(scans, labels, max_distance_m=0.3)
+        tp, fp, fn, p, r = sc.tp, sc.fp, sc.fn, sc.precision, sc.recall
+        print(f"### Leg detection, {bag.name} ({len(scans)} scans, labels = leg-cluster centroids on {labels_topic}, "
+              "evaluated within +-15 deg and 5 m as labelled)")
+        print(f"- TP {tp}, FP {fp}, FN {fn}: precision {p:.3f}, recall {r:.3f}, F1 {2 * p * r / (p + r):.3f} at 0.3 m")
+    if _absent("People candidates on the unlabelled bag", demo_bag):
+        return
+    demo, _ = laser.read_laser_scans(demo_bag)
     bg = laser.background_ranges_m(demo)
     n0 = np.array([len(laser.detect_people(s)) for s in demo])
     n1 = np.array([len(laser.detect_people(s, background_ranges_m=bg)) for s in demo])
-    print(f"- demo bag (unlabelled, 1265 scans): people candidates per scan, median (range): "
+    print(f"- {demo_bag.name} (unlabelled, {len(demo)} scans): people candidates per scan, median (range): "
           f"{np.median(n0):.0f} ({n0.min()}-{n0.max()}) without background, "
           f"{np.median(n1):.0f} ({n1.min()}-{n1.max()}) with the per-beam median background")
 
@@ -136,34 +148,49 @@ def simulated_people() -> None:
               f"{sc.mean_distance_m:.3f} |")
 
 
-def camera_laser() -> None:
-    d = DATA / "lrf3d_camera_lcct"
-    T_camera_laser = laser.read_transform_yaml(d / "T_camera_laser_stageII.yaml")
-    calib = scipy.io.loadmat(d / "Calib_Results.mat")
-    K, kc = calib["KK"], calib["kc"].ravel()
-    print("### Camera + 3-D laser (LCCT, stage-II T_camera_laser)")
+def camera_laser(folder: Path, transform: str, pairs: list[int]) -> None:
+    """As ``planefuse laser camera-check FOLDER --transform FOLDER/TRANSFORM --pairs ...``."""
+    calib_path, transform_path = folder / "Calib_Results.mat", folder / transform
+    if _absent("Camera + 3-D laser", calib_path, transform_path):
+        return
+    T_camera_laser = laser.read_transform_yaml(transform_path)
+    cal = load_bouguet_calibration(calib_path, metres_per_unit=0.001)
+    print(f"### Camera + 3-D laser ({folder.name}, {transform})")
     print("| pair | laser pts in board hull | median / 90 % distance to board plane (mm) | "
           "on-board pts projecting inside hull (1 px) |")
     print("| --- | --- | --- | --- |")
-    for i in range(1, 5):
-        R, t = calib[f"Rc_{i}"], calib[f"Tc_{i}"].ravel() / 1000.0
-        hull = cv2.convexHull(calib[f"x_{i}"].T.astype(np.float32))
-        p = apply_transform(T_camera_laser, laser.read_xyz(d / f"laser_target{i}.xyz"))
-        p = p[p[:, 2] > 0]
-        uv = cv2.projectPoints(p, np.zeros(3), np.zeros(3), K, kc)[0].reshape(-1, 2)
-        margin = np.array([cv2.pointPolygonTest(hull, (float(u), float(v)), True) for u, v in uv])
-        dist = np.abs((p[margin >= 0] - t) @ R[:, 2])
-        pb = (p - t) @ R
-        X = calib[f"X_{i}"] / 1000.0
-        on = (np.abs(pb[:, 2]) < 0.01) & (pb[:, 0] >= X[0].min()) & (pb[:, 0] <= X[0].max()) \
-            & (pb[:, 1] >= X[1].min()) & (pb[:, 1] <= X[1].max())
-        print(f"| {i} | {(margin >= 0).sum()} | {1e3 * np.median(dist):.2f} / {1e3 * np.percentile(dist, 90):.2f} | "
-              f"{100 * np.mean(margin[on] >= -1):.1f} % of {on.sum()} |")
+    for i in pairs:
+        v = cal.views[i]
+        r = laser.board_check(laser.read_xyz(folder / f"laser_target{i}.xyz"), T_camera_laser, cal.K, cal.dist,
+                              v.T_camera_board, v.corners_px, v.corners_board_m, 0.01, 1.0)
+        print(f"| {i} | {r.n_in_hull} | {1e3 * r.plane_distance_median_m:.2f} / {1e3 * r.plane_distance_p90_m:.2f} | "
+              f"{100 * r.on_board_in_hull_fraction:.1f} % of {r.n_on_board} |")
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("data_root", type=Path, help="folder holding lrf2d_carmen/, lrf2d_people_leg_tracker/, "
+                    "lrf3d_camera_lcct/")
+    ap.add_argument("--carmen-log", default="lrf2d_carmen/intel-corrected.log.gz", help="relative to data_root")
+    ap.add_argument("--legs-bag", default="lrf2d_people_leg_tracker/positive_1_extracted.bag")
+    ap.add_argument("--labels-topic", default="/leg_cluster_positions")
+    ap.add_argument("--demo-bag", default="lrf2d_people_leg_tracker/demo_stationary_simple_environment.bag")
+    ap.add_argument("--lcct", default="lrf3d_camera_lcct", help="camera-laser folder, relative to data_root")
+    ap.add_argument("--transform", default="T_camera_laser_stageII.yaml")
+    ap.add_argument("--pairs", default="1,2,3,4", help="comma-separated board image numbers")
+    ap.add_argument("--skip-simulated", action="store_true", help="only the real-data sections")
+    a = ap.parse_args(argv)
+    root = a.data_root
+    if not root.is_dir():
+        raise SystemExit(f"error: data root {root} is not a folder")
+    if not a.skip_simulated:
+        simulated_tilting_scanner()
+    intel_map(root / a.carmen_log)
+    legs(root / a.legs_bag, a.labels_topic, root / a.demo_bag)
+    if not a.skip_simulated:
+        simulated_people()
+    camera_laser(root / a.lcct, a.transform, [int(v) for v in a.pairs.split(",")])
 
 
 if __name__ == "__main__":
-    simulated_tilting_scanner()
-    intel_map()
-    legs()
-    simulated_people()
-    camera_laser()
+    main()

@@ -4,7 +4,7 @@ What it does, for frames ``--first`` to ``--last`` (every ``--step``-th):
 
 1. writes a planefuse recording (format 2) in a temporary folder: the two videos as ``video_file`` streams with a
    ``times_file`` listing the chosen frames, the Tsai cameras converted to ``PinholeCamera``
-   (:func:`planefuse.calib.terrace_cameras`, so that planes above the ground are registered), the burned-in
+   (:func:`planefuse.calib.pinhole_from_tsai`, so that planes above the ground are registered), the burned-in
    watermark as an ignore rectangle, and the ground truth: every person placed at the median of the feet of their
    boxes in all four cameras back-projected to the ground through the Tsai models; a person seen by neither c0
    nor c1 is "ignore" (kept aside, neither a miss nor a false alarm);
@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from planefuse.calib import terrace_cameras
+from planefuse.calib import EPFL_TERRACE_TSAI, pinhole_from_tsai
 from planefuse.eval import detection_scores, match_detections, tracking_metrics
 from planefuse.grid import PlaneStack
 from planefuse.io import read_recording
@@ -64,6 +64,13 @@ FRONT_ENDS = {
     "KNN defaults": ForegroundParams(),
     "KNN + gain compensation": ForegroundParams(gain_compensation=True, shadow_likelihood=0.5),
 }
+
+
+def terrace_cameras(indices=(0, 1)) -> list:
+    """The EPFL terrace cameras ``c<i>`` as :class:`~planefuse.geometry.PinholeCamera` for the 360x288 videos
+    (Tsai world in metres, z up)."""
+    return [pinhole_from_tsai(EPFL_TERRACE_TSAI[f"c{i}"], metres_per_unit=1e-3, width_px=360, height_px=288)[0]
+            for i in indices]
 
 
 @dataclass

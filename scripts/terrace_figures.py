@@ -27,9 +27,10 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from terrace import AREA_X_M, AREA_Y_M, FPS, FRONT_ENDS, GENERATIVE_SENSOR, WATERMARK_PX, ignore_mask  # noqa: E402
+from terrace import (AREA_X_M, AREA_Y_M, FPS, FRONT_ENDS, GENERATIVE_SENSOR, WATERMARK_PX, ignore_mask,  # noqa: E402
+                     terrace_cameras)
 
-from planefuse.calib import load_epfl_boxes, terrace_cameras  # noqa: E402
+from planefuse.calib import load_epfl_boxes  # noqa: E402
 from planefuse.grid import PlaneStack  # noqa: E402
 from planefuse.occupancy import silhouettes_from_cameras  # noqa: E402
 from planefuse.vision import (  # noqa: E402

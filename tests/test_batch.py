@@ -15,7 +15,7 @@ import pytest
 pytest.importorskip("distributed")
 
 from planefuse.batch import BatchJob, SceneSpec, run_batch, run_job  # noqa: E402
-from planefuse.pipeline import SystemParams  # noqa: E402
+from planefuse.pipeline import RunPlan, SystemParams  # noqa: E402
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 TIMING = {"elapsed_s"}  # measured computing time: the only metric that may differ between two runs
@@ -23,7 +23,7 @@ TIMING = {"elapsed_s"}  # measured computing time: the only metric that may diff
 
 def _jobs() -> list[BatchJob]:
     params = SystemParams(laser=False, sound=False)
-    return [BatchJob(f"seed{s}", SceneSpec(seed=s, duration_s=1.5), params, tags={"seed": s}) for s in (1, 2)]
+    return [BatchJob(f"seed{s}", SceneSpec(seed=s, duration_s=1.5), RunPlan(params), tags={"seed": s}) for s in (1, 2)]
 
 
 def _same(a: dict, b: dict) -> bool:

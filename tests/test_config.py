@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -20,6 +21,8 @@ from planefuse.config import (
 )
 from planefuse.geometry import CameraIntrinsics, PinholeCamera, T_world_cam_look_at, default_camera_ring
 from planefuse.grid import PlaneStack
+from planefuse.outputs import OutputSettings
+from planefuse.pipeline import SystemParams
 
 
 def _write(tmp_path: Path, text: str, name: str = "run.yaml") -> Path:
@@ -53,25 +56,25 @@ def test_example_loads_back_with_defaults_and_comments(tmp_path):
     lines = text.splitlines()
     i = next(k for k, l in enumerate(lines) if l.strip().startswith("cell_size_m:"))
     assert lines[i - 1].strip().startswith("#") and "[m]" in lines[i - 1] and "(0, 5]" in lines[i - 1]
-    assert cfg.planes.to_stack().shape == (4, 100, 100)
+    assert cfg.system_params() == SystemParams() and cfg.output_settings() == OutputSettings()
 
 
-def test_list_item_out_of_range_names_index_unit_and_line(tmp_path):
+def test_height_out_of_range_names_field_unit_and_line(tmp_path):
     p = _edited(tmp_path, "heights_m: [0.1, 0.5, 1.0, 1.5]", "heights_m: [0.1, 0.5, -1.0, 1.5]")
     err = _error(p)
     (it,) = err.issues
-    assert it.field_path == "planes.heights_m[2]"
+    assert it.field_path == "planes.heights_m"
     assert "[m]" in it.expected and "[0, 10]" in it.expected
     assert it.line == next(k + 1 for k, l in enumerate(p.read_text().splitlines()) if "heights_m:" in l)
     msg = str(err)
-    assert str(p) in msg and "planes.heights_m[2]" in msg and "-1.0" in msg
+    assert str(p) in msg and "planes.heights_m" in msg and "-1.0" in msg
 
 
-def test_list_order_violation_names_offending_item(tmp_path):
+def test_heights_out_of_order_are_refused(tmp_path):
     err = _error(_edited(tmp_path, "heights_m: [0.1, 0.5, 1.0, 1.5]", "heights_m: [0.1, 0.5, 0.4]"))
     (it,) = err.issues
-    assert it.field_path == "planes.heights_m[2]"
-    assert "not above the previous height 0.5 m" in it.message and "got 0.4" in it.message
+    assert it.field_path == "planes.heights_m"
+    assert "strictly increasing" in it.message and "0.4" in it.message
 
 
 def test_even_velocity_count_is_rejected(tmp_path):
@@ -88,12 +91,12 @@ def test_even_velocity_count_is_rejected(tmp_path):
         ("cell_size_m: 0.1", "cell_size_m: fine", "planes.cell_size_m", "[m]"),
         ("velocity_max_m_s: 1.5", "velocity_max_m_s: 34.3", "models.filter.velocity_max_m_s", "[m/s]"),
         ("history_frames: 500", "history_frames: 0", "sensors.cameras.history_frames", "[frames]"),
-        ("foreground_method: KNN", "foreground_method: GMG", "sensors.cameras.foreground_method", "MOG2 or KNN"),
+        ("foreground_method: knn", "foreground_method: GMG", "sensors.cameras.foreground_method", "knn or mog2"),
         ("prior_occupancy: 0.05", "prior_occupancy: 1.0", "models.filter.prior_occupancy", "(0, 1)"),
         ("animation: gif", "animation: avi", "outputs.animation", "gif"),
         ("chunk_steps: 50", "chunk_steps: 0", "outputs.chunk_steps", "[steps]"),
-        ("x_range_m: [0.0, 10.0]", "x_range_m: [10.0, 0.0]", "planes.x_range_m", "min < max"),
-        ("x_range_m: [0.0, 10.0]", "x_range_m: [0.0]", "planes.x_range_m[1]", "[m]"),
+        ("x_range_m: null", "x_range_m: [10.0, 0.0]", "planes.x_range_m", "min < max"),
+        ("x_range_m: null", "x_range_m: [0.0]", "planes.x_range_m[1]", "[m]"),
         ("zarr: true", "zarr: maybe", "outputs.zarr", "true or false"),
     ],
 )
@@ -131,9 +134,11 @@ def test_several_errors_are_all_reported(tmp_path):
 def test_model_level_rules(tmp_path):
     text = example_yaml().replace("enabled: true", "enabled: false")
     err = _error(_write(tmp_path, text))
-    assert err.issues[0].field_path == "sensors" and "at least one" in err.issues[0].message
-    err = _error(_edited(tmp_path, "cell_size_m: 0.1", "cell_size_m: 0.0001"))
-    assert err.issues[0].field_path == "planes" and "cell_size_m" in err.issues[0].message
+    assert err.issues[0].field_path == "sensors.cameras.enabled" and "at least one" in err.issues[0].message
+    text = example_yaml().replace("x_range_m: null", "x_range_m: [0.0, 10.0]").replace(
+        "y_range_m: null", "y_range_m: [0.0, 10.0]").replace("cell_size_m: 0.1", "cell_size_m: 0.0001")
+    err = _error(_write(tmp_path, text))
+    assert err.issues[0].field_path == "planes.cell_size_m" and "cells" in err.issues[0].message
 
 
 def test_missing_required_file_level_and_yaml_errors(tmp_path):
@@ -177,7 +182,7 @@ def test_cli_check_reports_config_errors_with_exit_2(tmp_path):
     r = runner.invoke(app, ["check", str(p)], terminal_width=200)
     assert r.exit_code == 2
     flat = r.output.replace("\n", "")  # rich may wrap long temporary paths
-    assert "planes.heights_m[2]" in flat and "[m]" in flat and p.name in flat
+    assert "planes.heights_m" in flat and "[m]" in flat and p.name in flat
 
 
 def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch):
@@ -190,8 +195,9 @@ def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch)
     times = {c.name: np.arange(50) * 0.04 for c in cams} | {"laser": np.arange(20) * 0.1}
     from planefuse.cli import _check
 
+    rec = SimpleNamespace(cameras=cams, room_xy_m=(-0.2, 10.2, -0.2, 10.2), planes_heights_m=(0.1, 1.0))
     monkeypatch.setattr(_check, "read_recording_for_check",
-                        lambda cfg: (cams, times, [c.name for c in cams] + ["laser", "binaural"]))
+                        lambda cfg: (rec, times, [c.name for c in cams] + ["laser", "binaural"]))
     r = runner.invoke(app, ["check", str(p)], terminal_width=200)
     assert r.exit_code == 1 and "binaural" in r.output and "missing" in r.output
     times["binaural"] = np.arange(100) * 0.02

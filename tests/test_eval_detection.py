@@ -41,7 +41,7 @@ def test_ignored_people_are_neither_fn_nor_fp():
 
 
 def test_bad_input_raises():
-    with pytest.raises(ValueError, match="threshold_m"):
+    with pytest.raises(ValueError, match="match_distance_m"):
         match_detections([[0, 0]], [[0, 0]], 0.0)
     with pytest.raises(ValueError, match="det_xy"):
         match_detections([[0, 0]], [[0, 0, 0]], 0.5)
@@ -126,7 +126,7 @@ def test_maximal_matching_beats_nearest_pairs_issue_21_case():
     ([[0.0, 0.0]], [[3.0, 4.0]], 5.0),
 ])
 def test_threshold_is_inclusive(gt, det, thr):
-    """A pair exactly at ``threshold_m`` matches (documented as inclusive); one a hair farther does not."""
+    """A pair exactly at ``match_distance_m`` matches (documented as inclusive); one a hair farther does not."""
     gi, _, d = match_detections(gt, det, thr)
     assert len(gi) == 1 and d[0] == thr
     assert detection_scores([(gt, det)], thr).moda == 1.0

@@ -25,7 +25,7 @@ def test_offset_gives_motp_in_metres_and_threshold_applies():
     hyp = [(t, [1, 2], np.asarray(xy) + [0.24, 0.32]) for t, _, xy in _gt()]  # 0.4 m away: a match
     m = tracking_metrics(_gt(), hyp)
     assert m["mota"] == 1.0 and m["motp_m"] == pytest.approx(0.4)
-    m = tracking_metrics(_gt(), hyp, max_distance_m=0.39)  # now every object is missed, every track an FP
+    m = tracking_metrics(_gt(), hyp, match_distance_m=0.39)  # now every object is missed, every track an FP
     assert m["num_misses"] == 40 and m["num_false_positives"] == 40 and m["mota"] == -1.0
 
 
@@ -53,7 +53,7 @@ def test_bad_input_raises():
         tracking_metrics([], [])
     with pytest.raises(ValueError, match="2 ids but 1 positions"):
         tracking_metrics([(0.0, [1, 2], [[0, 0]])], [])
-    with pytest.raises(ValueError, match="max_distance_m"):
-        tracking_metrics(_gt(), [], max_distance_m=0)
+    with pytest.raises(ValueError, match="match_distance_m"):
+        tracking_metrics(_gt(), [], match_distance_m=0)
     with pytest.raises(ValueError, match="time_s, ids, xy_m"):
         tracking_metrics([object()], [])

@@ -124,6 +124,28 @@ def test_undistort_matches_opencv(rng):
     np.testing.assert_allclose(intr.pixels_from_normalized(xy), uv, atol=1e-8)
 
 
+@pytest.mark.parametrize("dist", [np.zeros(5), DIST0])
+def test_skewed_intrinsics_project_and_back_project(dist, rng):
+    """A skew K[0, 1] (accepted by CameraIntrinsics) is used both ways; OpenCV's projectPoints and
+    undistortPoints ignore it, so the references are analytic: u = K (x_d, y_d, 1) and round trips."""
+    K = K0.copy()
+    K[0, 1] = 12.0
+    intr = CameraIntrinsics(K, 360, 288, dist)
+    xy = rng.uniform(-0.3, 0.3, (50, 2))
+    xd = intr.pixels_from_normalized(np.zeros((1, 2)))  # principal point whatever the distortion
+    np.testing.assert_allclose(xd, [[K[0, 2], K[1, 2]]])
+    uv = intr.pixels_from_normalized(xy)
+    if not dist.any():
+        np.testing.assert_allclose(uv, (np.c_[xy, np.ones(50)] @ K.T)[:, :2], atol=1e-9)
+    np.testing.assert_allclose(intr.normalized_from_pixels(uv), xy, atol=1e-9)
+    cam = PinholeCamera(intr, random_camera(rng).T_world_cam)
+    pts = np.c_[rng.uniform(-2, 2, (100, 2)), np.full(100, 0.8)]
+    uv = cam.project(pts)
+    ok = intr.contains(uv)
+    assert ok.sum() > 20
+    np.testing.assert_allclose(cam.backproject_to_height(uv[ok], 0.8), pts[ok], atol=1e-7)
+
+
 @pytest.mark.parametrize(
     "K, msg",
     [

@@ -46,7 +46,14 @@ def _synthetic_laser(rng, n_scans=90, n_beams=181) -> LaserStream:
     scans = LaserScans(times, np.linspace(-np.radians(135), np.radians(135), n_beams), ranges,
                        np.radians(10) * np.sin(2 * np.pi * times / 2.0),
                        {"T_world_scanner": np.tile(np.eye(4), (n_scans, 1, 1))})
-    return LaserStream("syn_laser", np.eye(4), 40.0, n_scans, {"fov_deg": 270.0, "resolution_deg": 1.5}, data=scans)
+    return LaserStream("syn_laser", np.eye(4), 40.0, n_scans, dict(SYN_DEVICE), data=scans)
+
+
+#: A complete laser device entry (planefuse.io.LaserUnitDevice: every field written out, as read back).
+SYN_DEVICE = {"scanner": {"angle_min_rad": -2.356, "angle_increment_rad": 0.0262, "n_beams": 181, "range_min_m": 0.1,
+                          "range_max_m": 30.0, "range_noise_sigma_m": 0.01, "name": "syn"},
+              "offset_tilt_scanner_m": (0.0, 0.0, 0.05), "tilt_min_rad": -0.17, "tilt_max_rad": 0.17,
+              "tilt_period_s": 2.0, "scan_duration_s": None}
 
 
 def _synthetic_audio(rng, n=16000 + 37) -> AudioStream:
@@ -94,11 +101,11 @@ def test_round_trip_is_identical(written):
         la, lb = rec.laser(name).read(), back.laser(name).read()
         for f in ("times_s", "angles_rad", "ranges_m", "tilt_rad"):
             np.testing.assert_array_equal(getattr(la, f), getattr(lb, f))
-        np.testing.assert_array_equal(back.laser(name).T_world_base, rec.laser(name).T_world_base)
+        np.testing.assert_array_equal(back.laser(name).T_world_laser, rec.laser(name).T_world_laser)
         assert back.laser(name).model == rec.laser(name).model
     np.testing.assert_array_equal(rec.laser("syn_laser").read().extra["T_world_scanner"],
                                   back.laser("syn_laser").read().extra["T_world_scanner"])
-    assert back.laser("syn_laser").model == {"fov_deg": 270.0, "resolution_deg": 1.5}
+    assert back.laser("syn_laser").model == SYN_DEVICE
     assert len(back.laser("syn_laser").paths) == 1 and len(back.laser("laser0").paths) == 1
     assert np.isfinite(back.laser("laser0").read().ranges_m).all()  # a closed room: every beam returns
     for name in ("head", "syn_head"):
@@ -372,7 +379,7 @@ def test_laser_and_audio_round_trip_any_shape(tmp_path_factory, n_scans, n_beams
     audio = rng.normal(size=(int(rng.integers(0, 3000)), 2)).astype(np.float32)
     T = np.eye(4)
     rec = Recording(duration_s=float(times[-1]) if n_scans else 0.0,
-                    lasers={"l": LaserStream("l", T, 40.0, n_scans, data=scans)},
+                    lasers={"l": LaserStream("l", T, 40.0, n_scans, dict(SYN_DEVICE), data=scans)},
                     audio={"h": AudioStream("h", T, 8000, 0.25, len(audio), data=audio)})
     out = tmp_path_factory.mktemp("lr") / "r"
     rec.write(out)

@@ -166,3 +166,25 @@ def test_agrees_with_pom_on_its_test_data_held_out_frames(tmp_path):
     assert a["pom_detections"] >= 20
     assert a["found_fraction"] >= 0.9
     assert a["pearson"] >= 0.8
+
+
+def test_pom_export_from_a_recording_then_run(tmp_path):
+    """``planefuse pom-export`` writes a .pom (rectangles from the recording's cameras on the configured grid) and
+    binary masks that ``planefuse pom`` (and POM) read back."""
+    from planefuse.sim import default_scene_config, simulate
+
+    simulate(default_scene_config(duration_s=0.2, seed=1)).write(tmp_path / "rec", masks=False)
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text("recording: rec\nplanes:\n  heights_m: [0.1, 1.0, 1.6]\n  cell_size_m: 0.5\n")
+    out = tmp_path / "exp" / "sim.pom"
+    out.parent.mkdir()
+    r = CliRunner().invoke(app, ["pom-export", str(cfg), str(out), "--masks", "--n-frames", "3"])
+    assert r.exit_code == 0, r.output
+    pom_cfg = read_pom(out)
+    assert pom_cfg.silhouettes.n_locations == 20 * 20 and pom_cfg.silhouettes.n_cameras == 4
+    assert pom_cfg.frames == [0, 1, 2]
+    m = cv2.imread(str(out.parent / "masks" / "f2-c3.png"), cv2.IMREAD_GRAYSCALE)
+    assert set(np.unique(m)) <= {0, 255}
+    r = CliRunner().invoke(app, ["pom", str(out), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert len((out.parent / "proba-f2.dat").read_text().splitlines()) == 400

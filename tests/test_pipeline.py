@@ -16,7 +16,6 @@ from planefuse.pipeline import (
     SystemParams,
     evaluate_system,
     run_system,
-    system_params_from_config,
 )
 from planefuse.sim import default_scene_config, simulate
 
@@ -31,7 +30,7 @@ def recording_dir(tmp_path_factory):
 def test_config_maps_every_model_field():
     cfg = load_config_text("recording: r\nmodels:\n  filter:\n    n_velocities_per_axis: 5\n    decay_rate_hz: 0.3\n"
                            "  detection:\n    gate_m: 0.6\nsensors:\n  laser:\n    p_occupied_hit: 0.8\n")
-    p = system_params_from_config(cfg)
+    p = cfg.system_params()
     assert p.tracking.bof.n_velocities_per_axis == 5 and p.tracking.bof.decay_rate_hz == 0.3
     assert p.tracking.tracker.gate_m == 0.6 and p.laser_model.p_occupied_hit == 0.8
     assert p.heights_m == tuple(cfg.planes.heights_m) and p.cell_size_m == cfg.planes.cell_size_m
@@ -81,10 +80,11 @@ def test_laser_alone_finds_people_the_cameras_do_not_see():
     """Cameras off (every person invisible to them): the nodding laser alone still finds most people,
     and it needs the system's laser model (the laser's own default frees the cells around thin legs)."""
     from planefuse.laser import LaserSensorModel
+    from planefuse.pipeline import system_laser_model
 
     rec = simulate(default_scene_config(duration_s=4.0, seed=1))
     scores = {}
-    for name, model in (("system", None), ("laser default", LaserSensorModel())):
+    for name, model in (("system", system_laser_model()), ("laser default", LaserSensorModel())):
         res = run_system(rec, SystemParams(cameras=False, sound=False, laser_model=model))
         assert not any("cameras" in o.sensors for o in res.outputs)
         scores[name] = evaluate_system(rec, res)
@@ -95,12 +95,13 @@ def test_laser_alone_finds_people_the_cameras_do_not_see():
 
 def test_rerun_recording_holds_every_modality(recording_dir, tmp_path):
     pytest.importorskip("rerun")
-    from planefuse.pipeline import run_to_folder
+    from planefuse.outputs import OutputSettings
+    from planefuse.pipeline import RunPlan, run_to_folder
     from planefuse.viz import rrd_entity_paths
 
     rec = read_recording(recording_dir)
-    run_to_folder(rec, SystemParams(), tmp_path / "out", progress_mode="quiet", animation="none", figures=False,
-                  report=False, rerun=True)
+    settings = OutputSettings(animation="none", figures=False, report=False, rerun=True)
+    run_to_folder(rec, RunPlan(SystemParams(), tmp_path / "out", settings), progress_mode="quiet")
     paths = rrd_entity_paths(tmp_path / "out" / "planefuse.rrd")
     for expected in ("/world/tracks", "/world/laser/laser", "/world/sound/front"):
         assert expected in paths, sorted(paths)

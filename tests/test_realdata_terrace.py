@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from conftest import shared_data
 
-from planefuse.calib import terrace_cameras
+from planefuse.calib import EPFL_TERRACE_TSAI, pinhole_from_tsai
 from planefuse.eval import detection_scores
 from planefuse.grid import PlaneStack
 from planefuse.vision import (
@@ -36,6 +36,11 @@ from planefuse.vision import (
 )
 
 FRAMES = np.arange(1500, 2000, 5)
+
+
+def terrace_cameras(indices):
+    return [pinhole_from_tsai(EPFL_TERRACE_TSAI[f"c{i}"], metres_per_unit=1e-3, width_px=360, height_px=288)[0]
+            for i in indices]
 #: scripts/terrace.py's front end (chosen on frames 0-1499).
 TUNED = ForegroundParams(gain_compensation=True, shadow_likelihood=0.5)
 

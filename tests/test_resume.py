@@ -20,8 +20,8 @@ import zarr
 
 from planefuse.grid import PlaneStack
 from planefuse.io import read_recording
-from planefuse.outputs import OutputWriter
-from planefuse.pipeline import SystemParams, SystemRun, run_to_folder
+from planefuse.outputs import OutputSettings, OutputWriter
+from planefuse.pipeline import RunPlan, SystemParams, SystemRun, run_to_folder
 from planefuse.sim import default_scene_config, simulate
 from planefuse.tracking import EvidenceTracker, TrackingParams, evidence_from_people
 from planefuse.vision import CameraParams, recording_frames
@@ -82,7 +82,7 @@ def test_evidence_tracker_resumes_exactly_from_any_output(seed):
         for a, b in zip(ref[k + 1:], got):
             assert a.time_s == b.time_s and a.sensors == b.sensors
             np.testing.assert_array_equal(a.occupancy, b.occupancy)
-            np.testing.assert_array_equal(a.velocity_mps, b.velocity_mps)
+            np.testing.assert_array_equal(a.velocity_m_s, b.velocity_m_s)
             np.testing.assert_array_equal(a.tracks.ids, b.tracks.ids)
             np.testing.assert_array_equal(a.tracks.xy_m, b.tracks.xy_m)
 
@@ -253,9 +253,9 @@ def test_system_run_resumes_exactly_and_skips_the_past(sim):
 
 
 # -- a run folder ----------------------------------------------------------------------------------------------
-def _run(rec, out, **kw):
-    return run_to_folder(rec, SystemParams(), out, progress_mode="quiet", animation="none", figures=False,
-                         report=False, chunk_steps=4, **kw)
+def _run(rec, out, resume=True, **kw):
+    settings = OutputSettings(animation="none", figures=False, report=False, chunk_steps=4, **kw)
+    return run_to_folder(rec, RunPlan(SystemParams(), out, settings, resume=resume), progress_mode="quiet")
 
 
 def _same_outputs(a: Path, b: Path) -> None:

@@ -10,7 +10,7 @@ from scipy.signal import correlate
 
 from planefuse.laser import points_world_from_scan
 from planefuse.sim import SceneConfig, simulate
-from planefuse.sim import tilting_unit_from_model
+from planefuse.laser import tilting_unit_from_device
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,7 @@ def rec():
 def test_laser_points_lie_on_the_scene(rec):
     scene = rec.scene
     las = rec.laser()
-    unit = tilting_unit_from_model(las.model)
+    unit = tilting_unit_from_device(las.model)
     scans = las.read()
     assert scans.ranges_m.shape == (160, 541) and scans.tilt_rad.shape == (160, 541)
     np.testing.assert_array_equal(scans.times_s, np.arange(160) / 40.0)
@@ -40,7 +40,7 @@ def test_laser_points_lie_on_the_scene(rec):
     for k in range(0, 160, 8):
         ok = np.isfinite(scans.ranges_m[k])
         p = points_world_from_scan(scans.angles_rad[ok], scans.ranges_m[k, ok], scans.tilt_rad[k, ok],
-                                   las.T_world_base, unit)
+                                   las.T_world_laser, unit)
         # Every return is on the floor, a wall or a person (range noise 1 cm).
         on_floor = np.abs(p[:, 2]) < 0.05
         on_wall = (np.minimum.reduce([p[:, 0] - x0, x1 - p[:, 0], p[:, 1] - y0, y1 - p[:, 1]]) < 0.05)

@@ -74,7 +74,7 @@ def test_out_of_order_stream_within_window_gives_in_order_result(rng):
     msgs = _stream(rng)
     shuffled = _shuffle_within(msgs, 0.1, np.random.default_rng(1))
     assert [m.time_s for m in shuffled] != [m.time_s for m in msgs]
-    params = TrackingParams(window_s=0.12)
+    params = TrackingParams(window_s=0.12, merge_tolerance_s=1e-6)  # only equal time stamps fused
     ref = list(track_evidence(STACK, msgs, params))
     got = list(track_evidence(STACK, shuffled, params))
     assert [o.time_s for o in got] == [o.time_s for o in ref]
@@ -89,7 +89,7 @@ def test_too_late_messages_are_reported_not_fused(rng):
     msgs = _stream(rng)
     shuffled = _shuffle_within(msgs, 0.3, np.random.default_rng(2))
     with pytest.warns(LateEvidenceWarning):
-        outs = list(track_evidence(STACK, shuffled, TrackingParams(window_s=0.05)))
+        outs = list(track_evidence(STACK, shuffled, TrackingParams(window_s=0.05, merge_tolerance_s=1e-6)))
     assert outs[-1].n_late > 0
     assert len(outs) + outs[-1].n_late <= len(msgs)
     assert np.all(np.diff([o.time_s for o in outs]) > 0)
@@ -98,7 +98,7 @@ def test_too_late_messages_are_reported_not_fused(rng):
 def test_prediction_covers_elapsed_time_whatever_the_rates():
     """Fusing evidence at irregular stamps = predicting over each gap: one long gap equals many short ones
     for an unobserved region (exact exponential relaxation to the prior)."""
-    params = BOFParams(decay_rate_hz=1.0, prior_occupancy=0.1, velocity_max_mps=0.5)  # borders: 3 cells
+    params = BOFParams(decay_rate_hz=1.0, prior_occupancy=0.1, velocity_max_m_s=0.5)  # borders: 3 cells
     a = BayesianOccupancyFilter(STACK, params)
     b = BayesianOccupancyFilter(STACK, params)
     lo = np.full(STACK.shape, 3.0, np.float32)

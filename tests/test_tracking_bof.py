@@ -16,7 +16,7 @@ from planefuse.tracking import (
     bof_predict_numpy,
     bof_update,
     bof_update_numpy,
-    velocity_grid_mps,
+    velocity_grid_m_s,
 )
 
 SMALL = PlaneStack.from_extent([0.3, 1.0], (0.0, 2.0), (0.0, 1.6), 0.1)  # 2 planes x 16 x 20 cells
@@ -35,7 +35,7 @@ def _random_state(stack, params, rng):
 
 @pytest.mark.parametrize("subcell", ["accumulate", "bilinear"])
 def test_numba_matches_numpy_reference(subcell, rng):
-    params = BOFParams(n_velocities_per_axis=5, velocity_max_mps=1.2, subcell=subcell)
+    params = BOFParams(n_velocities_per_axis=5, velocity_max_m_s=1.2, subcell=subcell)
     a = _random_state(SMALL, params, rng)
     b = a.copy()
     for dt in (0.07, 0.1, 0.33, 1.1):  # includes displacements of several cells
@@ -103,7 +103,7 @@ def test_two_sensors_fuse_as_sum_of_log_odds(rng):
 @pytest.mark.parametrize("subcell", ["accumulate", "bilinear"])
 def test_unobserved_cells_decay_to_prior_at_documented_rate(subcell):
     """P_t = p0 + (P_0 - p0) exp(-lambda t), whatever the steps that make up t (interior cells)."""
-    params = BOFParams(prior_occupancy=0.1, decay_rate_hz=0.8, velocity_max_mps=0.5, subcell=subcell)
+    params = BOFParams(prior_occupancy=0.1, decay_rate_hz=0.8, velocity_max_m_s=0.5, subcell=subcell)
     stack = PlaneStack.from_extent([0.5], (0.0, 4.0), (0.0, 4.0), 0.1)
     s = bof_initial_state(stack, params)
     s.occ_v[...] = 0.9 / params.n_velocities
@@ -120,7 +120,7 @@ def test_unobserved_cells_decay_to_prior_at_documented_rate(subcell):
 
 
 @pytest.mark.parametrize(
-    "subcell, v_true, radius_m, atol_mps",
+    "subcell, v_true, radius_m, atol_m_s",
     [
         ("bilinear", (0.5, -0.5), 0.0, 0.05),  # one cell, velocity on the hypothesis grid
         ("bilinear", (1.0, 0.0), 0.0, 0.05),
@@ -130,12 +130,12 @@ def test_unobserved_cells_decay_to_prior_at_documented_rate(subcell):
         ("accumulate", (0.35, 0.2), 0.25, 0.1),
     ],
 )
-def test_moving_cell_is_tracked_and_its_velocity_recovered(subcell, v_true, radius_m, atol_mps):
+def test_moving_cell_is_tracked_and_its_velocity_recovered(subcell, v_true, radius_m, atol_m_s):
     """An occupied cell (or blob) moving at constant velocity, every cell observed at 10 Hz: the occupancy
     follows it and the filter's E[V | occ] converges to the true velocity; prediction alone then carries
     the mass along that velocity."""
     stack = PlaneStack.from_extent([0.5], (0.0, 7.0), (0.0, 6.0), 0.1)
-    params = BOFParams(n_velocities_per_axis=7, velocity_max_mps=1.5, subcell=subcell)  # spacing 0.5 m/s
+    params = BOFParams(n_velocities_per_axis=7, velocity_max_m_s=1.5, subcell=subcell)  # spacing 0.5 m/s
     bof = BayesianOccupancyFilter(stack, params)
     v = np.asarray(v_true)
     start = np.array([1.03, 3.53])  # off the cell edges: the discretised track is regular
@@ -160,15 +160,15 @@ def test_moving_cell_is_tracked_and_its_velocity_recovered(subcell, v_true, radi
             occ, vel = bof.state.moments()
             w = occ[0] > 0.5
             v_est.append((vel[0][w] * occ[0][w, None]).sum(axis=0) / occ[0][w].sum())
-    np.testing.assert_allclose(np.mean(v_est, axis=0), v, atol=atol_mps)
+    np.testing.assert_allclose(np.mean(v_est, axis=0), v, atol=atol_m_s)
     bof.predict(1.0)
     excess = np.maximum(bof.occupancy[0] - params.prior_occupancy, 0.0)
     centroid = (centres * excess[..., None]).sum(axis=(0, 1)) / excess.sum()
-    assert np.linalg.norm(centroid - (p + v * 1.0)) <= atol_mps * 1.0 + 0.1
+    assert np.linalg.norm(centroid - (p + v * 1.0)) <= atol_m_s * 1.0 + 0.1
 
 
 def test_velocity_grid_layout():
-    v = velocity_grid_mps(BOFParams(n_velocities_per_axis=3, velocity_max_mps=2.0))
+    v = velocity_grid_m_s(BOFParams(n_velocities_per_axis=3, velocity_max_m_s=2.0))
     np.testing.assert_array_equal(v[0], [-2, -2])
     np.testing.assert_array_equal(v[1], [0, -2])  # k = iv_y * n + iv_x
     np.testing.assert_array_equal(v[4], [0, 0])

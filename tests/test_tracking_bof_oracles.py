@@ -47,7 +47,7 @@ def reference_predict(occ_v, free, dt, params: BOFParams):
     q = 1.0 - math.exp(-params.decay_rate_hz * dt)
     p_app, p_dis = p0 * q, (1.0 - p0) * q
     p_mix = 1.0 - math.exp(-params.velocity_noise_rate_hz * dt)
-    vels = _reference_velocities(n, params.velocity_max_mps)
+    vels = _reference_velocities(n, params.velocity_max_m_s)
 
     def read(img, x, y, outside):
         x0, y0 = math.floor(x), math.floor(y)
@@ -105,7 +105,7 @@ def reference_update(occ_v, free, log_odds):
     (5, 0.9, (0.13,)),                # hypotheses with 2, 3 and 4 neighbours
 ])
 def test_predict_matches_independent_reference(n, v_max, dts, rng):
-    params = BOFParams(n_velocities_per_axis=n, velocity_max_mps=v_max, prior_occupancy=0.07,
+    params = BOFParams(n_velocities_per_axis=n, velocity_max_m_s=v_max, prior_occupancy=0.07,
                        decay_rate_hz=0.6, velocity_noise_rate_hz=2.5)
     s = _random_state(params, rng)
     for dt in dts:
@@ -117,7 +117,7 @@ def test_predict_matches_independent_reference(n, v_max, dts, rng):
 
 def test_accumulate_moves_whole_cells_like_the_reference(rng):
     """Displacements of exactly one cell per step: 'accumulate' and the bilinear reference coincide."""
-    params = BOFParams(n_velocities_per_axis=3, velocity_max_mps=1.0, subcell="accumulate",
+    params = BOFParams(n_velocities_per_axis=3, velocity_max_m_s=1.0, subcell="accumulate",
                        velocity_noise_rate_hz=1.5)
     s = _random_state(params, rng)
     for _ in range(3):
@@ -147,7 +147,7 @@ def test_velocity_noise_conserves_occupied_mass_of_non_uniform_velocities(n, rng
     velocity mixing only moves mass between hypotheses, so P(occ) of every cell and the grid's total are
     unchanged whatever the (non-uniform) velocity distribution, corner hypotheses included; the velocity
     distribution follows the scatter-form reference."""
-    params = BOFParams(n_velocities_per_axis=n, velocity_max_mps=0.0, decay_rate_hz=0.0,
+    params = BOFParams(n_velocities_per_axis=n, velocity_max_m_s=0.0, decay_rate_hz=0.0,
                        velocity_noise_rate_hz=4.0)
     s = _random_state(params, rng)
     s.occ_v[:, 0] *= 20.0  # pile mass on a corner hypothesis, renormalised
@@ -172,7 +172,7 @@ def test_any_cell_decays_to_the_prior_at_the_documented_rate(seed, dts, prior, r
     """P_t(occ) = p0 + (P_0(occ) - p0) exp(-lambda t) for every cell of an arbitrary state with a
     non-uniform velocity distribution (hypotheses at rest, so cells do not interact)."""
     rng = np.random.default_rng(seed)
-    params = BOFParams(n_velocities_per_axis=3, velocity_max_mps=0.0, prior_occupancy=prior,
+    params = BOFParams(n_velocities_per_axis=3, velocity_max_m_s=0.0, prior_occupancy=prior,
                        decay_rate_hz=rate, velocity_noise_rate_hz=3.0)
     s = _random_state(params, rng)
     p_start = s.occ_v.astype(float).sum(axis=1)
@@ -191,7 +191,7 @@ def test_any_cell_decays_to_the_prior_at_the_documented_rate(seed, dts, prior, r
                       min_size=1, max_size=12))
 def test_probabilities_stay_in_unit_interval_after_extreme_evidence(seed, steps):
     rng = np.random.default_rng(seed)
-    params = BOFParams(n_velocities_per_axis=3, velocity_max_mps=1.0)
+    params = BOFParams(n_velocities_per_axis=3, velocity_max_m_s=1.0)
     s = _random_state(params, rng)
     for dt, lam in steps:
         bof_predict(s, dt, params)

@@ -50,7 +50,7 @@ def test_crossing_people_keep_their_identities(rng):
     # velocities (BOF cluster velocities) and heights, away from the crossing
     late = outs[-1].tracks
     order = np.argsort(late.xy_m[:, 0])  # B is left of A at the end
-    np.testing.assert_allclose(late.velocity_mps[order], [[-0.8, 0.55], [0.8, 0.55]], atol=0.15)
+    np.testing.assert_allclose(late.velocity_m_s[order], [[-0.8, 0.55], [0.8, 0.55]], atol=0.15)
     assert np.all((late.height_m > 1.5) & (late.height_m < 1.9))
     assert np.all((late.confidence > 0.5) & (late.confidence <= 1))
 
@@ -114,7 +114,7 @@ def test_cluster_height_from_highest_occupied_plane(height_m, band):
     c = cluster_occupancy(0.0, occ, vel, STACK, 0.05)
     assert len(c) == 1
     assert band[0] <= c.height_m[0] <= band[1]
-    np.testing.assert_allclose(c.velocity_mps[0], [0.3, -0.2], atol=1e-9)
+    np.testing.assert_allclose(c.velocity_m_s[0], [0.3, -0.2], atol=1e-9)
     np.testing.assert_allclose(c.xy_m[0], [2.0, 2.0], atol=0.06)
     d = c.to_ground_detections()
     assert d.source == "bof" and len(d) == 1
@@ -126,7 +126,7 @@ def test_empty_and_bad_input():
     assert len(c) == 0 and c.xy_m.shape == (0, 2)
     tr = MultiPersonTracker()
     assert len(tr.step(c)) == 0
-    with pytest.raises(ValueError, match="velocity_mps must have shape"):
+    with pytest.raises(ValueError, match="velocity_m_s must have shape"):
         cluster_occupancy(0.0, occ, np.zeros((2, 2)), STACK, 0.05)
     with pytest.raises(ValueError, match="body_max_height_m"):
         cluster_occupancy(0.0, occ, np.zeros(STACK.shape + (2,)), STACK, 0.05, ClusterParams(body_max_height_m=0.1))
@@ -138,7 +138,7 @@ def test_empty_and_bad_input():
 
 def test_column_observed_free_on_one_body_plane_is_not_a_person():
     """A multi-camera ghost: occupied on three body planes, observed free on the fourth -> no cluster;
-    the same column with the fourth plane unobserved (at the prior) -> a cluster."""
+    the same column with the fourth plane unobserved (at the prior) -> a cluster (column threshold 2.5)."""
     centres = STACK.cell_centers_xy()
     inside = np.sum((centres - [3.0, 2.5]) ** 2, axis=-1) <= 0.25**2
     vel = np.zeros(STACK.shape + (2,))
@@ -146,4 +146,4 @@ def test_column_observed_free_on_one_body_plane_is_not_a_person():
         occ = np.full(STACK.shape, 0.05)
         occ[:3, inside] = 0.99
         occ[3, inside] = p_plane3
-        assert len(cluster_occupancy(0.0, occ, vel, STACK, 0.05)) == expected
+        assert len(cluster_occupancy(0.0, occ, vel, STACK, 0.05, ClusterParams(threshold=2.5))) == expected

@@ -171,6 +171,40 @@ def test_missing_camera_equals_fusing_the_others(rng):
     np.testing.assert_allclose(with_gap, subset, atol=1e-5)
 
 
+def test_fusion_is_the_sum_of_table_values_at_every_camera_pixel_exactly(rng):
+    """The kernel against a plain numpy sum over cameras of ``table[f]`` at the pixel each cell sees, on
+    lookups that use every pixel, corners (pixel 0) included; a camera without a frame adds nothing."""
+    from planefuse.registration import ImagePlaneLookup
+
+    stack = PlaneStack.from_extent([0.0, 1.0], (0.0, 1.2), (0.0, 0.8), 0.1)  # 8 x 12 cells per plane
+    # 12 x 8 px images, one pixel per cell centre (x = 0.05 m -> u = 0); the second camera sees it mirrored
+    # and its second plane only half
+    H0 = np.array([[10.0, 0.0, -0.5], [0.0, 10.0, -0.5], [0.0, 0.0, 1.0]])
+    H1 = np.array([[-10.0, 0.0, 11.5], [0.0, 10.0, -0.5], [0.0, 0.0, 1.0]])
+    H1b = H1 @ np.diag([2.0, 1.0, 1.0])
+    lks = [ImagePlaneLookup.from_homographies(np.stack([H0, H0]), 12, 8, stack),
+           ImagePlaneLookup.from_homographies(np.stack([H1, H1b]), 12, 8, stack)]
+    fusion = CameraFusion(lks, stack)
+    table = log_odds_table(FusionParams()).astype(np.float64)
+    fgs = [rng.integers(0, 256, (8, 12), dtype=np.uint8) for _ in lks]
+    assert fgs[0][0, 0] != 0 or fgs[1][0, 0] != 0
+
+    def reference(images):
+        ref = np.zeros(stack.shape)
+        for lk, img in zip(lks, images):
+            if img is None:
+                continue
+            idx = lk.pixel_index.astype(np.int64)
+            seen = idx < lk.sentinel
+            ref[seen] += table[img.reshape(-1)[idx[seen]]]
+        return ref
+
+    assert np.all(lks[0].pixel_index < lks[0].sentinel) and 0 in lks[0].pixel_index
+    np.testing.assert_allclose(fusion.log_odds(fgs), reference(fgs), atol=1e-5)
+    np.testing.assert_allclose(fusion.log_odds([None, fgs[1]]), reference([None, fgs[1]]), atol=1e-5)
+    np.testing.assert_array_equal(fusion.cameras_seeing([False, True]), (lks[1].pixel_index < lks[1].sentinel))
+
+
 def test_bad_inputs(rng):
     cams = _pinhole_ring()
     stack = PlaneStack.from_extent([0.1, 1.0], (0, 10), (0, 10), 0.1)

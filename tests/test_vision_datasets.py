@@ -124,7 +124,7 @@ def test_cli_epfl_runs(tmp_path):
                                  "--json-out", str(out)])
     assert r.exit_code == 0, r.output
     scores = json.loads(out.read_text())
-    assert [s["threshold_m"] for s in scores] == [0.5, 1.0] and scores[0]["frames"] == 11
+    assert [s["match_distance_m"] for s in scores] == [0.5, 1.0] and scores[0]["frames"] == 11
 
 
 @pytest.mark.realdata

@@ -81,3 +81,31 @@ def test_pipeline_selects_the_generative_model():
     assert ev.sensor == "cameras" and ev.time_s == 0.04 and len(det.xy_m) == 2
     with pytest.raises(ValueError, match="sensor_model"):
         CameraParams(sensor_model="column")
+
+
+def test_config_selects_the_generative_model_in_the_camera_source(tmp_path):
+    """sensors.cameras.sensor_model: generative reaches the camera source of a run: its evidence comes from the
+    generative model (people found on a simulated recording, evidence bounded by max_log_odds)."""
+    from planefuse.config import load_config
+    from planefuse.io import read_recording
+    from planefuse.pipeline import stack_for_recording
+    from planefuse.pipeline._streams import ModalityReport, camera_source
+    from planefuse.sim import default_scene_config, simulate
+
+    simulate(default_scene_config(duration_s=0.4, seed=1)).write(tmp_path / "rec", masks=False)
+    (tmp_path / "run.yaml").write_text("recording: rec\nplanes:\n  cell_size_m: 0.2\nsensors:\n  cameras:\n"
+                                       "    sensor_model: generative\n")
+    cfg = load_config(tmp_path / "run.yaml")
+    system = cfg.system_params()
+    params = system.camera_params
+    assert params.sensor_model == "generative"
+    report = ModalityReport()
+    rec = read_recording(tmp_path / "rec")
+    source = camera_source(rec, stack_for_recording(rec, system), params, report)
+    evs = list(source.evidence())
+    assert len(evs) == 10 and all(e.sensor == "cameras" for e in evs)
+    assert max(float(np.abs(e.log_odds).max()) for e in evs) <= params.generative.max_log_odds + 1e-6
+    assert len(report.camera_detections) == 10
+    # the generative evidence is the same on every plane of the person's cylinder (the per-cell model's is not)
+    assert all(np.array_equal(e.log_odds[0], e.log_odds[-1]) for e in evs)
+    assert any(np.abs(e.log_odds).max() > 1.0 for e in evs)

@@ -1,4 +1,4 @@
-"""Foreground front end under lighting changes (gain compensation, sudden-change relearning) and the Tsai cameras."""
+"""Foreground front end under lighting changes (gain compensation, sudden-change relearning); generative evidence."""
 
 from __future__ import annotations
 
@@ -6,7 +6,6 @@ import cv2
 import numpy as np
 import pytest
 
-from planefuse.calib import TERRACE_TSAI, TsaiParams, pinhole_from_tsai, terrace_cameras
 from planefuse.vision import BackgroundSubtractor, ForegroundParams, GainCompensator
 
 
@@ -78,47 +77,6 @@ def test_foreground_params_reject_bad_values():
                       (dict(relearn_rate=2.0), "relearn_rate")]:
         with pytest.raises(ValueError, match=match):
             ForegroundParams(**kw)
-
-
-# -- Tsai cameras ---------------------------------------------------------------------------------------------
-def _tsai_project(p: TsaiParams, X_mm: np.ndarray) -> np.ndarray:
-    """Tsai's model written out directly (distortion inverted by fixed-point iteration): full-size pixels."""
-    Xc = X_mm @ p.R_cam_world.T + [p.tx_mm, p.ty_mm, p.tz_mm]
-    xu = p.focal_mm * Xc[:, :2] / Xc[:, 2:]
-    xd = xu.copy()
-    for _ in range(100):
-        xd = xu / (1.0 + p.kappa1_per_mm2 * (xd ** 2).sum(axis=1, keepdims=True))
-    return np.c_[p.sx * xd[:, 0] / p.dpx_mm + p.cx_px, xd[:, 1] / p.dpy_mm + p.cy_px]
-
-
-@pytest.mark.parametrize("index", [0, 1, 2, 3])
-def test_tsai_camera_matches_tsai_projection_and_opencv(index, rng):
-    p = TERRACE_TSAI[index]
-    cam = pinhole_from_tsai(p, scale=0.5)
-    # points on the ground and at head height in front of the camera, inside the image
-    X_m = np.c_[rng.uniform(-1, 8, 4000), rng.uniform(-2, 11, 4000), rng.choice([0.0, 1.7], 4000)]
-    uv_full = _tsai_project(p, X_m * 1000.0)
-    inside = (uv_full[:, 0] > 0) & (uv_full[:, 0] < 719) & (uv_full[:, 1] > 0) & (uv_full[:, 1] < 575)
-    uv_full = uv_full[inside]
-    X_m = X_m[inside]
-    assert len(X_m) > 300
-    expected = (uv_full + 0.5) * 0.5 - 0.5
-    np.testing.assert_allclose(cam.project(X_m), expected, atol=0.05)
-    T_cam_world = np.linalg.inv(cam.T_world_cam)
-    rvec, _ = cv2.Rodrigues(T_cam_world[:3, :3])
-    uv_cv, _ = cv2.projectPoints(X_m, rvec, T_cam_world[:3, 3], cam.K, cam.intrinsics.dist)
-    np.testing.assert_allclose(cam.project(X_m), uv_cv.reshape(-1, 2), atol=1e-6)
-
-
-def test_terrace_cameras_are_about_two_metres_up():
-    centres = np.array([c.center_world for c in terrace_cameras((0, 1, 2, 3))])
-    # the camera centres quoted in ../shared/data/epfl_pom/SOURCE.md [mm]
-    quoted = np.array([[6466, -1563, 2046], [-1034, -1225, 2109], [6500, 10581, 2073], [348, 9409, 2003]]) / 1000
-    np.testing.assert_allclose(centres, quoted, atol=0.002)
-    with pytest.raises(ValueError, match="scale"):
-        pinhole_from_tsai(TERRACE_TSAI[0], scale=0.0)
-    with pytest.raises(ValueError, match="non-finite"):
-        TsaiParams(float("nan"), 0, 0, 0, 0, 0, 0, 0, 0, 1)
 
 
 # -- generative evidence measured against even odds ------------------------------------------------------------

@@ -14,9 +14,11 @@ import pytest
 
 from planefuse.geometry import default_camera_ring
 from planefuse.grid import GroundDetections, PlaneStack
-from planefuse.outputs import OutputWriter
+from planefuse.outputs import OutputSettings, OutputWriter
+from planefuse.pipeline import write_presentation
 from planefuse.viz import (
     FigureInputs,
+    RerunLogger,
     animate_stack,
     grid_lines_world,
     plane_entity,
@@ -38,12 +40,14 @@ def finished_run(tmp_path_factory, stack):
     """A short fake run finished with every kind of figure; shared by the report tests."""
     rng = np.random.default_rng(0)
     w = _fake_run(tmp_path_factory.mktemp("run"), stack, rng)
-    return w.finish(_inputs(rng))
+    w.finish()
+    return write_presentation(w, OutputSettings(figure_dpi=50), _inputs(rng))
 
 
-def _fake_run(out_dir, stack, rng, n=12, **kw) -> OutputWriter:
-    w = OutputWriter(out_dir, stack, config_hash="h", chunk_steps=5, config_text="planes:\n  cell_size_m: 0.5\n",
-                     figure_dpi=50, **kw)
+def _fake_run(out_dir, stack, rng, n=12, rerun=False) -> OutputWriter:
+    w = OutputWriter(out_dir, stack, config_hash="h", chunk_steps=5, config_text="planes:\n  cell_size_m: 0.5\n")
+    if rerun:
+        w.attach_rerun(RerunLogger(out_dir / "planefuse.rrd", stack))
     for k in range(n):
         occ = rng.random(stack.shape) * 0.3
         occ[:, 6, 4 + k // 3] = 0.95  # a person walking along +x
@@ -166,14 +170,15 @@ def test_report_renders_in_headless_chromium(tmp_path, finished_run):
 
 
 def test_rerun_recording_holds_expected_entities(tmp_path, stack, rng):
-    w = _fake_run(tmp_path, stack, rng, n=4, rerun=True, figures=False, report=False, animation="none")
+    w = _fake_run(tmp_path, stack, rng, n=4, rerun=True)
     cams = default_camera_ring()[:2]
     w.rerun.log_cameras(cams)
     w.rerun.set_time(3, 0.3)
     w.rerun.log_camera_image("cam0", np.zeros((288, 360), np.uint8))
     w.rerun.log_laser("lrf0", rng.random((50, 3)))
     w.rerun.log_sound_wedge("binaural", [5.0, 4.0, 1.5], 0.2, 0.6)
-    path = w.finish()["rerun"]
+    w.finish()
+    path = tmp_path / "planefuse.rrd"
     assert path == tmp_path / "planefuse.rrd" and not list(tmp_path.glob(".*pf-tmp*"))
     paths = rrd_entity_paths(path)
     expected = {"/world", "/world/tracks", "/world/detections", "/world/cameras/cam0", "/world/cameras/cam1",

@@ -11,7 +11,9 @@ from ._binaural import BinauralCues, binaural_cues, clipped_samples
 from ._cochlea import GammatoneFilterbank, check_binaural_signal, erb_space_hz
 from ._head import (
     HEAD_RADIUS_M,
+    HRIR_INTERPOLATIONS,
     SPEED_OF_SOUND_M_S,
+    HrirWarning,
     MeasuredHrirs,
     SphericalHead,
     directions_from_azimuth_elevation,
@@ -44,6 +46,8 @@ __all__ = [
     "lateral_angle_of_cells",
     "HEAD_RADIUS_M",
     "SPEED_OF_SOUND_M_S",
+    "HRIR_INTERPOLATIONS",
+    "HrirWarning",
     "MeasuredHrirs",
     "SphericalHead",
     "directions_from_azimuth_elevation",

@@ -14,10 +14,11 @@ import numpy as np
 import pyroomacoustics as pra
 
 from ._bayes import BinauralSensorModel, calibrate_sensor_model, localize
-from ._head import SPEED_OF_SOUND_M_S, MeasuredHrirs, SphericalHead
+from ._head import SPEED_OF_SOUND_M_S, MeasuredHrirs, SphericalHead, directions_from_azimuth_elevation
 from ._simulate import ShoeBoxRoom, T_world_head_from_position_yaw, simulate_binaural
 
-__all__ = ["SweepScene", "sweep_recordings", "calibrate_from_simulation", "doa_baselines", "evaluate_sweep"]
+__all__ = ["SweepScene", "sweep_recordings", "rendered_azimuths_rad", "calibrate_from_simulation", "doa_baselines",
+           "evaluate_sweep"]
 
 HeadModel = SphericalHead | MeasuredHrirs
 
@@ -63,6 +64,16 @@ def sweep_recordings(signal, azimuths_rad, scene: SweepScene, head: HeadModel, f
                           snr_db=scene.snr_db, seed=seed + i).signal
         for i, a in enumerate(np.asarray(azimuths_rad, dtype=float))
     ]
+
+
+def rendered_azimuths_rad(head: HeadModel, azimuths_rad) -> np.ndarray:
+    """Azimuths [rad] (R,) in [-pi/2, pi/2] that ``head`` really renders for direct sound from ``azimuths_rad``
+    (R,) at elevation 0: the lateral angle of :meth:`rendered_directions` (the nearest measured direction of
+    a snapping head, the ``bin_deg`` bin of the spherical head, the direction itself when interpolated). Score a
+    sweep against these.
+    """
+    d = directions_from_azimuth_elevation(np.asarray(azimuths_rad, dtype=float).reshape(-1))
+    return np.arcsin(np.clip(head.rendered_directions(d)[:, 1], -1.0, 1.0))
 
 
 def calibrate_from_simulation(head: HeadModel, signal, fs_hz: float, step_deg: float = 5.0,

@@ -95,7 +95,10 @@ def read_audio(path, fs_hz: float | None = None) -> tuple[np.ndarray, float]:
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"audio file {path} does not exist")
-    x, fs_file = sf.read(str(path), dtype="float64", always_2d=True)
+    try:
+        x, fs_file = sf.read(str(path), dtype="float64", always_2d=True)
+    except (sf.LibsndfileError, RuntimeError, TypeError) as err:
+        raise ValueError(f"{path}: not a readable audio file ({' '.join(str(err).split())[:160]})") from None
     if fs_hz is None or fs_hz == fs_file:
         return x, float(fs_file)
     return _resample(x, fs_file, fs_hz, axis=0), float(fs_hz)

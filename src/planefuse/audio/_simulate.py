@@ -235,22 +235,7 @@ def binaural_room_impulse_response(
         p_head, dist, damping = p_head[keep], dist[keep], damping[keep]
     gain = damping / (4 * np.pi * dist)
     delay = np.round(dist / SPEED_OF_SOUND_M_S * fs_hz).astype(np.int64)
-    bins = head.direction_bins(p_head / dist[:, None])
-    ubins, which = np.unique(bins, return_inverse=True)
-    n_train = int(delay.max()) + 1
-    hrirs = head.bin_hrirs(ubins)  # (U, 2, taps)
-    n_out = n_train + hrirs.shape[-1] - 1
-    n_fft = int(2 ** np.ceil(np.log2(n_out)))
-    spectrum = np.zeros((2, n_fft // 2 + 1), dtype=complex)
-    chunk = max(1, 2**22 // n_fft)  # bound the memory of the per-bin spectra
-    for s in range(0, len(ubins), chunk):
-        sel = (which >= s) & (which < s + chunk)
-        trains = np.bincount((which[sel] - s) * n_train + delay[sel], weights=gain[sel],
-                             minlength=min(chunk, len(ubins) - s) * n_train).reshape(-1, n_train)
-        T = np.fft.rfft(trains, n_fft, axis=-1)  # (c, F)
-        Hh = np.fft.rfft(hrirs[s : s + chunk], n_fft, axis=-1)  # (c, 2, F)
-        spectrum += np.einsum("cf,cef->ef", T, Hh)
-    return np.fft.irfft(spectrum, n_fft, axis=-1)[:, :n_out]
+    return head.render_impulses(p_head / dist[:, None], delay, gain)
 
 
 def simulate_binaural(

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import traceback
 from dataclasses import dataclass, field
-from pathlib import Path
 
-from ..pipeline import SystemParams
+from ..outputs import OutputSettings
+from ..pipeline import RunPlan
 
-__all__ = ["SceneSpec", "BatchJob", "JobResult", "run_job"]
+__all__ = ["SceneSpec", "BatchJob", "JobResult", "TABLES_ONLY", "run_job"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,11 @@ class SceneSpec:
         return simulate(cfg)
 
 
+#: What a batch run writes when its plan has an out_dir and is not from a configuration: the tables, occupancy
+#: and metrics, without figures, animation or report.
+TABLES_ONLY = OutputSettings(figures=False, animation="none", report=False)
+
+
 @dataclass(frozen=True)
 class BatchJob:
     """One run of the whole system.
@@ -53,24 +58,16 @@ class BatchJob:
     recording : str or SceneSpec
         A recording folder (read on the worker, so it must be reachable there under that path) or a
         simulated scene.
-    params : SystemParams
-        What to run.
-    out_dir : str, optional
-        Where to write the run's folder (:func:`planefuse.pipeline.run_to_folder`); None computes the
-        metrics only.
-    run_options : dict
-        Further keyword arguments of ``run_to_folder`` when ``out_dir`` is given (default: tables, occupancy
-        and metrics, no figures, animation or report; :func:`planefuse.pipeline.run_options_from_config` gives
-        what ``planefuse run`` uses).
+    plan : RunPlan
+        What to run and what to write (:meth:`planefuse.config.RunConfig.plan` gives what ``planefuse run``
+        runs); with no ``out_dir`` only the metrics are computed.
     tags : dict
         Free labels carried into the result (scenario, seed, configuration name, ...).
     """
 
     name: str
     recording: str | SceneSpec
-    params: SystemParams = field(default_factory=SystemParams)
-    out_dir: str | None = None
-    run_options: dict = field(default_factory=dict)
+    plan: RunPlan = field(default_factory=RunPlan)
     tags: dict = field(default_factory=dict)
 
 
@@ -104,21 +101,11 @@ class JobResult:
 def run_job(job: BatchJob) -> JobResult:
     """Run one job in this process (what a dask worker calls); failures are returned, not raised."""
     from ..io import read_recording
-    from ..pipeline import evaluate_system, run_system, run_to_folder
+    from ..pipeline import run_plan
 
     try:
-        if isinstance(job.recording, SceneSpec):
-            rec = job.recording.recording()
-        else:
-            rec = read_recording(job.recording)
-        if job.out_dir is not None:
-            options = {"animation": "none", "figures": False, "report": False, "resume": False, **job.run_options}
-            _, metrics = run_to_folder(rec, job.params, Path(job.out_dir), progress_mode="quiet", **options)
-        elif rec.groundtruth is not None and rec.groundtruth.people is not None:
-            metrics = evaluate_system(rec, run_system(rec, job.params), job.params.threshold_m)
-        else:
-            run_system(rec, job.params)
-            metrics = {}
+        rec = job.recording.recording() if isinstance(job.recording, SceneSpec) else read_recording(job.recording)
+        _, metrics = run_plan(rec, job.plan, progress_mode="quiet")
     except Exception as exc:  # noqa: BLE001 - one failed run must not stop a batch; reported per job
         return JobResult(job.name, dict(job.tags), {}, f"{job.name}: {type(exc).__name__}: {exc}",
                          traceback.format_exc())

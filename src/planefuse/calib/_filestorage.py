@@ -5,9 +5,10 @@ Fields (OpenCV's calibration-sample names):
 * ``camera_matrix``: 3x3 K [px];
 * ``distortion_coefficients``: 4 or 5 values ``(k1, k2, p1, p2[, k3])``;
 * ``image_width``, ``image_height``: integers [px];
-* extrinsics, optional, in the file's length unit: either ``rvec`` + ``tvec`` (OpenCV's
+* extrinsics, optional, in the file's length unit: ``rvec`` + ``tvec`` (OpenCV's
   world -> camera: ``X_cam = R(rvec) X_world + tvec``, as ``cv2.projectPoints`` takes them),
-  or a 4x4 ``T_world_cam`` or ``T_cam_world``.
+  ``R`` (3x3) + ``T`` (3) in the same convention (``X_cam = R X_world + T``, as ``cv2.stereoCalibrate``
+  writes them), or a 4x4 ``T_world_cam`` or ``T_cam_world``.
 
 Every malformed file raises ``ValueError("<file>: field '<field>': <what is wrong>")``.
 """
@@ -29,6 +30,21 @@ __all__ = ["load_opencv_intrinsics", "load_opencv_camera", "save_opencv_camera"]
 def calib_error(path, field: str, what: str) -> ValueError:
     """The loaders' error: names the file and the field."""
     return ValueError(f"{path}: field '{field}': {what}")
+
+
+def rotation_from_file(R, path, field: str, atol: float = 1e-3) -> np.ndarray:
+    """A rotation matrix read from a file, made exactly orthonormal (nearest rotation, SVD) when it is one to
+    ``atol`` (files print 6-10 digits); ``ValueError`` naming the file and field otherwise (a reflection, a
+    scaled or a non-finite matrix)."""
+    R = np.asarray(R, dtype=float).reshape(3, 3)
+    if not np.isfinite(R).all():
+        raise calib_error(path, field, "non-finite values")
+    if not np.allclose(R @ R.T, np.eye(3), atol=atol):
+        raise calib_error(path, field, f"not a rotation: R R^T differs from I by {np.abs(R @ R.T - np.eye(3)).max():.3g}")
+    if np.linalg.det(R) < 0:
+        raise calib_error(path, field, "determinant -1 (a reflection, not a rotation: left-handed world?)")
+    U, _, Vt = np.linalg.svd(R)
+    return U @ Vt
 
 
 def open_filestorage(path) -> cv2.FileStorage:
@@ -139,12 +155,20 @@ def load_opencv_intrinsics(path, *, width_px: int | None = None, height_px: int 
 
 
 def T_world_cam_from_filestorage(fs, path, metres_per_unit: float) -> np.ndarray | None:
-    """``T_world_cam`` (4, 4) [m] from ``rvec``/``tvec`` or ``T_world_cam``/``T_cam_world``; None if none given."""
+    """``T_world_cam`` (4, 4) [m] from ``rvec``/``tvec``, ``R``/``T`` or ``T_world_cam``/``T_cam_world``; None if
+    none is given."""
     rvec = read_array(fs, path, "rvec", 3, required=False)
-    if rvec is not None:
-        tvec = read_array(fs, path, "tvec", 3)
-        R_cam_world = cv2.Rodrigues(rvec)[0]
-        T_cam_world = transform_from_rotation_translation(R_cam_world, tvec * metres_per_unit)
+    R = read_array(fs, path, "R", 9, required=False)
+    if rvec is not None or R is not None:
+        if rvec is not None:
+            R_cam_world, t_field = cv2.Rodrigues(rvec)[0], "tvec"
+        else:
+            R_cam_world, t_field = rotation_from_file(R.reshape(3, 3), path, "R"), "T"
+        tvec = read_array(fs, path, t_field, 3)
+        try:
+            T_cam_world = transform_from_rotation_translation(R_cam_world, tvec * metres_per_unit)
+        except ValueError as exc:
+            raise calib_error(path, "R", str(exc)) from None
         return invert_transform(T_cam_world)
     for field in ("T_world_cam", "T_cam_world"):
         T = read_array(fs, path, field, 16, required=False)
@@ -185,7 +209,7 @@ def load_opencv_camera(
     ------
     ValueError
         Naming the file and the field (see :func:`load_opencv_intrinsics`); also when
-        no extrinsics (``rvec``/``tvec``, ``T_world_cam`` or ``T_cam_world``) are present.
+        no extrinsics (``rvec``/``tvec``, ``R``/``T``, ``T_world_cam`` or ``T_cam_world``) are present.
     """
     if not (np.isfinite(metres_per_unit) and metres_per_unit > 0):
         raise ValueError(f"metres_per_unit must be a positive number, got {metres_per_unit}")
@@ -196,7 +220,7 @@ def load_opencv_camera(
     finally:
         fs.release()
     if T is None:
-        raise calib_error(path, "rvec", "missing (no rvec/tvec, T_world_cam or T_cam_world extrinsics)")
+        raise calib_error(path, "rvec", "missing (no rvec/tvec, R/T, T_world_cam or T_cam_world extrinsics)")
     return PinholeCamera(intr, T, name or Path(path).stem)
 
 

@@ -71,6 +71,10 @@ def load_wildtrack_rig(root) -> dict[str, PinholeCamera]:
     ``extrinsic/extr_<calib>.xml`` with the mapping :data:`WILDTRACK_CAMERAS`.
     """
     root = Path(root)
+    if not (root / "intrinsic").is_dir() or not (root / "extrinsic").is_dir():
+        held = sorted(p.name for p in root.iterdir())[:10] if root.is_dir() else None
+        raise ValueError(f"{root}: not a WILDTRACK folder: needs intrinsic/ and extrinsic/ "
+                         + (f"(it holds {held})" if held is not None else "(no such folder)"))
     return {
         img: load_wildtrack_camera(
             root / "intrinsic" / f"intr_{cal}.xml", root / "extrinsic" / f"extr_{cal}.xml", name=img

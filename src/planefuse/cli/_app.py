@@ -44,13 +44,14 @@ def _root(
 
 
 def units_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[object]],
-                right: bool = True) -> Table:
-    """A rich table whose title, headers and cells are printed verbatim (units like ``[m]`` are not markup).
+                right: bool = True, caption: str | None = None) -> Table:
+    """A rich table whose title, caption, headers and cells are printed verbatim (units like ``[m]`` are not
+    markup).
 
     Cells wrap (they are never cut) so that the table fits the terminal; the first column is left-aligned,
     the others right-aligned when ``right``.
     """
-    table = Table(title=escape(title))
+    table = Table(title=escape(title), caption=escape(caption) if caption else None, show_edge=False)
     for i, col in enumerate(columns):
         table.add_column(escape(col), justify="right" if right and i else "left", overflow="fold")
     for row in rows:

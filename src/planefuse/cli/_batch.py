@@ -27,7 +27,6 @@ def batch(
     A run that fails is reported by name; the others go on. Exit code 1 when any run failed."""
     from ..batch import BatchJob, run_batch
     from ..config import ConfigError, load_config
-    from ..pipeline import run_options_from_config, system_params_from_config
 
     jobs = []
     for path in configs:
@@ -37,9 +36,7 @@ def batch(
             console.print(escape(str(exc)), style="red")
             raise typer.Exit(2) from None
         jobs.append(BatchJob(path.stem if path.stem not in {j.name for j in jobs} else str(path),
-                             str(cfg.recording), system_params_from_config(cfg), str(cfg.outputs.out_dir),
-                             run_options={**run_options_from_config(cfg), "resume": True},
-                             tags={"config": str(path)}))
+                             str(cfg.recording), cfg.plan(), tags={"config": str(path)}))
     try:
         results = run_batch(jobs, scheduler=scheduler, n_workers=workers,
                             progress_mode="quiet" if quiet else "rich")

@@ -13,12 +13,13 @@ from rich.table import Table
 from ..config import CheckReport, ConfigError, RunConfig, check_recording, load_config
 from ._app import app, console
 from ._config import exit_on_config_error
+from ._import import recording_check_config
 
 SCENE_FILE = "scene.yaml"
 
 
 def read_recording_for_check(cfg: RunConfig):
-    """Cameras, stream time stamps [s] and required streams of ``cfg.recording`` (planefuse.io).
+    """The recording of ``cfg``, its cameras, stream time stamps [s] and required streams (planefuse.io).
 
     Reads only the streams' time stamps (laser scans chunk by chunk; audio as its first and
     last sample time). Raises ``ValueError`` when the recording or a calibration does not load.
@@ -41,7 +42,7 @@ def read_recording_for_check(cfg: RunConfig):
         expected += list(rec.lasers) or ["laser"]
     if cfg.sensors.sound.enabled:
         expected += list(rec.audio) or ["binaural"]
-    return rec.cameras, times, expected
+    return rec, times, expected
 
 
 def _report_json(report: CheckReport) -> str:
@@ -54,12 +55,13 @@ def _report_json(report: CheckReport) -> str:
 
 @app.command()
 def check(
-    config: Path = typer.Argument(..., help="Run configuration (YAML)."),
+    config: Path = typer.Argument(..., help="Run configuration (YAML), or a recording folder (checked with its "
+                                  "own plane stack and monitored area, 10 cm cells)."),
     log_json: bool = typer.Option(False, "--log-json", help="Print the findings as one JSON object."),
 ) -> None:
     """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running."""
     try:
-        cfg = load_config(config)
+        cfg = load_config(config) if not config.is_dir() else recording_check_config(config)
     except ConfigError as err:
         if log_json:
             print(json.dumps({"ok": False, "file": str(err.file), "issues": [
@@ -68,29 +70,16 @@ def check(
             raise typer.Exit(2) from None
         exit_on_config_error(err)
     report = CheckReport()
-    stack = cfg.planes.to_stack()
-    report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
-               f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
     if not cfg.recording.is_dir():
         report.add("error", "recording", f"folder {cfg.recording} does not exist")
     elif not (cfg.recording / SCENE_FILE).is_file():
         report.add("error", "recording", f"{cfg.recording} has no {SCENE_FILE} manifest")
     else:
-        try:
-            inputs = read_recording_for_check(cfg)
-        except (ValueError, OSError) as err:
-            report.add("error", "recording", f"cannot read the recording: {err}")
-            inputs = None
-        if inputs is not None:
-            cameras, times, expected = inputs
-            sub = check_recording(cameras if cfg.sensors.cameras.enabled else [], stack, times, expected)
-            report.issues += sub.issues
-            report.camera_visible_fraction = sub.camera_visible_fraction
-            report.coverage_fraction = sub.coverage_fraction
+        _check_with_recording(cfg, report)
     if log_json:
         print(_report_json(report))
     else:
-        table = Table(title=f"planefuse check {config}")
+        table = Table(title=escape(f"planefuse check {config}"))
         for col in ("level", "subject", "finding"):
             table.add_column(col)
         style = {"error": "bold red", "warning": "yellow", "info": "green"}
@@ -100,3 +89,25 @@ def check(
         console.print("[bold green]OK[/]: ready to run" if report.ok
                       else f"[bold red]{len(report.errors)} error(s)[/]")
     raise typer.Exit(0 if report.ok else 1)
+
+
+def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
+    """The recording's own checks, and the plane stack the run would use on it."""
+    from ..pipeline import stack_for_recording
+
+    try:
+        rec, times, expected = read_recording_for_check(cfg)
+    except (ValueError, OSError) as err:
+        report.add("error", "recording", f"cannot read the recording: {err}")
+        return
+    try:
+        stack = stack_for_recording(rec, cfg.system_params())
+    except ValueError as err:
+        report.add("error", "planes", str(err))
+        return
+    report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
+               f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
+    sub = check_recording(rec.cameras if cfg.sensors.cameras.enabled else [], stack, times, expected, recording=rec)
+    report.issues += sub.issues
+    report.camera_visible_fraction = sub.camera_visible_fraction
+    report.coverage_fraction = sub.coverage_fraction

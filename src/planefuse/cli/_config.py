@@ -35,10 +35,10 @@ def config_init(
 ) -> None:
     """Write a commented example configuration (every field, its unit and range)."""
     if path.exists() and not force:
-        console.print(f"[red]{path} exists[/]; use --force to overwrite it")
+        console.print(f"[red]{escape(str(path))} exists[/]; use --force to overwrite it")
         raise typer.Exit(1)
     atomic_write_text(path, example_yaml(recording))
-    console.print(f"wrote {path}; edit it, then run [bold]planefuse check {path}[/]")
+    console.print(f"wrote {escape(str(path))}; edit it, then run [bold]planefuse check {escape(str(path))}[/]")
 
 
 @config_app.command("show")

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import typer
-from rich.table import Table
+from rich.markup import escape
 
 from ._app import app, console, exit_with_error, units_table, write_json
 
@@ -37,7 +37,7 @@ def laser_map(
         warnings.simplefilter("always", NonMonotonicTimeWarning)
         log = read_carmen_log(log_path)
     for w in caught:
-        console.print(f"[yellow]warning:[/] {w.message}")
+        console.print(f"[yellow]warning:[/] {escape(str(w.message))}")
     m, pts = map_from_carmen_log(log, cell_size_m=cell_size_m)
     lo = m.log_odds[0]
     entropy = map_entropy_bits(lo)

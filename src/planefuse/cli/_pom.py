@@ -9,6 +9,7 @@ so that POM and planefuse can be run side by side on any recording.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -63,9 +64,11 @@ def pom_export(
     config: Path = typer.Argument(..., help="Run configuration (its recording, cameras and planes)."),
     out: Path = typer.Argument(..., help=".pom file to write."),
     masks: bool = typer.Option(False, "--masks", help="Also write the recording's foreground masks (background "
-                               "subtraction as configured) as masks/f<instant>-c<camera>.png beside OUT."),
+                               "subtraction as configured, binary at the generative model's foreground threshold) "
+                               "as masks/f<instant>-c<camera>.png beside OUT."),
     n_frames: int = typer.Option(None, help="Instants to write masks of (default: all)."),
-    radius_m: float = typer.Option(0.25, help="Radius of the person's cylinder [m]."),
+    radius_m: float = typer.Option(None, help="Radius of the person's cylinder [m] (default: the generative "
+                                   "sensor model's, GenerativeSensorParams.radius_m)."),
 ) -> None:
     """Write a POM configuration from a recording's calibrated cameras: one rectangle per camera and cell of the
     configured grid (cylinder across the planes' height bands, clipped at the image border); ground location k
@@ -74,8 +77,8 @@ def pom_export(
 
     from ..config import ConfigError, load_config
     from ..io import read_recording
-    from ..occupancy import PersonVolume, silhouettes_from_cameras, write_pom
-    from ..pipeline import system_params_from_config
+    from ..occupancy import silhouettes_from_cameras, write_pom
+    from ..pipeline import stack_for_recording
     from ..vision import BackgroundSubtractor, recording_frames
 
     try:
@@ -86,11 +89,17 @@ def pom_export(
         rec = read_recording(cfg.recording)
     except (ValueError, OSError) as exc:
         exit_with_error(f"recording {cfg.recording}: {exc}")
-    stack = cfg.planes.to_stack()
-    params = system_params_from_config(cfg).camera_params
-    sil = silhouettes_from_cameras(rec.cameras, stack, PersonVolume.from_stack(stack, radius_m=radius_m))
-    solver = params.generative.solver_params(stack)
+    system = cfg.system_params()
+    try:
+        stack = stack_for_recording(rec, system)
+    except ValueError as exc:
+        exit_with_error(f"{config}: {exc}")
+    params = system.camera_params
+    generative = params.generative if radius_m is None else replace(params.generative, radius_m=radius_m)
+    sil = silhouettes_from_cameras(rec.cameras, stack, generative.person(stack))
+    solver = generative.solver_params(stack)
     n_written = 0
+    thr = generative.foreground_threshold
     if masks:
         folder = out.parent / "masks"
         folder.mkdir(parents=True, exist_ok=True)
@@ -103,7 +112,10 @@ def pom_export(
             for c, img in enumerate(images):
                 fg = np.zeros(sil.image_sizes[c]) if img is None else (
                     img / 255.0 if subs[c] is None else subs[c].apply(img))
-                cv2.imwrite(str(folder / f"f{i}-c{c}.png"), np.round(255 * np.asarray(fg, float)).astype(np.uint8))
+                # what the generative model solves on: binary at foreground_threshold (as POM's masks), else grey
+                fg = np.asarray(fg, float)
+                img8 = np.round(255 * fg) if thr is None else np.where(fg >= thr, 255, 0)
+                cv2.imwrite(str(folder / f"f{i}-c{c}.png"), img8.astype(np.uint8))
             n_written = i + 1
     comment = (f"written by planefuse pom-export from {config}\n"
                f"locations: cells of a {stack.ny} x {stack.nx} grid, x_min {stack.x_min_m} m, y_min {stack.y_min_m} m, "

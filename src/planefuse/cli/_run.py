@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 
 from ._app import app, console
 
@@ -23,31 +24,34 @@ def run(
 
     An interrupted run (Ctrl-C, kill) re-run with the same configuration resumes after its last finished
     chunk and ends with the same files as an uninterrupted run; --fresh starts afresh."""
+    from dataclasses import replace
+
     from ..config import ConfigError, load_config
     from ..io import read_recording
     from ..outputs import progress_mode
-    from ..pipeline import run_options_from_config, run_to_folder, system_params_from_config
-    from ._demo import _print_summary
+    from ..pipeline import run_plan
+    from ._demo import print_summary
 
     try:
         cfg = load_config(config)
     except ConfigError as exc:
-        console.print(f"[red]{exc}[/red]")
+        console.print(f"[red]{escape(str(exc))}[/red]")
         raise typer.Exit(2) from None
     try:
         rec = read_recording(cfg.recording)
     except (ValueError, OSError) as exc:
-        console.print(f"[red]recording {cfg.recording}: {exc}[/red]")
+        console.print(f"[red]recording {escape(str(cfg.recording))}: {escape(str(exc))}[/red]")
         raise typer.Exit(1) from None
-    params = system_params_from_config(cfg)
-    out = cfg.outputs
-    options = run_options_from_config(cfg)
-    options["rerun"] = options["rerun"] or rerun
+    plan = cfg.plan(resume=not fresh)
+    if rerun:
+        plan = replace(plan, outputs=replace(plan.outputs, rerun=True))
     try:
-        _, metrics = run_to_folder(rec, params, out.out_dir, progress_mode=progress_mode(quiet, log_json),
-                                   resume=not fresh, **options)
+        _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json))
     except KeyboardInterrupt:
-        console.print(f"interrupted: outputs so far are in {out.out_dir}; re-run to resume")
+        console.print(f"interrupted: outputs so far are in {escape(str(plan.out_dir))}; re-run to resume")
         raise typer.Exit(130) from None
+    except ValueError as exc:
+        console.print(f"[red]{escape(str(exc))}[/red]")
+        raise typer.Exit(1) from None
     if metrics and not quiet:
-        _print_summary(metrics, out.out_dir)
+        print_summary(metrics, plan.out_dir, f"planefuse run {config}")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from ._app import app, console
+from ._app import app, console, exit_with_error
 
 
 @app.command()
@@ -34,9 +34,9 @@ def simulate(
         rec = run(cfg)
         manifest = rec.write(out, overwrite=overwrite, masks=masks, image_format=image_format)
     except ValueError as exc:
-        console.print(f"[red]error:[/red] {exc}")
-        raise typer.Exit(2) from None
+        exit_with_error(str(exc))
     kinds = ", ".join(f"{s.type} {s.name}" for s in manifest.sensors)
     console.print(
-        f"wrote {out} ({cfg.duration_s:g} s, {cfg.n_people} people; {kinds}) in {time.perf_counter() - t0:.1f} s"
+        f"wrote {out} ({cfg.duration_s:g} s, {cfg.n_people} people; {kinds}) in {time.perf_counter() - t0:.1f} s",
+        markup=False
     )

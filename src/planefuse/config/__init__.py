@@ -7,7 +7,7 @@ naming the file, each field path and its expected unit and range;
 """
 
 from ._check import CheckIssue, CheckReport, check_recording
-from ._load import ConfigError, ConfigIssue, config_from_dict, config_hash, example_yaml, load_config
+from ._load import ConfigError, ConfigIssue, config_from_dict, config_hash, config_yaml, example_yaml, load_config
 from ._models import (
     CameraSensorConfig,
     DetectionModelConfig,
@@ -19,6 +19,7 @@ from ._models import (
     RunConfig,
     SensorsConfig,
     SoundSensorConfig,
+    library_fields,
 )
 
 __all__ = [
@@ -39,6 +40,8 @@ __all__ = [
     "check_recording",
     "config_from_dict",
     "config_hash",
+    "config_yaml",
     "example_yaml",
+    "library_fields",
     "load_config",
 ]

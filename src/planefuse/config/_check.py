@@ -15,6 +15,7 @@ import numpy as np
 
 from ..geometry import PinholeCamera
 from ..grid import PlaneStack
+from ..io import geometry_findings
 from ..registration import ImagePlaneLookup
 
 __all__ = ["CheckIssue", "CheckReport", "check_recording"]
@@ -100,6 +101,7 @@ def check_recording(
     *,
     min_visible_fraction: float = 0.05,
     gap_factor: float = 10.0,
+    recording=None,
 ) -> CheckReport:
     """Check that a recording can be run with a configuration, without running it.
 
@@ -118,6 +120,9 @@ def check_recording(
         gets a warning (none at all on any plane is an error).
     gap_factor : float
         A sampling interval longer than this many median periods is reported.
+    recording : planefuse.io.Recording, optional
+        Its control points and ground truth are checked against the cameras too
+        (:func:`planefuse.io.geometry_findings`: planes above a camera, reprojection).
 
     Returns
     -------
@@ -157,6 +162,10 @@ def check_recording(
         else:
             report.add("info", cam.name, "sees " + ", ".join(
                 f"{f:.0%} @ {h:g} m" for f, h in zip(frac, stack.heights_m)))
+    for level, subject, message in geometry_findings(
+            cameras, stack.heights_m, control_points=getattr(recording, "calibration_points", None),
+            people=getattr(getattr(recording, "groundtruth", None), "people", None)):
+        report.add(level, subject, message)
     if cameras:
         cov = (seen_by > 0).reshape(stack.n_planes, -1).mean(axis=1)
         report.coverage_fraction = cov

@@ -13,9 +13,9 @@ import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from ._models import ITEM_MARK, RunConfig
+from ._models import _LIBRARY_DEFAULTS, ITEM_MARK, RunConfig, library_fields
 
-__all__ = ["ConfigError", "ConfigIssue", "load_config", "config_from_dict", "example_yaml", "config_hash"]
+__all__ = ["ConfigError", "ConfigIssue", "load_config", "config_from_dict", "example_yaml", "config_hash", "config_yaml"]
 
 
 @dataclass(frozen=True)
@@ -138,9 +138,35 @@ def config_from_dict(data: Any, file: Path | str = "<dict>", root_node: yaml.Nod
     if not isinstance(data, dict):
         raise ConfigError(file, [ConfigIssue("", f"the file must hold a YAML mapping, got {type(data).__name__}")])
     try:
-        return RunConfig.model_validate(data)
+        cfg = RunConfig.model_validate(data)
     except ValidationError as err:
         raise ConfigError(file, _issues_from_validation(err, root_node)) from None
+    issues = [_library_issue(str(err), root_node) for err in cfg.library_errors()]
+    if issues:
+        raise ConfigError(file, issues)
+    return cfg
+
+
+def _library_owner(path: str) -> str:
+    """``Class.attribute`` of a library attribute path such as ``system.tracking.tracker.gate_m``."""
+    head, *parts = path.split(".")
+    obj = _LIBRARY_DEFAULTS[head]
+    for part in parts[:-1]:
+        obj = getattr(obj, part)
+    return f"{type(obj).__name__}.{parts[-1]}"
+
+
+def _library_issue(message: str, root: yaml.Node | None) -> ConfigIssue:
+    """A library parameter class's error (``Class.attribute must be ...``) reported at the configuration field
+    that sets that attribute, with its line and expected range."""
+    owners = {_library_owner(lib): field for field, lib in library_fields()}
+    m = re.match(r"(\w+\.\w+)(?::| must)\s*(.*)", message, flags=re.S)
+    field = owners.get(m.group(1)) if m else None
+    if field is None:
+        return ConfigIssue("", message)
+    loc = tuple(field.split("."))
+    text = m.group(2) if message[len(m.group(1))] == ":" else "must " + m.group(2)
+    return ConfigIssue(field, f"{text} ({m.group(1)})", _expected(_field_info(loc)), _line_of(root, loc))
 
 
 def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
@@ -180,7 +206,35 @@ def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
             path, [ConfigIssue("", f"not valid YAML: {problem}", line=mark.line + 1 if mark else None)]
         ) from None
     cfg = config_from_dict({} if data is None else data, path, root)
-    return cfg.resolved(path.resolve().parent) if resolve_paths else cfg
+    if not resolve_paths:
+        return cfg
+    cfg = cfg.resolved(path.resolve().parent)
+    model_path = cfg.sensors.sound.model_path
+    if cfg.sensors.sound.enabled and model_path is not None:
+        loc = ("sensors", "sound", "model_path")
+        problem = _sound_model_problem(model_path)
+        if problem:
+            raise ConfigError(path, [ConfigIssue(".".join(loc), problem, _expected(_field_info(loc)),
+                                                 _line_of(root, loc))])
+    return cfg
+
+
+def _sound_model_problem(model_path: Path) -> str:
+    """Why the binaural sensor model at ``model_path`` cannot be used ("" when it loads)."""
+    if not model_path.is_file():
+        return f"no file {model_path}"
+    from ..audio import BinauralSensorModel
+
+    try:
+        BinauralSensorModel.load(model_path)
+    except Exception as err:  # noqa: BLE001 - any failure to load is reported as this field's error
+        return f"{model_path} is not a sensor model written by planefuse audio calibrate ({type(err).__name__}: {err})"
+    return ""
+
+
+def config_yaml(cfg: RunConfig) -> str:
+    """``cfg`` as YAML, every field written out, ending with a comment holding its :func:`config_hash`."""
+    return yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False) + f"# config_hash: {config_hash(cfg)}\n"
 
 
 def config_hash(cfg: RunConfig) -> str:

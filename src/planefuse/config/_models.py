@@ -1,20 +1,26 @@
 """The run configuration: one YAML file, validated by pydantic models.
 
-Every numeric field carries its unit in its name (``_m``, ``_s``, ``_hz``,
-``_m_s``) and, in its field metadata, a human-readable ``unit`` and
-``expected`` range; :func:`planefuse.config.load_config` quotes them in its
-error messages and :func:`planefuse.config.example_yaml` writes them as
-comments.
+Every numeric field carries its unit in its name (``_m``, ``_s``, ``_hz``, ``_m_s``) and, in its field
+metadata, a human-readable ``unit`` and ``expected`` range; :func:`planefuse.config.load_config` quotes
+them in its error messages and :func:`planefuse.config.example_yaml` writes them as comments.
+
+Most fields stand for one attribute of the library's parameters (:class:`planefuse.pipeline.SystemParams`,
+:class:`planefuse.outputs.OutputSettings`), named in the field's ``library`` metadata: the field's default
+is that attribute's default, :meth:`RunConfig.system_params` sets it, and the rules it must follow are
+the library's own (``__post_init__``), reported by :func:`~planefuse.config.load_config` at the field's
+line. The models here check only what is the configuration's own: types, names, the size of the grid.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Iterator, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from ..grid import PlaneStack
+from ..outputs import OutputSettings
+from ..pipeline import RunPlan, SystemParams
 
 __all__ = [
     "PlanesConfig",
@@ -27,12 +33,30 @@ __all__ = [
     "ModelsConfig",
     "OutputsConfig",
     "RunConfig",
+    "library_fields",
 ]
 
+#: The library values the configuration stands for, at their defaults: ``system.*`` and ``outputs.*``.
+_LIBRARY_DEFAULTS = {"system": SystemParams(), "outputs": OutputSettings()}
 
-def _field(default: Any = ..., *, description: str, unit: str = "", expected: str = "", **kw: Any) -> Any:
-    """A pydantic Field whose metadata holds the unit and expected range quoted in errors and comments."""
-    extra = {"unit": unit, "expected": expected}
+
+def _library_value(path: str) -> Any:
+    obj: Any = _LIBRARY_DEFAULTS
+    for i, part in enumerate(path.split(".")):
+        obj = obj[part] if i == 0 else getattr(obj, part)
+    return obj
+
+
+def _field(default: Any = ..., *, description: str, unit: str = "", expected: str = "", library: str = "",
+           **kw: Any) -> Any:
+    """A pydantic Field whose metadata holds the unit and expected range quoted in errors and comments, and
+    the library attribute (``system.tracking.tracker.gate_m``) it sets; a library field's default is the
+    library's (``default`` is then left out, or given only to convert the library's value)."""
+    extra = {"unit": unit, "expected": expected, "library": library}
+    if library and default is ...:
+        default = _library_value(library)
+        if isinstance(default, tuple) and "heights" in library:
+            default = list(default)
     return Field(default, description=description, json_schema_extra=extra, **kw)
 
 
@@ -52,114 +76,110 @@ class _Model(BaseModel):
 class PlanesConfig(_Model):
     """The stack of horizontal planes z = h_0..h_{L-1} and their common XY grid."""
 
-    heights_m: list[Annotated[float, Field(ge=0.0, le=10.0)]] = _field(
-        [0.1, 0.5, 1.0, 1.5],
-        description="Heights of the planes above the ground plane pi_ref (z = 0)",
-        unit="m",
-        expected="at least one height, each in [0, 10], strictly increasing",
-        min_length=1,
+    heights_m: list[float] = _field(
+        description="Heights of the planes above the ground plane pi_ref (z = 0)", unit="m",
+        expected="at least one height, each in [0, 10], strictly increasing", library="system.heights_m",
     )
-    x_range_m: tuple[float, float] = _field(
-        (0.0, 10.0), description="World X extent of the grid (min, max)", unit="m", expected="min < max"
+    x_range_m: tuple[float, float] | None = _field(
+        description="World X extent of the grid (min, max); null = the recording's room less wall_margin_m",
+        unit="m", expected="null or min < max", library="system.x_range_m",
     )
-    y_range_m: tuple[float, float] = _field(
-        (0.0, 10.0), description="World Y extent of the grid (min, max)", unit="m", expected="min < max"
+    y_range_m: tuple[float, float] | None = _field(
+        description="World Y extent of the grid (min, max); null = the recording's room less wall_margin_m",
+        unit="m", expected="null or min < max", library="system.y_range_m",
+    )
+    wall_margin_m: float = _field(
+        description="Margin kept from the room's walls when the extent comes from the recording", unit="m",
+        expected=">= 0", library="system.wall_margin_m",
     )
     cell_size_m: float = _field(
-        0.1, description="Side of a square grid cell", unit="m", expected="in (0, 5]", gt=0.0, le=5.0
+        description="Side of a square grid cell", unit="m", expected="in (0, 5]", library="system.cell_size_m"
     )
-
-    @field_validator("heights_m")
-    @classmethod
-    def _heights(cls, v: list[float]) -> list[float]:
-        for i in range(1, len(v)):
-            if v[i] <= v[i - 1]:
-                raise item_error(i, f"{v[i]} m is not above the previous height {v[i - 1]} m")
-        return v
-
-    @field_validator("x_range_m", "y_range_m")
-    @classmethod
-    def _range(cls, v: tuple[float, float]) -> tuple[float, float]:
-        if not v[0] < v[1]:
-            raise ValueError(f"range min {v[0]} m must be below max {v[1]} m")
-        return v
-
-    @model_validator(mode="after")
-    def _cells(self) -> "PlanesConfig":
-        n = ((self.x_range_m[1] - self.x_range_m[0]) / self.cell_size_m) * (
-            (self.y_range_m[1] - self.y_range_m[0]) / self.cell_size_m
-        )
-        if n * len(self.heights_m) > 50_000_000:
-            raise ValueError(
-                f"the grid would have {n * len(self.heights_m):.3g} cells (> 5e7); increase cell_size_m"
-            )
-        return self
-
-    def to_stack(self) -> PlaneStack:
-        """The :class:`~planefuse.grid.PlaneStack` this section describes."""
-        return PlaneStack.from_extent(self.heights_m, self.x_range_m, self.y_range_m, self.cell_size_m)
 
 
 class CameraSensorConfig(_Model):
     """Cameras: background subtraction, then registration of the foreground on the planes (planefuse.vision)."""
 
-    enabled: bool = _field(True, description="Use the cameras")
-    foreground_method: Literal["MOG2", "KNN"] = _field(
-        "KNN", description="OpenCV background subtractor", expected="MOG2 or KNN"
+    enabled: bool = _field(description="Use the cameras", library="system.cameras")
+    foreground_method: Literal["knn", "mog2"] = _field(
+        description="OpenCV background subtractor", expected="knn or mog2",
+        library="system.camera_params.foreground.method",
     )
     history_frames: int = _field(
-        500, description="Frames in the background model's history", unit="frames", expected=">= 1", ge=1
+        description="Frames in the background model's history", unit="frames", expected="an integer >= 1",
+        library="system.camera_params.foreground.history",
     )
     var_threshold: float | None = _field(
-        None,
         description="MOG2 varThreshold (squared Mahalanobis distance) or KNN dist2Threshold; null = OpenCV's default",
-        expected="null or > 0",
-        gt=0.0,
+        expected="null or > 0", library="system.camera_params.foreground.threshold",
     )
-    detect_shadows: bool = _field(True, description="Let the subtractor mark shadows (then treated as background)")
+    detect_shadows: bool = _field(
+        description="Let the subtractor mark shadows (then treated as background)",
+        library="system.camera_params.foreground.detect_shadows",
+    )
     p_foreground_given_occupied: float = _field(
-        0.9, description="Sensor model P(foreground | cell occupied)", expected="in (0, 1)", gt=0.0, lt=1.0
+        description="Sensor model P(foreground | cell occupied)", expected="in (0, 1)",
+        library="system.camera_params.fusion.p_detect",
     )
     p_foreground_given_free: float = _field(
-        0.2, description="Sensor model P(foreground | cell free)", expected="in (0, 1)", gt=0.0, lt=1.0
+        description="Sensor model P(foreground | cell free)", expected="in (0, 1), below p_foreground_given_occupied",
+        library="system.camera_params.fusion.p_false_alarm",
+    )
+    attitude_source: Literal["calibration", "imu"] = _field(
+        description="Where each camera's attitude comes from: its calibration (fixed) or its IMU (followed over time)",
+        expected="calibration or imu", library="system.camera_params.registration.attitude_source",
+    )
+    attitude_tolerance_px: float = _field(
+        description="With imu: a camera's plane lookup is rebuilt when its attitude moved an image point by more",
+        unit="px", expected="> 0", library="system.camera_params.registration.tolerance_px",
+    )
+    imu_filter: str = _field(
+        description="With imu: attitude filter (planefuse.geometry.attitude_from_imu method)",
+        expected="madgwick, mahony, ekf, complementary or ...",
+        library="system.camera_params.registration.imu_filter",
     )
     sensor_model: Literal["cell", "generative"] = _field(
-        "cell",
         description="Cameras' evidence on the planes: per cell (each cell scored on its own) or generative (people "
                     "on the grid explain each whole foreground image, Fleuret et al. 2008; docs/cameras.md)",
-        expected="cell or generative",
+        expected="cell or generative", library="system.camera_params.sensor_model",
     )
+
+    @field_validator("foreground_method", mode="before")
+    @classmethod
+    def _lower(cls, v: Any) -> Any:
+        return v.lower() if isinstance(v, str) else v
 
 
 class LaserSensorConfig(_Model):
     """Laser range finders: hits become evidence on the plane whose height band holds them (planefuse.laser)."""
 
-    enabled: bool = _field(True, description="Use the laser range finders")
+    enabled: bool = _field(description="Use the laser range finders", library="system.laser")
     p_occupied_hit: float = _field(
-        0.9, description="Inverse sensor model: P(occupied) of a cell holding a beam's end point",
-        expected="in (0.5, 1)", gt=0.5, lt=1.0,
+        description="Inverse sensor model: P(occupied) of a cell holding a beam's end point",
+        expected="in (0.5, 1)", library="system.laser_model.p_occupied_hit",
     )
     p_occupied_free: float = _field(
-        0.45, description="Inverse sensor model: P(occupied) of a cell a beam crossed before its end",
-        expected="in (0, 0.5)", gt=0.0, lt=0.5,
+        description="Inverse sensor model: P(occupied) of a cell a beam crossed before its end",
+        expected="in (0, 0.5)", library="system.laser_model.p_occupied_free",
     )
     no_return_free_m: float | None = _field(
-        None, description="Free space along a beam with no return, up to this range; null = the scanner's range_max",
-        unit="m", expected="null or > 0", gt=0.0,
+        description="Free space along a beam with no return, up to this range; null = the scanner's range_max",
+        unit="m", expected="null or > 0", library="system.laser_model.no_return_free_m",
     )
 
 
 class SoundSensorConfig(_Model):
     """Binaural microphones: Bayesian azimuth saliency registered as wedges on the planes (planefuse.audio)."""
 
-    enabled: bool = _field(True, description="Use the binaural microphone pair")
+    enabled: bool = _field(description="Use the binaural microphone pair", library="system.sound")
     block_length_s: float = _field(
-        0.5, description="Length of the audio blocks localised one at a time", unit="s", expected="in (0, 10]",
-        gt=0.0, le=10.0,
+        description="Length of the audio blocks localised one at a time", unit="s", expected="> 0",
+        library="system.sound_block_s",
     )
     model_path: Path | None = _field(
-        None, description="Calibrated sensor model (planefuse audio calibrate); null = the spherical-head model",
-        expected="null or a file path",
+        description="Calibrated sensor model (planefuse audio calibrate); null = the spherical-head model "
+        "(relative paths are relative to this file)",
+        expected="null or a sensor model file", library="system.sound_model_path",
     )
 
 
@@ -170,45 +190,45 @@ class SensorsConfig(_Model):
     laser: LaserSensorConfig = _field(LaserSensorConfig(), description="Laser range finders")
     sound: SoundSensorConfig = _field(SoundSensorConfig(), description="Binaural microphone pair")
 
-    @model_validator(mode="after")
-    def _any(self) -> "SensorsConfig":
-        if not (self.cameras.enabled or self.laser.enabled or self.sound.enabled):
-            raise ValueError("at least one of cameras, laser, sound must be enabled")
-        return self
-
 
 class FilterModelConfig(_Model):
     """Bayesian Occupancy Filter per plane (planefuse.tracking.BOFParams) and its time handling."""
 
+    enabled: bool = _field(
+        description="Filter over time; false = each output step is the current evidence alone (an ablation)",
+        library="system.use_filter",
+    )
     n_velocities_per_axis: int = _field(
-        7, description="Velocity hypotheses per axis (odd: the set includes v = 0)", expected="odd, in [1, 15]",
-        ge=1, le=15,
+        description="Velocity hypotheses per axis (odd: the set includes v = 0)", expected="odd, >= 1",
+        library="system.tracking.bof.n_velocities_per_axis",
     )
     velocity_max_m_s: float = _field(
-        1.5, description="Largest velocity hypothesis per axis", unit="m/s", expected="in (0, 10]", gt=0.0, le=10.0
+        description="Largest velocity hypothesis per axis", unit="m/s", expected="in [0, 10]",
+        library="system.tracking.bof.velocity_max_m_s",
     )
     prior_occupancy: float = _field(
-        0.05, description="Prior occupancy probability of a cell", expected="in (0, 1)", gt=0.0, lt=1.0
+        description="Prior occupancy probability of a cell", expected="in (0, 1)",
+        library="system.tracking.bof.prior_occupancy",
     )
     decay_rate_hz: float = _field(
-        0.5, description="Rate at which an unobserved cell's occupancy returns to the prior", unit="1/s",
-        expected=">= 0", ge=0.0,
+        description="Rate at which an unobserved cell's occupancy returns to the prior", unit="1/s",
+        expected=">= 0", library="system.tracking.bof.decay_rate_hz",
     )
     velocity_noise_rate_hz: float = _field(
-        1.0, description="Rate of velocity changes (mixing between neighbouring velocity hypotheses)", unit="1/s",
-        expected=">= 0", ge=0.0,
+        description="Rate of velocity changes (mixing between neighbouring velocity hypotheses)", unit="1/s",
+        expected=">= 0", library="system.tracking.bof.velocity_noise_rate_hz",
     )
     merge_tolerance_s: float = _field(
-        0.05, description="Evidence messages closer in time than this are fused in one update", unit="s",
-        expected="in [0, 1]", ge=0.0, le=1.0,
+        description="Evidence messages closer in time than this are fused in one update", unit="s",
+        expected=">= 0", library="system.tracking.merge_tolerance_s",
     )
     window_s: float = _field(
-        0.2, description="Re-ordering window for out-of-order messages", unit="s", expected="in [0, 10]",
-        ge=0.0, le=10.0,
+        description="Re-ordering window for out-of-order messages", unit="s", expected=">= 0",
+        library="system.tracking.window_s",
     )
     output_period_s: float = _field(
-        0.2, description="Time between output steps (occupancy, detections, tracks)", unit="s",
-        expected="in (0, 10]", gt=0.0, le=10.0,
+        description="Time between output steps (occupancy, detections, tracks)", unit="s", expected="> 0",
+        library="system.output_period_s",
     )
 
     @field_validator("n_velocities_per_axis")
@@ -223,26 +243,30 @@ class DetectionModelConfig(_Model):
     """From occupancy to people: column clustering and track management (planefuse.tracking)."""
 
     column_threshold: float = _field(
-        1.5, description="Column log-odds above which a cluster is a person hypothesis", expected="> 0", gt=0.0
+        description="Column evidence (mean capped log-odds per observed body plane) above which a cluster is a "
+        "person hypothesis", expected="finite", library="system.tracking.cluster.threshold",
     )
     person_radius_m: float = _field(
-        0.3, description="Radius of a person's footprint", unit="m", expected="in (0, 2]", gt=0.0, le=2.0
+        description="Radius of a person's footprint (clustering; MOTChallenge boxes)", unit="m", expected=">= 0",
+        library="system.tracking.cluster.person_radius_m",
     )
     min_separation_m: float = _field(
-        0.4, description="Closest two people may stand", unit="m", expected="in (0, 5]", gt=0.0, le=5.0
+        description="Closest two people may stand", unit="m", expected=">= 0",
+        library="system.tracking.cluster.min_separation_m",
     )
     gate_m: float = _field(
-        0.75, description="Largest distance between a track's prediction and the cluster it is associated with",
-        unit="m", expected="> 0", gt=0.0,
+        description="Largest distance between a track's prediction and the cluster it is associated with",
+        unit="m", expected="> 0", library="system.tracking.tracker.gate_m",
     )
-    confirm_hits: int = _field(3, description="Associations before a track is reported", expected=">= 1", ge=1)
+    confirm_hits: int = _field(description="Associations before a track is reported", expected="an integer >= 1",
+                               library="system.tracking.tracker.confirm_hits")
     max_misses: int = _field(
-        10, description="Output steps a track may go unobserved before it is ended", unit="steps",
-        expected=">= 0", ge=0,
+        description="Output steps a track may go unobserved before it is ended", unit="steps",
+        expected="an integer >= 0", library="system.tracking.tracker.max_misses",
     )
     match_distance_m: float = _field(
-        0.5, description="Evaluation: largest distance of a correct detection from the truth", unit="m",
-        expected="> 0", gt=0.0,
+        description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
+        expected="> 0", library="system.match_distance_m",
     )
 
 
@@ -260,19 +284,55 @@ class OutputsConfig(_Model):
         Path("planefuse-out"), description="Output folder (relative paths are relative to this file)",
         expected="a folder path",
     )
-    zarr: bool = _field(True, description="Write per-plane occupancy over time to occupancy.zarr")
+    zarr: bool = _field(description="Write per-plane occupancy over time to occupancy.zarr (needed to resume)",
+                        library="outputs.zarr")
     chunk_steps: int = _field(
-        50, description="Time steps per zarr chunk; a re-run resumes at the first unfinished chunk",
-        unit="steps", expected="in [1, 10000]", ge=1, le=10_000,
+        description="Time steps per zarr chunk; a re-run resumes at the first unfinished chunk", unit="steps",
+        expected="an integer >= 1", library="outputs.chunk_steps",
     )
-    figures: bool = _field(True, description="Write PNG figures to figures/")
+    figures: bool = _field(description="Write PNG figures to figures/", library="outputs.figures")
     animation: Literal["none", "gif", "mp4"] = _field(
-        "gif", description="Animation of the plane stack over time", expected="none, gif or mp4"
+        description="Animation of the plane stack over time", expected="none, gif or mp4", library="outputs.animation"
     )
-    report: bool = _field(True, description="Write the self-contained report.html")
-    rerun: bool = _field(False, description="Write a rerun recording (planefuse.rrd) for the rerun viewer")
-    figure_dpi: int = _field(100, description="Resolution of the figures", unit="dpi", expected="in [30, 600]",
-                             ge=30, le=600)
+    report: bool = _field(description="Write the self-contained report.html", library="outputs.report")
+    rerun: bool = _field(description="Write a rerun recording (planefuse.rrd) for the rerun viewer",
+                         library="outputs.rerun")
+    figure_dpi: int = _field(description="Resolution of the figures", unit="dpi", expected="an integer >= 1",
+                             library="outputs.figure_dpi")
+
+
+def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:
+    """``(config field path, library attribute path)`` of every configuration field that sets a library value,
+    e.g. ``("models.detection.gate_m", "system.tracking.tracker.gate_m")``."""
+    model = RunConfig if model is None else model
+    for name, info in model.model_fields.items():
+        ann = info.annotation
+        if isinstance(ann, type) and issubclass(ann, BaseModel):
+            yield from library_fields(ann, f"{prefix}{name}.")
+            continue
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        if extra.get("library"):
+            yield f"{prefix}{name}", str(extra["library"])
+
+
+def _config_value(cfg: BaseModel, path: str) -> Any:
+    obj: Any = cfg
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _with_values(obj: Any, values: dict[tuple[str, ...], Any]) -> Any:
+    """``obj`` (a frozen dataclass) with the attributes at the given paths replaced, each object rebuilt once
+    (children first), so that rules between its fields see the final values together."""
+    direct = {k[0]: v for k, v in values.items() if len(k) == 1}
+    children: dict[str, dict[tuple[str, ...], Any]] = {}
+    for k, v in values.items():
+        if len(k) > 1:
+            children.setdefault(k[0], {})[k[1:]] = v
+    for name, sub in children.items():
+        direct[name] = _with_values(getattr(obj, name), sub)
+    return replace(obj, **direct) if direct else obj
 
 
 class RunConfig(_Model):
@@ -288,13 +348,72 @@ class RunConfig(_Model):
     outputs: OutputsConfig = _field(OutputsConfig(), description="Outputs")
 
     def resolved(self, base_dir: Path) -> "RunConfig":
-        """Copy with ``recording`` and ``outputs.out_dir`` made absolute against ``base_dir``."""
-        rec = self.recording if self.recording.is_absolute() else (base_dir / self.recording)
-        out = self.outputs.out_dir
-        out = out if out.is_absolute() else (base_dir / out)
-        return self.model_copy(
-            update={
-                "recording": rec.resolve(),
-                "outputs": self.outputs.model_copy(update={"out_dir": out.resolve()}),
-            }
-        )
+        """Copy with ``recording``, ``outputs.out_dir`` and ``sensors.sound.model_path`` made absolute against
+        ``base_dir``."""
+
+        def absolute(p: Path) -> Path:
+            return (p if p.is_absolute() else base_dir / p).resolve()
+
+        sound = self.sensors.sound
+        if sound.model_path is not None:
+            sound = sound.model_copy(update={"model_path": absolute(sound.model_path)})
+        return self.model_copy(update={
+            "recording": absolute(self.recording),
+            "outputs": self.outputs.model_copy(update={"out_dir": absolute(self.outputs.out_dir)}),
+            "sensors": self.sensors.model_copy(update={"sound": sound}),
+        })
+
+    def _library_values(self, root: str) -> dict[tuple[str, ...], Any]:
+        values = {}
+        for field_path, lib in library_fields():
+            head, _, rest = lib.partition(".")
+            if head == root:
+                v = _config_value(self, field_path)
+                values[tuple(rest.split("."))] = tuple(v) if isinstance(v, list) else v
+        return values
+
+    def _library(self, root: str) -> Any:
+        return _with_values(_LIBRARY_DEFAULTS[root], self._library_values(root))
+
+    def library_errors(self) -> list[ValueError]:
+        """Every library rule this configuration breaks: each parameter class is built on its own from its
+        fields (so that one error does not hide another), then the whole, for the rules between classes."""
+        errors: list[ValueError] = []
+        for root in _LIBRARY_DEFAULTS:
+            values = self._library_values(root)
+            groups: dict[tuple[str, ...], dict[tuple[str, ...], Any]] = {}
+            for path, v in values.items():
+                groups.setdefault(path[:-1], {})[path[-1:]] = v
+            n = len(errors)
+            for parent, group in groups.items():
+                obj = _LIBRARY_DEFAULTS[root]
+                for part in parent:
+                    obj = getattr(obj, part)
+                try:
+                    _with_values(obj, group)
+                except ValueError as err:
+                    errors.append(err)
+            if len(errors) == n:
+                try:
+                    _with_values(_LIBRARY_DEFAULTS[root], values)
+                except ValueError as err:
+                    errors.append(err)
+        return errors
+
+    def system_params(self) -> SystemParams:
+        """The :class:`~planefuse.pipeline.SystemParams` this configuration runs with (raises ``ValueError``
+        naming ``Class.attribute`` where a library rule is broken; :func:`~planefuse.config.load_config`
+        reports it at the configuration field)."""
+        return self._library("system")
+
+    def output_settings(self) -> OutputSettings:
+        """The :class:`~planefuse.outputs.OutputSettings` of the ``outputs`` section."""
+        return self._library("outputs")
+
+    def plan(self, *, resume: bool = True) -> RunPlan:
+        """The :class:`~planefuse.pipeline.RunPlan` of this configuration (paths as they are: load the file
+        with :func:`~planefuse.config.load_config` to have them resolved)."""
+        from ._load import config_hash, config_yaml
+
+        return RunPlan(self.system_params(), self.outputs.out_dir, self.output_settings(), config_yaml(self),
+                       config_hash(self), resume)

@@ -1,11 +1,17 @@
 """Evaluation against ground truth."""
 
+from ._attitude import AttitudeScores, rest_mask, score_attitude
 from ._detection import DetectionScores, detection_scores, match_detections
+from ._system import system_metrics
 from ._tracking import tracking_metrics
 
 __all__ = [
+    "AttitudeScores",
+    "rest_mask",
+    "score_attitude",
     "DetectionScores",
     "detection_scores",
     "match_detections",
+    "system_metrics",
     "tracking_metrics",
 ]

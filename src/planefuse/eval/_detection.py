@@ -2,12 +2,12 @@
 
 Per frame, ground-truth and detected feet positions are matched one-to-one by
 the Hungarian algorithm on their Euclidean distance, pairs farther apart than
-``threshold_m`` being forbidden (so the number of matches is maximal, then their
+``match_distance_m`` being forbidden (so the number of matches is maximal, then their
 total distance minimal). Over all frames, with N_gt ground-truth people, TP
 matches, FP unmatched detections, FN unmatched ground truth::
 
     MODA      = 1 - (FN + FP) / N_gt
-    MODP      = mean over matches of (1 - d / threshold_m)
+    MODP      = mean over matches of (1 - d / match_distance_m)
     precision = TP / (TP + FP)          recall = TP / N_gt
 
 Ground-truth positions may be given as "ignore" (people the evaluation cannot
@@ -37,8 +37,8 @@ def _xy(a, name: str) -> np.ndarray:
     return p
 
 
-def match_detections(gt_xy, det_xy, threshold_m: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One-to-one matching of detections to ground truth within ``threshold_m``.
+def match_detections(gt_xy, det_xy, match_distance_m: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One-to-one matching of detections to ground truth within ``match_distance_m``.
 
     Parameters
     ----------
@@ -46,7 +46,7 @@ def match_detections(gt_xy, det_xy, threshold_m: float = 0.5) -> tuple[np.ndarra
         Ground-truth positions [m].
     det_xy : array_like, shape (D, 2)
         Detected positions [m].
-    threshold_m : float
+    match_distance_m : float
         Largest distance of a match [m] (inclusive).
 
     Returns
@@ -56,17 +56,17 @@ def match_detections(gt_xy, det_xy, threshold_m: float = 0.5) -> tuple[np.ndarra
     distance_m : ndarray (K,)
         Their distances [m].
     """
-    if not threshold_m > 0:
-        raise ValueError(f"threshold_m must be > 0, got {threshold_m}")
+    if not match_distance_m > 0:
+        raise ValueError(f"match_distance_m must be > 0, got {match_distance_m}")
     g = _xy(gt_xy, "gt_xy")
     d = _xy(det_xy, "det_xy")
     if len(g) == 0 or len(d) == 0:
         e = np.zeros(0, dtype=np.int64)
         return e, e.copy(), np.zeros(0)
     dist = np.linalg.norm(g[:, None, :] - d[None, :, :], axis=-1)
-    allowed = dist <= threshold_m
+    allowed = dist <= match_distance_m
     # A forbidden pair costs more than any full set of allowed ones: maximal matching first.
-    big = threshold_m * (min(len(g), len(d)) + 1)
+    big = match_distance_m * (min(len(g), len(d)) + 1)
     rows, cols = linear_sum_assignment(np.where(allowed, dist, big))
     ok = allowed[rows, cols]
     return rows[ok].astype(np.int64), cols[ok].astype(np.int64), dist[rows[ok], cols[ok]]
@@ -80,10 +80,10 @@ class DetectionScores:
     ----------
     n_frames, n_gt, tp, fp, fn : int
     sum_similarity : float
-        Sum over matches of ``1 - d / threshold_m``.
+        Sum over matches of ``1 - d / match_distance_m``.
     sum_distance_m : float
         Sum of match distances [m].
-    threshold_m : float
+    match_distance_m : float
     """
 
     n_frames: int
@@ -93,7 +93,7 @@ class DetectionScores:
     fn: int
     sum_similarity: float
     sum_distance_m: float
-    threshold_m: float
+    match_distance_m: float
 
     @property
     def moda(self) -> float:
@@ -124,10 +124,10 @@ class DetectionScores:
         """Scores and counts as a flat dict (for tables and JSON)."""
         return {"frames": self.n_frames, "gt": self.n_gt, "tp": self.tp, "fp": self.fp, "fn": self.fn,
                 "moda": self.moda, "modp": self.modp, "precision": self.precision, "recall": self.recall,
-                "mean_distance_m": self.mean_distance_m, "threshold_m": self.threshold_m}
+                "mean_distance_m": self.mean_distance_m, "match_distance_m": self.match_distance_m}
 
 
-def detection_scores(frames: Iterable, threshold_m: float = 0.5) -> DetectionScores:
+def detection_scores(frames: Iterable, match_distance_m: float = 0.5) -> DetectionScores:
     """Score detections against ground truth over many frames.
 
     Parameters
@@ -135,7 +135,7 @@ def detection_scores(frames: Iterable, threshold_m: float = 0.5) -> DetectionSco
     frames : iterable of (gt_xy, det_xy) or (gt_xy, det_xy, ignore_xy)
         Per frame: ground truth (G, 2), detections (D, 2) and optionally
         positions to ignore (I, 2), all world XY [m].
-    threshold_m : float
+    match_distance_m : float
         Match distance [m].
 
     Returns
@@ -147,17 +147,17 @@ def detection_scores(frames: Iterable, threshold_m: float = 0.5) -> DetectionSco
     for item in frames:
         gt, det = _xy(item[0], "gt_xy"), _xy(item[1], "det_xy")
         ign = _xy(item[2], "ignore_xy") if len(item) > 2 else np.zeros((0, 2))
-        gi, di, d = match_detections(gt, det, threshold_m)
+        gi, di, d = match_detections(gt, det, match_distance_m)
         unmatched = np.setdiff1d(np.arange(len(det)), di)
         n_fp = len(unmatched)
         if len(ign) and n_fp:
-            _, ui, _ = match_detections(ign, det[unmatched], threshold_m)
+            _, ui, _ = match_detections(ign, det[unmatched], match_distance_m)
             n_fp -= len(ui)
         n_frames += 1
         n_gt += len(gt)
         tp += len(gi)
         fn += len(gt) - len(gi)
         fp += n_fp
-        sim += float(np.sum(1.0 - d / threshold_m))
+        sim += float(np.sum(1.0 - d / match_distance_m))
         dist_sum += float(np.sum(d))
-    return DetectionScores(n_frames, n_gt, tp, fp, fn, sim, dist_sum, float(threshold_m))
+    return DetectionScores(n_frames, n_gt, tp, fp, fn, sim, dist_sum, float(match_distance_m))

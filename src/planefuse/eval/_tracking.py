@@ -2,7 +2,7 @@
 
 Ground truth and hypotheses are sequences of frames, each with a time [s], identities and world XY
 positions [m]. A hypothesis and a ground-truth object can match when their ground distance is at most
-``max_distance_m`` (0.5 m by default, the usual threshold for people on the ground plane).
+``match_distance_m`` (0.5 m by default, the usual threshold for people on the ground plane).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def _frame(f: Any, what: str, i: int) -> tuple[float, np.ndarray, np.ndarray]:
 def tracking_metrics(
     ground_truth: Iterable,
     hypotheses: Iterable,
-    max_distance_m: float = 0.5,
+    match_distance_m: float = 0.5,
     time_tolerance_s: float = 1e-3,
 ) -> dict[str, float]:
     """MOTA, MOTP, IDF1, identity switches and friends for people tracked on the ground plane.
@@ -70,7 +70,7 @@ def tracking_metrics(
         frame is paired with the hypothesis frame nearest in time within ``time_tolerance_s``; a
         ground-truth frame without one counts all its objects as misses. Hypothesis frames paired with no
         ground-truth frame are not evaluated (their number is returned as ``num_unpaired_hypothesis_frames``).
-    max_distance_m : float
+    match_distance_m : float
         Largest ground distance [m] for a match (motmetrics' distance threshold).
     time_tolerance_s : float
         Largest time difference [s] between paired frames.
@@ -83,8 +83,8 @@ def tracking_metrics(
         num_unique_objects, mostly_tracked, mostly_lost, num_fragmentations, num_frames,
         num_unpaired_hypothesis_frames``.
     """
-    if not (np.isfinite(max_distance_m) and max_distance_m > 0):
-        raise ValueError(f"max_distance_m must be finite and > 0, got {max_distance_m}")
+    if not (np.isfinite(match_distance_m) and match_distance_m > 0):
+        raise ValueError(f"match_distance_m must be finite and > 0, got {match_distance_m}")
     gt = [_frame(f, "ground_truth", i) for i, f in enumerate(ground_truth)]
     hyp = [_frame(f, "hypotheses", i) for i, f in enumerate(hypotheses)]
     if not gt:
@@ -100,7 +100,7 @@ def tracking_metrics(
                 _, hid, hxy = hyp[j]
                 used[j] = True
         d = cdist(gxy, hxy) if len(gxy) and len(hxy) else np.zeros((len(gxy), len(hxy)))
-        d = np.where(d <= max_distance_m, d, np.nan)
+        d = np.where(d <= match_distance_m, d, np.nan)
         acc.update(list(gid), list(hid), d)
     summary = mm.metrics.create().compute(acc, metrics=list(_METRICS.values()), name="all")
     out = {k: float(summary[v].iloc[0]) for k, v in _METRICS.items()}

@@ -121,20 +121,27 @@ class CameraIntrinsics:
         """Undistorted normalised coordinates (..., N, 2) of pixels (..., N, 2).
 
         Uses OpenCV's ``undistortPoints`` with termination criteria (iterative inversion of the distortion model,
-        to 1e-12 or 100 iterations).
+        to 1e-12 or 100 iterations), after removing the skew ``K[0, 1]``, which OpenCV ignores.
         """
         uv = check_points(uv, 2, "uv")
         flat = uv.reshape(-1, 1, 2)
         if flat.shape[0] == 0:
             return uv.copy()
+        K = self.K
+        if K[0, 1] != 0:
+            # OpenCV ignores the skew K[0, 1]: take it out of u first (u = fx x_d + s y_d + cx, y_d = (v - cy) / fy)
+            flat = flat.copy()
+            flat[..., 0] -= K[0, 1] * (flat[..., 1] - K[1, 2]) / K[1, 1]
+            K = K.copy()
+            K[0, 1] = 0.0
         if self.has_distortion:
             crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
             if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
-                xy = cv2.undistortPointsIter(flat, self.K, self.dist, None, None, crit)
+                xy = cv2.undistortPointsIter(flat, K, self.dist, None, None, crit)
             else:  # OpenCV 5 folded the criteria into undistortPoints
-                xy = cv2.undistortPoints(flat, self.K, self.dist, R=None, P=None, criteria=crit)
+                xy = cv2.undistortPoints(flat, K, self.dist, R=None, P=None, criteria=crit)
         else:
-            xy = cv2.undistortPoints(flat, self.K, None)
+            xy = cv2.undistortPoints(flat, K, None)
         return xy.reshape(uv.shape)
 
     def undistort_pixels(self, uv) -> np.ndarray:

@@ -19,6 +19,10 @@ from ..geometry._checks import check_points
 __all__ = ["PlaneStack"]
 
 
+#: Most cells a plane stack may have (all planes): a larger grid is a unit error or exhausts memory.
+MAX_CELLS = 50_000_000
+
+
 @dataclass(frozen=True)
 class PlaneStack:
     """Heights and grid of the planes parallel to pi_ref.
@@ -64,6 +68,11 @@ class PlaneStack:
             raise ValueError(f"cell_size_m must be > 0, got {self.cell_size_m}")
         if int(self.nx) <= 0 or int(self.ny) <= 0:
             raise ValueError(f"nx and ny must be positive, got nx={self.nx}, ny={self.ny}")
+        n_cells = h.size * int(self.nx) * int(self.ny)
+        if n_cells > MAX_CELLS:
+            raise ValueError(f"the plane stack would have {n_cells:.3g} cells (> {MAX_CELLS:.0e}: "
+                             f"{4 * n_cells / 1e9:.2g} GB per float32 grid); increase cell_size_m "
+                             f"({self.cell_size_m:g} m) or reduce the extent")
         object.__setattr__(self, "heights_m", tuple(float(x) for x in h))
         object.__setattr__(self, "nx", int(self.nx))
         object.__setattr__(self, "ny", int(self.ny))

@@ -1,9 +1,26 @@
 """Recording format: a folder with a manifest (``scene.yaml``) and one stream per sensor, plus ground truth.
 
 See ``docs/recording-format.md``. ``read_recording(dir)`` opens a folder lazily; ``Recording.write(dir)``
-writes one (simulated recordings come from :func:`planefuse.sim.simulate`).
+writes one (simulated recordings come from :func:`planefuse.sim.simulate`); ``import_recording`` builds one from
+users' videos or images and calibration files; ``geometry_findings`` checks its cameras.
 """
 
+from ._import import (
+    CONTROL_POINT_COLUMNS,
+    IMAGE_SUFFIXES,
+    VIDEO_SUFFIXES,
+    CameraInput,
+    ControlPoints,
+    ImportReport,
+    import_recording,
+    frame_times_of,
+    people_from_boxes,
+    probe_camera_input,
+    read_control_points,
+    read_ground_positions,
+)
+from ._validate import geometry_findings
+from ._imu_logs import IMU_REFERENCE_COLUMNS, XIO_COLUMNS, ImuLog, read_imu_log
 from ._groundtruth import BODY_COLUMNS, PEOPLE_COLUMNS, SOUND_COLUMNS, GroundTruth, PeopleTruth, SoundTruth
 from ._manifest import (
     MANIFEST_NAME,
@@ -12,6 +29,8 @@ from ._manifest import (
     GroundTruthEntry,
     ImuEntry,
     LaserEntry,
+    LaserScannerDevice,
+    LaserUnitDevice,
     RecordingManifest,
     load_manifest,
 )
@@ -33,10 +52,27 @@ from ._video import VideoFrames, video_info
 from ._yaml import load_yaml_model
 
 __all__ = [
+    "CONTROL_POINT_COLUMNS",
+    "IMAGE_SUFFIXES",
+    "VIDEO_SUFFIXES",
+    "CameraInput",
+    "ControlPoints",
+    "ImportReport",
+    "import_recording",
+    "people_from_boxes",
+    "frame_times_of",
+    "probe_camera_input",
+    "read_control_points",
+    "read_ground_positions",
+    "geometry_findings",
     "BODY_COLUMNS",
     "PEOPLE_COLUMNS",
     "SOUND_COLUMNS",
     "IMU_COLUMNS",
+    "IMU_REFERENCE_COLUMNS",
+    "XIO_COLUMNS",
+    "ImuLog",
+    "read_imu_log",
     "MANIFEST_NAME",
     "GroundTruth",
     "PeopleTruth",
@@ -46,6 +82,8 @@ __all__ = [
     "GroundTruthEntry",
     "ImuEntry",
     "LaserEntry",
+    "LaserScannerDevice",
+    "LaserUnitDevice",
     "RecordingManifest",
     "load_manifest",
     "Event",

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import AliasChoices, BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..geometry import check_transform
 from ._paths import check_name
@@ -108,6 +108,10 @@ class CameraEntry(_Entry):
     def _frames(self) -> CameraEntry:
         if self.times_file is None and self.video_file is None:
             raise ValueError(f"camera {self.name!r} needs a times_file (image frames) or a video_file")
+        for r in self.ignore_rects_px:
+            if r[2] > self.width_px or r[3] > self.height_px:
+                raise ValueError(f"camera {self.name!r}: ignore rectangle {list(r)} reaches past the "
+                                 f"{self.width_px}x{self.height_px} px image")
         return self
 
 class ImuEntry(_Entry):
@@ -131,23 +135,50 @@ class ImuEntry(_Entry):
         return _rigid(v, "T_cam_imu")
 
 
+class LaserScannerDevice(BaseModel):
+    """The 2-D scanner of a laser unit (:class:`planefuse.laser.LaserScannerSpec`)."""
+
+    model_config = ConfigDict(extra="forbid")
+    angle_min_rad: float
+    angle_increment_rad: float = Field(gt=0)
+    n_beams: int = Field(ge=1)
+    range_min_m: float = Field(ge=0)
+    range_max_m: float = Field(gt=0)
+    range_noise_sigma_m: float = Field(0.0, ge=0)
+    name: str = "lrf"
+
+
+class LaserUnitDevice(BaseModel):
+    """A laser unit: its scanner on a tilt axis (:class:`planefuse.laser.TiltingUnit`; a fixed 2-D scanner has
+    tilt 0 and no offset). Frames in docs/conventions.md: {S} scanner, {L} unit (base)."""
+
+    model_config = ConfigDict(extra="forbid")
+    scanner: LaserScannerDevice
+    offset_tilt_scanner_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    tilt_min_rad: float = 0.0
+    tilt_max_rad: float = 0.0
+    tilt_period_s: float = Field(2.0, gt=0)
+    scan_duration_s: float | None = Field(None, gt=0)
+
+
 class LaserEntry(_Entry):
     """A (nodding) laser range finder. Scans are NPZ chunks with ``time_s (S,)``, ``angles_rad (B,)``,
     ``ranges_m (S, B)`` (inf = no return, NaN = invalid) and ``tilt_rad (S,)`` or ``(S, B)``; other per-scan arrays are
-    kept. ``T_world_base`` is the pose of the untilted scanner; ``model`` holds the device parameters."""
+    kept. ``T_world_laser`` is the pose of the unit frame {L} (the untilted scanner; older manifests call it
+    ``T_world_base``); ``model`` is the device."""
 
     type: Literal["laser"]
     name: str
-    T_world_base: Matrix
+    T_world_laser: Matrix = Field(validation_alias=AliasChoices("T_world_laser", "T_world_base"))
     rate_hz: float = Field(gt=0)
     n_scans: int = Field(ge=0)
     files: list[str]
-    model: dict[str, Any] = {}
+    model: LaserUnitDevice
 
-    @field_validator("T_world_base")
+    @field_validator("T_world_laser")
     @classmethod
     def _t(cls, v: Matrix) -> Matrix:
-        return _rigid(v, "T_world_base")
+        return _rigid(v, "T_world_laser")
 
 
 class BinauralEntry(_Entry):
@@ -192,6 +223,8 @@ class RecordingManifest(_Entry):
     wall_height_m: float | None = None
     sensors: list[SensorEntry] = []
     groundtruth: GroundTruthEntry | None = None
+    calibration_points_file: str | None = Field(
+        None, description="CSV camera,u_px,v_px,x_m,y_m,z_m: pixels of known world points (planefuse check)")
     source: str = ""
 
     @model_validator(mode="after")

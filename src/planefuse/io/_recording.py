@@ -16,6 +16,7 @@ import yaml
 
 from ..geometry import PinholeCamera
 from ._groundtruth import GroundTruth
+from ._import import CONTROL_POINT_COLUMNS, ControlPoints, read_control_points
 from ._manifest import (
     MANIFEST_NAME,
     BinauralEntry,
@@ -27,6 +28,7 @@ from ._manifest import (
     load_manifest,
 )
 from ._streams import IMU_COLUMNS, AudioStream, CameraStream, ImuData, ImuStream, LaserStream, write_laser_npz
+from ._paths import resolve_inside
 from ._timestamps import write_csv
 
 __all__ = ["Event", "Recording", "read_recording", "write_recording"]
@@ -56,6 +58,8 @@ class Recording:
         Free text: what produced the recording.
     provenance : dict or None
         The simulator's scene configuration, written as ``simulation.yaml``.
+    calibration_points : ControlPoints or None
+        Pixels of known world points (from ``planefuse import``), reprojected by ``planefuse check``.
     root : Path or None
         Folder the recording was read from.
     """
@@ -71,6 +75,7 @@ class Recording:
     wall_height_m: float | None = None
     source: str = ""
     provenance: dict | None = None
+    calibration_points: ControlPoints | None = None
     root: Path | None = None
 
     @property
@@ -225,7 +230,7 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
             write_laser_npz(root / rel, chunk)
             files.append(rel)
             n += len(chunk)
-        sensors.append(LaserEntry(type="laser", name=s.name, T_world_base=_matrix(s.T_world_base), rate_hz=s.rate_hz,
+        sensors.append(LaserEntry(type="laser", name=s.name, T_world_laser=_matrix(s.T_world_laser), rate_hz=s.rate_hz,
                                   n_scans=n, files=files, model=s.model))
     for s in rec.audio.values():
         rel = f"audio/{s.name}.wav"
@@ -239,11 +244,15 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
                                      fs_hz=s.fs_hz, start_time_s=s.start_time_s, n_samples=n, file=rel,
                                      head_radius_m=s.head_radius_m, hrtf_sofa=s.hrtf_sofa))
     gt = GroundTruthEntry(**rec.groundtruth.write(root)) if rec.groundtruth is not None else None
+    points_rel = None
+    if rec.calibration_points is not None:
+        points_rel = "calibration/points.csv"
+        rec.calibration_points.write(root / points_rel)
     if rec.provenance is not None:
         (root / "simulation.yaml").write_text(yaml.safe_dump(rec.provenance, sort_keys=False))
     manifest = RecordingManifest(duration_s=rec.duration_s, planes_heights_m=list(rec.planes_heights_m),
                                  room_xy_m=rec.room_xy_m, wall_height_m=rec.wall_height_m, sensors=sensors,
-                                 groundtruth=gt, source=rec.source)
+                                 groundtruth=gt, calibration_points_file=points_rel, source=rec.source)
     text = yaml.safe_dump(manifest.model_dump(mode="json", exclude_none=True), sort_keys=False, width=120)
     (root / MANIFEST_NAME).write_text(text)
     return manifest
@@ -326,6 +335,9 @@ def read_recording(path: str | Path) -> Recording:
     if m.groundtruth is not None:
         g = m.groundtruth
         rec.groundtruth = GroundTruth.read(root, g.people_file, g.bodies_file, g.sound_sources_file)
+    if m.calibration_points_file is not None:
+        rec.calibration_points = read_control_points(
+            resolve_inside(root, m.calibration_points_file, "calibration_points_file"), columns=CONTROL_POINT_COLUMNS)
     sim = root / "simulation.yaml"
     if sim.is_file():
         rec.provenance = yaml.safe_load(sim.read_text())

@@ -384,10 +384,10 @@ _LASER_KEYS = ("time_s", "angles_rad", "ranges_m", "tilt_rad")
 
 @dataclass
 class LaserStream:
-    """A laser range finder on a nodding unit. ``T_world_base`` (4, 4): pose of the untilted scanner."""
+    """A laser range finder on a nodding unit. ``T_world_laser`` (4, 4): pose of the untilted scanner."""
 
     name: str
-    T_world_base: np.ndarray
+    T_world_laser: np.ndarray
     rate_hz: float
     n_scans: int
     model: dict = field(default_factory=dict)
@@ -442,7 +442,7 @@ class LaserStream:
         for p in paths:
             if not p.is_file():
                 raise ValueError(f"{p}: file not found (missing stream of laser {e.name!r})")
-        return cls(e.name, np.asarray(e.T_world_base, dtype=float), e.rate_hz, e.n_scans, dict(e.model), paths=paths)
+        return cls(e.name, np.asarray(e.T_world_laser, dtype=float), e.rate_hz, e.n_scans, e.model.model_dump(), paths=paths)
 
 
 def _read_laser_npz(path: Path) -> LaserScans:

@@ -30,6 +30,7 @@ from numba import njit
 from ..geometry._checks import check_points, check_transform
 from ..grid import Evidence, PlaneStack, log_odds_from_probability
 from ._scanner import LaserScan, TiltingUnit, _beams_world
+from .._params import check_fields, require
 
 __all__ = [
     "P_REF_FROM_WORLD",
@@ -78,14 +79,11 @@ class LaserSensorModel:
     invalid_frees: bool = True
 
     def __post_init__(self) -> None:
-        if not 0.5 < self.p_occupied_hit < 1.0:
-            raise ValueError(f"p_occupied_hit must be in (0.5, 1), got {self.p_occupied_hit}")
-        if not 0.0 < self.p_occupied_free < 0.5:
-            raise ValueError(f"p_occupied_free must be in (0, 0.5), got {self.p_occupied_free}")
-        if not np.isfinite(self.ground_clearance_m):
-            raise ValueError(f"ground_clearance_m must be finite, got {self.ground_clearance_m}")
-        if self.no_return_free_m is not None and not self.no_return_free_m > 0:
-            raise ValueError(f"no_return_free_m must be > 0 or None, got {self.no_return_free_m}")
+        check_fields(self, p_occupied_hit="(0,1)", p_occupied_free="(0,1)", ground_clearance_m="finite",
+                     no_return_free_m="?>0")
+        require(self.p_occupied_hit > 0.5, self, "p_occupied_hit", f"must be above 0.5, got {self.p_occupied_hit}")
+        require(self.p_occupied_free < 0.5, self, "p_occupied_free",
+                f"must be below 0.5, got {self.p_occupied_free}")
 
     @cached_property
     def log_odds_table(self) -> np.ndarray:

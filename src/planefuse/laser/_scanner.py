@@ -22,6 +22,7 @@ Frames (all right-handed, metres):
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +33,7 @@ from ..geometry._checks import check_rotation, check_transform
 __all__ = [
     "LaserScannerSpec",
     "TiltingUnit",
+    "tilting_unit_from_device",
     "LaserScan",
     "R_y",
     "points_laser_from_scan",
@@ -179,6 +181,18 @@ class TiltingUnit:
         T[..., :3, 3] = Ry @ np.asarray(self.offset_tilt_scanner_m)
         T[..., 3, 3] = 1.0
         return T
+
+
+def tilting_unit_from_device(device: Mapping) -> TiltingUnit:
+    """The :class:`TiltingUnit` of a recording's laser device entry (``model`` of a laser in ``scene.yaml``,
+    :class:`planefuse.io.LaserUnitDevice` as a mapping): ``scanner`` (the :class:`LaserScannerSpec` fields),
+    ``offset_tilt_scanner_m``, ``tilt_min_rad``, ``tilt_max_rad``, ``tilt_period_s``."""
+    try:
+        return TiltingUnit(LaserScannerSpec(**device["scanner"]), tuple(device["offset_tilt_scanner_m"]),
+                           tilt_min_rad=device["tilt_min_rad"], tilt_max_rad=device["tilt_max_rad"],
+                           tilt_period_s=device["tilt_period_s"])
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"laser device entry lacks or mistypes a field: {exc}") from None
 
 
 @dataclass(frozen=True)

@@ -292,6 +292,89 @@ def _integral(img, W, h, w, po, I, o):  # pragma: no cover - compiled
             I[o + (y + 1) * w1 + x + 1] = I[o + y * w1 + x + 1] + run
 
 
+@njit(cache=True, boundscheck=False, fastmath=False)
+def _abar_pass(D, W, B, I2, prev, o, wl, hl, p0, w):  # pragma: no cover - compiled
+    # Running 2-D product of the difference array D (local (hl + 1) x (wl + 1) at D[o]) -> Abar = 1 - product, and
+    # the interleaved integral images of W Abar and W B Abar (I2 at 2 o). Rows go four at a time: each row's
+    # running product and sums are serial along x, and four independent chains keep the core busy.
+    wl1 = wl + 1
+    for x in range(wl):
+        prev[x] = 1.0
+    for x in range(wl1):
+        I2[2 * (o + x)] = 0.0
+        I2[2 * (o + x) + 1] = 0.0
+    y = 0
+    while y + 4 <= hl:
+        r0 = r1 = r2 = r3 = 1.0
+        a0 = a1 = a2 = a3 = 0.0
+        b0 = b1 = b2 = b3 = 0.0
+        d0 = o + y * wl1
+        d1, d2, d3 = d0 + wl1, d0 + 2 * wl1, d0 + 3 * wl1
+        up = 2 * d0
+        i1, i2, i3, i4 = up + 2 * wl1, up + 4 * wl1, up + 6 * wl1, up + 8 * wl1
+        I2[i1] = I2[i1 + 1] = I2[i2] = I2[i2 + 1] = I2[i3] = I2[i3 + 1] = I2[i4] = I2[i4 + 1] = 0.0
+        q0 = p0 + y * w
+        q1, q2, q3 = q0 + w, q0 + 2 * w, q0 + 3 * w
+        for x in range(wl):
+            r0 *= D[d0 + x]
+            r1 *= D[d1 + x]
+            r2 *= D[d2 + x]
+            r3 *= D[d3 + x]
+            p_0 = r0 * prev[x]
+            p_1 = r1 * p_0
+            p_2 = r2 * p_1
+            p_3 = r3 * p_2
+            prev[x] = p_3
+            v0 = (1.0 - p_0) * W[q0 + x]
+            v1 = (1.0 - p_1) * W[q1 + x]
+            v2 = (1.0 - p_2) * W[q2 + x]
+            v3 = (1.0 - p_3) * W[q3 + x]
+            a0 += v0
+            a1 += v1
+            a2 += v2
+            a3 += v3
+            b0 += v0 * B[q0 + x]
+            b1 += v1 * B[q1 + x]
+            b2 += v2 * B[q2 + x]
+            b3 += v3 * B[q3 + x]
+            j = 2 * (x + 1)
+            s0 = I2[up + j] + a0
+            t0 = I2[up + j + 1] + b0
+            I2[i1 + j] = s0
+            I2[i1 + j + 1] = t0
+            s1 = s0 + a1
+            t1 = t0 + b1
+            I2[i2 + j] = s1
+            I2[i2 + j + 1] = t1
+            s2 = s1 + a2
+            t2 = t1 + b2
+            I2[i3 + j] = s2
+            I2[i3 + j + 1] = t2
+            I2[i4 + j] = s2 + a3
+            I2[i4 + j + 1] = t2 + b3
+        y += 4
+    while y < hl:
+        r = 1.0
+        ra = 0.0
+        rba = 0.0
+        row = 2 * (o + (y + 1) * wl1)
+        up = 2 * (o + y * wl1)
+        I2[row] = 0.0
+        I2[row + 1] = 0.0
+        pix = p0 + y * w
+        for x in range(wl):
+            r *= D[o + y * wl1 + x]
+            pr = r * prev[x]
+            prev[x] = pr
+            a = (1.0 - pr) * W[pix + x]
+            ra += a
+            rba += a * B[pix + x]
+            j = 2 * (x + 1)
+            I2[row + j] = I2[up + j] + ra
+            I2[row + j + 1] = I2[up + j + 1] + rba
+        y += 1
+
+
 @njit(cache=True, boundscheck=False)
 def _solve(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
            ignored_below, q_max, prior):  # pragma: no cover - compiled
@@ -368,30 +451,7 @@ def _solve(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma
                 D[o + (y1 + 1) * wl1 + x1 + 1] *= f
             # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
             # interleaved so that one box corner of both is one cache line
-            for x in range(wl):
-                prev[x] = 1.0
-            for x in range(wl1):
-                I2[2 * (o + x)] = 0.0
-                I2[2 * (o + x) + 1] = 0.0
-            for y in range(hl):
-                r = 1.0
-                ra = 0.0
-                rba = 0.0
-                row = 2 * (o + (y + 1) * wl1)
-                up = 2 * (o + y * wl1)
-                I2[row] = 0.0
-                I2[row + 1] = 0.0
-                pix = po + (y + Y0) * w + X0
-                for x in range(wl):
-                    r *= D[o + y * wl1 + x]
-                    pr = r * prev[x]
-                    prev[x] = pr
-                    a = (1.0 - pr) * W[pix + x]
-                    ra += a
-                    rba += a * B[pix + x]
-                    j = 2 * (x + 1)
-                    I2[row + j] = I2[up + j] + ra
-                    I2[row + j + 1] = I2[up + j + 1] + rba
+            _abar_pass(D, W, B, I2, prev, o, wl, hl, po + Y0 * w + X0, w)
             last = 2 * (o + (hl + 1) * wl1 - 1)
             SA, SBA, sb = I2[last], I2[last + 1], SB[c]
             # 3. per location: pseudo-distance with the location present and absent

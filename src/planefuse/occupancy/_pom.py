@@ -242,7 +242,7 @@ def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
 def write_pom_result(path: str | os.PathLike, marginals: np.ndarray) -> None:
     """Write marginals the way POM's RESULT_FORMAT does: ``<location> <probability>`` per line, 6 digits."""
     q = np.asarray(marginals, dtype=float).ravel()
-    Path(path).write_text("".join(f"{k} {v:g}\n" for k, v in enumerate(q)), encoding="ascii")
+    Path(path).write_text("".join(["%d %g\n" % kv for kv in enumerate(q.tolist())]), encoding="ascii")
 
 
 def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = True,

@@ -4,10 +4,13 @@ See ``docs/outputs.md`` for the folder layout and how the pipeline drives the wr
 """
 
 from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
+from ._settings import ANIMATIONS, OutputSettings
 from ._progress import ProgressMode, ProgressReporter, progress_mode, progress_steps
 from ._writer import DETECTION_COLUMNS, TRACK_COLUMNS, OutputWriter, mot_rows, read_table, rows_by_step
 
 __all__ = [
+    "ANIMATIONS",
+    "OutputSettings",
     "DETECTION_COLUMNS",
     "TRACK_COLUMNS",
     "OutputWriter",

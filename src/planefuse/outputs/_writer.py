@@ -38,12 +38,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 import zarr
 
 from ..grid import GroundDetections, PlaneStack
-from ..io._paths import check_name
-from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
+from ._atomic import atomic_open, atomic_write_json, atomic_write_text, remove_stale_temporaries
 
 __all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table", "rows_by_step"]
 
@@ -147,15 +145,6 @@ class OutputWriter:
         YAML of the configuration, copied to ``config.yaml`` and the report.
     person_radius_m : float
         Footprint radius [m] used for the MOTChallenge boxes.
-    figures, report : bool
-        Whether :meth:`finish` writes ``figures/*.png`` and ``report.html``.
-    animation : {"gif", "mp4", "none"}
-        Animation :meth:`finish` writes.
-    figure_dpi : int
-        Resolution of the figures.
-    rerun : bool
-        Log occupancy, detections and tracks to ``planefuse.rrd`` as they are written; the
-        :class:`~planefuse.viz.RerunLogger` is :attr:`rerun` for the pipeline's own logging.
     resume : bool
         False: start afresh even where a previous run of the same configuration left finished chunks
         (they are deleted).
@@ -178,11 +167,6 @@ class OutputWriter:
         write_zarr: bool = True,
         config_text: str = "",
         person_radius_m: float = 0.3,
-        figures: bool = True,
-        animation: str = "gif",
-        report: bool = True,
-        figure_dpi: int = 100,
-        rerun: bool = False,
         resume: bool = True,
     ):
         if int(chunk_steps) < 1:
@@ -194,10 +178,6 @@ class OutputWriter:
         self.write_zarr = bool(write_zarr)
         self.config_text = config_text
         self.person_radius_m = float(person_radius_m)
-        if animation not in ("gif", "mp4", "none"):
-            raise ValueError(f"animation must be 'gif', 'mp4' or 'none', got {animation!r}")
-        self.figures, self.animation, self.report, self.figure_dpi = bool(figures), animation, bool(report), \
-            int(figure_dpi)
         self.metrics: dict[str, Any] = {}
         self.out_dir.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(self.out_dir)
@@ -228,12 +208,15 @@ class OutputWriter:
         self._steps_written = self.resume_step
         self._write_state("running")
         self.rerun = None
-        if rerun:
-            from ..viz import RerunLogger
 
-            self.rerun = RerunLogger(self.out_dir / "planefuse.rrd", stack)
-            if self.resumed:
-                self._relog_finished_steps()
+    def attach_rerun(self, logger) -> None:
+        """Log occupancy, detections and tracks to ``logger`` (a :class:`~planefuse.viz.RerunLogger` opened in
+        the folder after the writer, which clears stale temporary files) as they are written; a resumed run
+        logs the kept steps again first. :attr:`rerun` is it, for the pipeline's own logging; the writer
+        closes it."""
+        self.rerun = logger
+        if self.resumed:
+            self._relog_finished_steps()
 
     def _relog_finished_steps(self) -> None:
         """A resumed run's recording starts anew: log the kept steps again from the folder."""
@@ -245,21 +228,6 @@ class OutputWriter:
             self.rerun.log_occupancy(self._occ[step])
             self.rerun.log_detections(d)
             self.rerun.log_tracks(tr[:, 0].astype(np.int64), tr[:, 1:3])
-
-    # -- construction from a configuration -------------------------------------------------------------------------
-    @classmethod
-    def from_config(cls, cfg) -> "OutputWriter":
-        """Writer for a :class:`planefuse.config.RunConfig` (paths already resolved)."""
-        from ..config import config_hash
-
-        text = yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False)
-        return cls(
-            cfg.outputs.out_dir, cfg.planes.to_stack(), config_hash=config_hash(cfg),
-            chunk_steps=cfg.outputs.chunk_steps, write_zarr=cfg.outputs.zarr, config_text=text,
-            person_radius_m=cfg.models.detection.person_radius_m, figures=cfg.outputs.figures,
-            animation=cfg.outputs.animation, report=cfg.outputs.report, figure_dpi=cfg.outputs.figure_dpi,
-            rerun=cfg.outputs.rerun,
-        )
 
     # -- state ---------------------------------------------------------------------------------------------------
     def _read_state(self) -> dict | None:
@@ -499,57 +467,20 @@ class OutputWriter:
         return _columns(self._tracks.columns, self._tracks.rows)
 
     # -- ending ----------------------------------------------------------------------------------------------------
-    def finish(self, figure_inputs=None, *, progress=None) -> dict[str, Path]:
-        """Flush the last steps, close the rerun recording, then build figures, animation and ``report.html``.
+    def finish(self) -> None:
+        """Flush the last steps and the tables, mark the run finished and close the rerun recording.
 
-        What is built follows the constructor's ``figures``, ``animation``, ``report`` and ``figure_dpi``.
-
-        Parameters
-        ----------
-        figure_inputs : planefuse.viz.FigureInputs, optional
-            Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
-        progress : ProgressReporter, optional
-            Reports the figure step.
-
-        Returns
-        -------
-        dict of str -> Path
-            What was written: ``"report"``, ``"animation"``, ``"rerun"`` and one entry per figure.
+        Figures, animation and report are built from the finished folder by the pipeline
+        (:func:`planefuse.pipeline.run_to_folder`), not here.
         """
         self._flush_buffer()
         self._write_tables()
         # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
         self.n_chunks_done = self._steps_written // self.chunk_steps
         self._write_state("finished")
-        written: dict[str, Path] = {}
         if self.rerun is not None:
-            written["rerun"] = self.rerun.close()
+            self.rerun.close()
             self.rerun = None
-        figs: dict[str, bytes] = {}
-        if self.figures or self.report:
-            from ..viz import FigureInputs, run_figures
-
-            inputs = figure_inputs if figure_inputs is not None else FigureInputs()
-            figs = run_figures(self.stack, self.occupancy(), self.times_s(), self.detections_table(),
-                               self.tracks_table(), self.metrics, inputs, dpi=self.figure_dpi, progress=progress)
-        if self.figures:
-            for name, png in figs.items():
-                p = self.out_dir / "figures" / f"{check_name(name, 'figure name')}.png"
-                atomic_write_bytes(p, png)
-                written[name] = p
-        if self.animation != "none" and self._steps_written:
-            from ..viz import animate_stack
-
-            p = self.out_dir / f"animation.{self.animation}"
-            animate_stack(p, self.stack, self.occupancy(), self.tracks_table())
-            written["animation"] = p
-        if self.report:
-            from ..report import write_report
-
-            p = self.out_dir / "report.html"
-            write_report(p, figs, self.metrics, self.config_text, run_summary=self.summary())
-            written["report"] = p
-        return written
 
     def summary(self) -> dict[str, Any]:
         """Counts for the report: steps, planes, grid, detections, tracks, resume information."""

@@ -1,7 +1,7 @@
 """The whole system: every modality registered on the planes, filtered, tracked and evaluated."""
 
-from ._config import run_options_from_config, system_params_from_config
-from ._outputs import run_to_folder
+from ._outputs import run_plan, run_to_folder, write_presentation
+from ._plan import RunPlan, resume_key
 from ._streams import (
     EvidenceSource,
     MergedEvidence,
@@ -18,7 +18,6 @@ from ._system import (
     SystemParams,
     SystemResult,
     SystemRun,
-    evaluate_steps,
     evaluate_system,
     run_system,
     stack_for_recording,
@@ -34,17 +33,18 @@ __all__ = [
     "SystemRun",
     "camera_evidence",
     "camera_source",
-    "evaluate_steps",
     "evaluate_system",
     "laser_evidence",
     "laser_sources",
     "merged_evidence",
-    "run_options_from_config",
+    "RunPlan",
+    "resume_key",
+    "run_plan",
     "run_system",
     "run_to_folder",
     "sound_evidence",
     "sound_sources",
     "stack_for_recording",
     "system_laser_model",
-    "system_params_from_config",
+    "write_presentation",
 ]

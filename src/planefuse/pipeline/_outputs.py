@@ -2,47 +2,23 @@
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 import warnings
-from dataclasses import asdict, is_dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..io import MANIFEST_NAME, Recording
-from ..outputs import OutputWriter, progress_steps, rows_by_step
+from ..eval import system_metrics
+from ..io import Recording
+from ..io._paths import check_name
+from ..outputs import OutputSettings, OutputWriter, atomic_write_bytes, progress_steps, rows_by_step
 from ..viz import FigureInputs
+from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
-from ._system import SystemParams, SystemResult, SystemRun, evaluate_steps, stack_for_recording
+from ._system import SystemParams, SystemResult, SystemRun, evaluate_system, run_system, \
+    stack_for_recording
 
-__all__ = ["run_to_folder"]
-
-
-def _params_text(params: SystemParams) -> str:
-    def plain(o):
-        if is_dataclass(o):
-            return {k: plain(v) for k, v in asdict(o).items()}
-        if isinstance(o, (list, tuple)):
-            return [plain(v) for v in o]
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        return o if isinstance(o, (int, float, str, bool, type(None))) else repr(o)
-
-    return json.dumps(plain(params), indent=1, sort_keys=True, default=repr)
-
-
-def _recording_fingerprint(rec: Recording) -> str:
-    """What identifies the recording for resuming: its source and duration, plus its manifest (read from disk)
-    or its simulation configuration (in memory), so that a changed recording is not resumed."""
-    parts = [repr(rec.source), repr(rec.duration_s)]
-    manifest = None if rec.root is None else Path(rec.root) / MANIFEST_NAME
-    if manifest is not None and manifest.is_file():
-        parts.append(hashlib.sha256(manifest.read_bytes()).hexdigest())
-    elif rec.provenance is not None:
-        parts.append(json.dumps(rec.provenance, sort_keys=True, default=repr))
-    return "\n".join(parts)
+__all__ = ["run_plan", "run_to_folder", "write_presentation"]
 
 
 def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) -> FigureInputs:
@@ -133,32 +109,83 @@ def _steps_from_tables(out: OutputWriter):
     return times, det_xy, tracks
 
 
-def run_to_folder(
-    rec: Recording,
-    params: SystemParams,
-    out_dir: str | Path,
-    *,
-    progress_mode: str = "rich",
-    animation: str = "gif",
-    figures: bool = True,
-    report: bool = True,
-    rerun: bool = False,
-    chunk_steps: int = 25,
-    config_text: str | None = None,
-    stack=None,
-    resume: bool = True,
-) -> tuple[SystemResult, dict]:
+def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> tuple[SystemResult, dict]:
+    """Run ``plan`` on ``rec``: into ``plan.out_dir`` (:func:`run_to_folder`), or in memory when it is None
+    (the metrics of :func:`evaluate_system` where the recording has ground truth).
+
+    Returns
+    -------
+    (SystemResult, dict)
+        The result and the metrics (empty without ground truth).
+    """
+    if plan.out_dir is not None:
+        return run_to_folder(rec, plan, progress_mode=progress_mode)
+    result = run_system(rec, plan.params)
+    has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
+    metrics = evaluate_system(rec, result, plan.params.match_distance_m) if has_truth else {}
+    result.metrics = metrics
+    return result, metrics
+
+
+def write_presentation(out: OutputWriter, settings: OutputSettings, figure_inputs: FigureInputs | None = None,
+                       progress=None) -> dict[str, Path]:
+    """Figures, animation and ``report.html`` of a finished run folder, as ``settings`` asks.
+
+    Parameters
+    ----------
+    out : OutputWriter
+        The run's writer, after :meth:`~planefuse.outputs.OutputWriter.finish`.
+    settings : OutputSettings
+    figure_inputs : FigureInputs, optional
+        Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
+    progress : ProgressReporter, optional
+        Reports the figure step.
+
+    Returns
+    -------
+    dict of str -> Path
+        What was written: ``"report"``, ``"animation"`` and one entry per figure.
+    """
+    figure_inputs = figure_inputs if figure_inputs is not None else FigureInputs()
+    written: dict[str, Path] = {}
+    figs: dict[str, bytes] = {}
+    if settings.figures or settings.report:
+        from ..viz import run_figures
+
+        figs = run_figures(out.stack, out.occupancy(), out.times_s(), out.detections_table(), out.tracks_table(),
+                           out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
+    if settings.figures:
+        for name, png in figs.items():
+            p = out.out_dir / "figures" / f"{check_name(name, 'figure name')}.png"
+            atomic_write_bytes(p, png)
+            written[name] = p
+    if settings.animation != "none" and out.n_steps:
+        from ..viz import animate_stack
+
+        p = out.out_dir / f"animation.{settings.animation}"
+        animate_stack(p, out.stack, out.occupancy(), out.tracks_table())
+        written["animation"] = p
+    if settings.report:
+        from ..report import write_report
+
+        p = out.out_dir / "report.html"
+        write_report(p, figs, out.metrics, out.config_text, run_summary=out.summary())
+        written["report"] = p
+    return written
+
+
+def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> tuple[SystemResult, dict]:
     """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
     (CSV + MOTChallenge), ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into
-    ``out_dir``.
+    ``plan.out_dir``, as ``plan.outputs`` asks.
 
-    Outputs are written atomically, one chunk of ``chunk_steps`` output steps at a time, each with a
-    checkpoint of the run's state; Ctrl-C or a kill leaves the steps written so far valid and readable. A
-    re-run with the same parameters into the same folder resumes after the last finished chunk: it
-    restores the checkpoint and computes only the steps that follow (the cameras' background models
-    replay the frames already seen, which is all of the past it repeats), and its outputs are identical
-    to an uninterrupted run's (``resume=False`` starts afresh instead). Metrics and figures are computed
-    from the folder's outputs, so they cover the whole run.
+    Outputs are written atomically, one chunk of ``plan.outputs.chunk_steps`` output steps at a time, each
+    with a checkpoint of the run's state; Ctrl-C or a kill leaves the steps written so far valid and
+    readable. A re-run with the same :func:`resume_key` (configuration and recording) into the same folder
+    resumes after the last finished chunk: it restores the checkpoint and computes only the steps that
+    follow (the cameras' background models replay the frames already seen, which is all of the past it
+    repeats), and its outputs are identical to an uninterrupted run's (``plan.resume=False`` starts afresh
+    instead). Metrics and figures are computed from the folder's outputs, so they cover the whole run.
 
     Returns
     -------
@@ -166,14 +193,21 @@ def run_to_folder(
         The result and the metrics (empty without ground truth). The output steps are not kept in memory
         (``result.outputs`` is empty): read them from the folder.
     """
-    stack = stack if stack is not None else stack_for_recording(rec, params)
-    text = config_text if config_text is not None else _params_text(params)
-    digest = hashlib.sha256((text + _recording_fingerprint(rec)).encode()).hexdigest()[:16]
+    if plan.out_dir is None:
+        raise ValueError("run_to_folder needs a plan with an out_dir (run_plan evaluates in memory)")
+    params, settings = plan.params, plan.outputs
+    stack = stack_for_recording(rec, params)
+    text = plan.text()
     n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1
     with progress_steps(progress_mode) as progress, OutputWriter(
-        out_dir, stack, config_hash=digest, chunk_steps=chunk_steps, config_text=text, animation=animation,
-        figures=figures, report=report, rerun=rerun, resume=resume,
+        plan.out_dir, stack, config_hash=resume_key(plan, rec), chunk_steps=settings.chunk_steps,
+        write_zarr=settings.zarr, config_text=text, person_radius_m=params.tracking.cluster.person_radius_m,
+        resume=plan.resume,
     ) as out:
+        if settings.rerun:
+            from ..viz import RerunLogger
+
+            out.attach_rerun(RerunLogger(plan.out_dir / "planefuse.rrd", stack))
         run = _start(rec, params, stack, out)
         if run.resumed_at_step:
             progress.message(f"resuming {out.out_dir} at step {run.resumed_at_step} from its checkpoint (the "
@@ -185,7 +219,7 @@ def run_to_folder(
                 step = run.n_outputs - 1
                 if step >= out.resume_step:
                     out.write_detections(step, o.detections)
-                    out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_mps)
+                    out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_m_s)
                     out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict)
                 advance(1)
         result = SystemResult(stack, [], run.report, time.perf_counter() - t0)
@@ -196,11 +230,12 @@ def run_to_folder(
         metrics = {}
         if rec.groundtruth is not None and rec.groundtruth.people is not None:
             with progress.step("evaluate", total=1, unit="runs") as advance:
-                metrics = evaluate_steps(rec, times, det_xy, tracks, run.report, result.elapsed_s,
-                                         params.threshold_m)
+                metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
+                                         params.match_distance_m)
                 metrics["resumed_at_step"] = run.resumed_at_step
                 advance(1)
             out.write_metrics(metrics)
         result.metrics = metrics
-        out.finish(_figure_inputs(rec, run.report, times), progress=progress)
+        out.finish()
+        write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)
     return result, metrics

@@ -259,8 +259,7 @@ def laser_sources(rec: Recording, stack: PlaneStack, model, report: ModalityRepo
     maximum range (``scans_from_arrays(nan_is_no_return=True)``). ``start`` maps a source name to the
     scans to skip. Every ``keep_points_every``-th scan's points are kept in ``report`` for the figures.
     """
-    from ..laser import LaserRegistrar, scans_from_arrays
-    from ..sim import tilting_unit_from_model
+    from ..laser import LaserRegistrar, scans_from_arrays, tilting_unit_from_device
 
     def register(registrar, scan) -> Evidence:
         reg = registrar.register(scan)
@@ -275,7 +274,7 @@ def laser_sources(rec: Recording, stack: PlaneStack, model, report: ModalityRepo
         sc = registrar.unit.scanner
         for chunk in ls.chunks(start=first):
             for scan in scans_from_arrays(chunk.times_s, chunk.angles_rad, chunk.ranges_m, chunk.tilt_rad,
-                                          ls.T_world_base, sc.range_min_m, sc.range_max_m):
+                                          ls.T_world_laser, sc.range_min_m, sc.range_max_m):
                 yield scan.time_s, partial(register, registrar, scan)
 
     out = []
@@ -283,7 +282,7 @@ def laser_sources(rec: Recording, stack: PlaneStack, model, report: ModalityRepo
         ls = rec.laser(name)
         key = f"laser:{name}"
         first = int((start or {}).get(key, 0))
-        registrar = LaserRegistrar(stack, tilting_unit_from_model(ls.model), model, sensor=name)
+        registrar = LaserRegistrar(stack, tilting_unit_from_device(ls.model), model, sensor=name)
         out.append(EvidenceSource(key, items(ls, registrar, first), first))
     return out
 

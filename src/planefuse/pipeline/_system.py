@@ -3,76 +3,118 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
+from .._params import check_fields, require
 from .._state import StateDict, get, sub_state, with_prefix
-from ..audio import lateral_from_azimuth
-from ..eval import detection_scores, tracking_metrics
+from ..eval import system_metrics
 from ..grid import PlaneStack
 from ..io import Recording
-from ..tracking import ClusterParams, EvidenceTracker, TrackerOutput, TrackingParams
+from ..laser import LaserSensorModel
+from ..tracking import EvidenceTracker, TrackerOutput, TrackingParams
+from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
 
-__all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system", "evaluate_steps",
+__all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system",
            "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
 CHECKPOINT_FORMAT = 1
 
 
+def system_laser_model() -> LaserSensorModel:
+    """The laser inverse sensor model the whole system uses by default.
+
+    ``P(occ | return) = 0.9``, ``P(occ | beam crossed) = 0.45``: a person's legs fill a small part of a
+    10 cm cell, so a beam passing through a cell says little about it (the laser mapping's own default,
+    0.35, frees the cells between and beside the legs at every sweep and no column forms), while a return
+    off a leg is precise. Laser-only recall on the demo scene goes from about 0.1 to about 0.7 at
+    precision 1.0 (docs/results.md, ``## Whole system (demo scene)``).
+    """
+    return LaserSensorModel(p_occupied_hit=0.9, p_occupied_free=0.45)
+
+
 @dataclass(frozen=True)
 class SystemParams:
-    """What to run.
+    """What to run: every parameter of the whole system, and the one place their defaults live.
+
+    The run configuration (:class:`planefuse.config.RunConfig`) takes its defaults from here and maps
+    each of its fields onto one attribute below (docs/pipeline.md lists the mapping).
 
     Attributes
     ----------
-    heights_m : tuple of float
-        Plane heights [m] (the recording's suggestion when None).
+    heights_m : tuple of float or None
+        Plane heights above the ground plane [m] (None: the recording's suggestion).
     cell_size_m : float
         Grid cell side [m].
+    x_range_m, y_range_m : (float, float) or None
+        World X and Y extent of the grid [m]; None: the recording's room less ``wall_margin_m``.
+    wall_margin_m : float
+        Margin [m] kept from the room's walls (static, seen by the laser) when the extent comes from
+        the recording.
     cameras, laser, sound : bool
         Modalities to fuse.
     use_filter : bool
         False: no temporal filtering (each output step is the current evidence alone,
         the "no filter" ablation): prediction resets the grid to the prior.
-    camera_params : planefuse.vision.CameraParams or None
-        Camera pipeline parameters (defaults when None).
-    laser_model : planefuse.laser.LaserSensorModel or None
-        None: :func:`system_laser_model` (a return is strong evidence, a crossing beam weak, since legs
-        fill a small part of a cell).
+    camera_params : planefuse.vision.CameraParams
+        Camera pipeline parameters (foreground, sensor model, person model, registration).
+    laser_model : planefuse.laser.LaserSensorModel
+        Inverse sensor model of the lasers (:func:`system_laser_model`).
     tracking : TrackingParams
-        Filter, clustering and tracker settings. The default column threshold (``S >= 1.5``, mean
-        capped log-odds per observed body plane) is lower than the tracker's own default (2.5), which
-        missed people seen by few cameras at 10 cm cells (threshold sweep over seeds 1 and 2 of the demo
-        scene in docs/results.md).
+        Filter, clustering and tracker settings.
     sound_block_s : float
         Length of the audio blocks localised one at a time [s].
-    sound_model_path : path, optional
-        Calibrated binaural sensor model (default: the spherical-head model).
+    sound_model_path : Path or None
+        Calibrated binaural sensor model file (None: the spherical-head model).
     output_period_s : float
-        Tracker output period [s].
-    threshold_m : float
-        Match distance for the metrics [m].
+        Time between output steps [s].
+    match_distance_m : float
+        Evaluation: largest distance [m] of a detection or track from the person it is matched to.
     """
 
     heights_m: tuple[float, ...] | None = (0.1, 0.5, 1.0, 1.5)
     cell_size_m: float = 0.1
+    x_range_m: tuple[float, float] | None = None
+    y_range_m: tuple[float, float] | None = None
+    wall_margin_m: float = 0.2
     cameras: bool = True
     laser: bool = True
     sound: bool = True
     use_filter: bool = True
-    camera_params: object | None = None
-    laser_model: object | None = None
-    tracking: TrackingParams = field(default_factory=lambda: TrackingParams(
-        merge_tolerance_s=0.05, cluster=ClusterParams(threshold=1.5)))
+    camera_params: CameraParams = field(default_factory=CameraParams)
+    laser_model: LaserSensorModel = field(default_factory=system_laser_model)
+    tracking: TrackingParams = field(default_factory=TrackingParams)
     sound_block_s: float = 0.5
-    sound_model_path: object | None = None
+    sound_model_path: Path | None = None
     output_period_s: float = 0.2
-    threshold_m: float = 0.5
+    match_distance_m: float = 0.5
+
+    def __post_init__(self) -> None:
+        check_fields(self, cell_size_m=">0", wall_margin_m=">=0", sound_block_s=">0", output_period_s=">0",
+                     match_distance_m=">0")
+        # metres, not millimetres or centimetres: a cell is at most 5 m, a plane at most 10 m above the ground
+        require(self.cell_size_m <= 5.0, self, "cell_size_m", f"must be at most 5 m, got {self.cell_size_m}")
+        require(self.cameras or self.laser or self.sound, self, "cameras",
+                "at least one of cameras, laser, sound must be enabled")
+        if self.heights_m is not None:
+            h = self.heights_m
+            require(len(h) > 0 and all(b > a for a, b in zip(h, h[1:])), self, "heights_m",
+                    f"must be at least one height, strictly increasing, got {list(h)}")
+            require(all(0.0 <= z <= 10.0 for z in h), self, "heights_m", f"must each be in [0, 10] m, got {list(h)}")
+        for name in ("x_range_m", "y_range_m"):
+            r = getattr(self, name)
+            require(r is None or (len(r) == 2 and r[0] < r[1]), self, name, f"must be (min, max), min < max, got {r}")
+        if self.x_range_m is not None and self.y_range_m is not None:
+            try:
+                PlaneStack.from_extent(self.heights_m or (0.0,), self.x_range_m, self.y_range_m, self.cell_size_m)
+            except ValueError as err:
+                require(False, self, "cell_size_m", str(err))
 
 
 @dataclass
@@ -86,29 +128,21 @@ class SystemResult:
     metrics: dict = field(default_factory=dict)
 
 
-def system_laser_model():
-    """The laser inverse sensor model the whole system uses by default.
-
-    ``P(occ | return) = 0.9``, ``P(occ | beam crossed) = 0.45``: a person's legs fill a small part of a
-    10 cm cell, so a beam passing through a cell says little about it (the laser's own default, 0.35, frees
-    the cells between and beside the legs at every sweep and no column forms), while a return off a leg
-    is precise. Laser-only recall on the demo scene goes from about 0.1 to about 0.7 at precision 1.0
-    (docs/results.md, ``## Whole system (demo scene)``).
-    """
-    from ..laser import LaserSensorModel
-
-    return LaserSensorModel(p_occupied_hit=0.9, p_occupied_free=0.45)
-
-
-def stack_for_recording(rec: Recording, params: SystemParams, wall_margin_m: float = 0.2) -> PlaneStack:
-    """The plane stack covering the recording's monitored area: ``rec.room_xy_m`` less ``wall_margin_m``
-    on every side, so that the walls (static, seen by the laser) are not inside the grid."""
-    if rec.room_xy_m is None:
-        raise ValueError("recording has no room_xy_m: give the plane stack extent explicitly")
-    x0, x1, y0, y1 = rec.room_xy_m
-    m = wall_margin_m
+def stack_for_recording(rec: Recording, params: SystemParams) -> PlaneStack:
+    """The plane stack of ``params`` on ``rec``: the configured extent, or else the recording's monitored
+    area ``rec.room_xy_m`` less ``params.wall_margin_m`` on every side, so that the walls (static, seen by
+    the laser) are not inside the grid; the configured heights, or else the recording's suggestion."""
     heights = params.heights_m if params.heights_m is not None else tuple(rec.planes_heights_m)
-    return PlaneStack.from_extent(heights, (x0 + m, x1 - m), (y0 + m, y1 - m), params.cell_size_m)
+    x, y = params.x_range_m, params.y_range_m
+    if x is None or y is None:
+        if rec.room_xy_m is None:
+            raise ValueError("the recording has no room_xy_m: give the grid extent (planes.x_range_m, "
+                             "planes.y_range_m) explicitly")
+        x0, x1, y0, y1 = rec.room_xy_m
+        m = params.wall_margin_m
+        x = x if x is not None else (x0 + m, x1 - m)
+        y = y if y is not None else (y0 + m, y1 - m)
+    return PlaneStack.from_extent(heights, x, y, params.cell_size_m)
 
 
 class SystemRun:
@@ -173,12 +207,10 @@ class SystemRun:
         rec, params, stack, report = self.rec, self.params, self.stack, self.report
         out = []
         if params.cameras and rec.camera_streams:
-            from ..vision import CameraParams
-
-            out.append(camera_source(rec, stack, params.camera_params or CameraParams(), report,
+            out.append(camera_source(rec, stack, params.camera_params, report,
                                      start=consumed.get("cameras", 0)))
         if params.laser and rec.lasers:
-            out += laser_sources(rec, stack, params.laser_model or system_laser_model(), report, start=consumed)
+            out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:
             model = None
             if params.sound_model_path is not None:
@@ -240,80 +272,9 @@ def run_system(
     return SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0)
 
 
-def _gt_frames(rec: Recording, times_s: np.ndarray):
-    gt = rec.groundtruth.people
-    for t in times_s:
-        yield float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]
-
-
-def evaluate_system(rec: Recording, result: SystemResult, threshold_m: float = 0.5) -> dict:
-    """MODA/MODP/precision/recall of the filtered detections, MOTA/IDF1 of the tracks, the cameras-only
-    detection scores and the sound azimuth error, against the recording's ground truth
-    (:func:`evaluate_steps` on ``result.outputs``)."""
+def evaluate_system(rec: Recording, result: SystemResult, match_distance_m: float = 0.5) -> dict:
+    """The metrics of :func:`planefuse.eval.system_metrics` for the output steps of ``result``."""
     outs = result.outputs
-    return evaluate_steps(rec, np.array([o.time_s for o in outs]), [o.detections.xy_m for o in outs],
+    return system_metrics(rec, np.array([o.time_s for o in outs]), [o.detections.xy_m for o in outs],
                           [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outs], result.report,
-                          result.elapsed_s, threshold_m)
-
-
-def evaluate_steps(rec: Recording, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarray],
-                   tracks: Sequence[tuple[float, np.ndarray, np.ndarray]], report: ModalityReport,
-                   elapsed_s: float, threshold_m: float = 0.5) -> dict:
-    """The metrics of :func:`evaluate_system` from the output steps alone (e.g. read back from a run folder).
-
-    Parameters
-    ----------
-    rec : Recording
-        With people ground truth.
-    times_s : ndarray, shape (T,)
-        Output step times [s].
-    detections_xy_m : sequence of ndarray (N_t, 2)
-        Filtered detections per step, world XY [m].
-    tracks : sequence of (time_s, ids (M_t,), xy_m (M_t, 2))
-        Reported tracks per step.
-    report : ModalityReport
-    elapsed_s : float
-        Computing time of the run [s] (reported as is).
-    threshold_m : float
-        Match distance [m].
-    """
-    if rec.groundtruth is None or rec.groundtruth.people is None:
-        raise ValueError("recording has no people ground truth to evaluate against")
-    times_s = np.asarray(times_s, dtype=float)
-    if not (len(times_s) == len(detections_xy_m) == len(tracks)):
-        raise ValueError(f"times_s ({len(times_s)}), detections_xy_m ({len(detections_xy_m)}) and tracks "
-                         f"({len(tracks)}) must have one entry per step")
-    gt = rec.groundtruth.people
-    # skip the first second: the background model and the filter are still learning
-    warm = gt.times_s[0] + 1.0
-    keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
-    gt_frames = list(_gt_frames(rec, times_s[keep]))
-    det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), threshold_m)
-    mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], max_distance_m=threshold_m)
-    m = {
-        "moda": det.moda, "modp": det.modp, "precision": det.precision, "recall": det.recall,
-        "mota": mot["mota"], "motp_m": mot.get("motp_m", float("nan")), "idf1": mot["idf1"],
-        "id_switches": int(mot.get("num_switches", 0)), "n_eval_steps": len(keep),
-        "n_people": int(len(gt.person_ids)), "elapsed_s": elapsed_s,
-        "n_camera_frames": report.n_camera_frames,
-        "n_missing_camera_frames": report.n_missing_camera_frames,
-        "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
-    }
-    cams = [d for d in report.camera_detections if d.time_s >= warm]
-    if cams:
-        cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), threshold_m)
-        m.update(camera_only_moda=cd.moda, camera_only_modp=cd.modp)
-    snd = rec.groundtruth.sound
-    rep = report
-    if snd is not None and rep.n_sound_blocks:
-        errs = []
-        for t, az in zip(rep.sound_times_s, rep.sound_map_azimuth_rad):
-            i = int(np.argmin(np.abs(snd.times_s - t)))
-            talking = np.nonzero(snd.speaking[i])[0]
-            if len(talking) != 1 or not np.isfinite(az):
-                continue  # score single-talker blocks only
-            # lateral angles: two ears cannot tell front from back
-            errs.append(abs(lateral_from_azimuth(az) - lateral_from_azimuth(snd.azimuth_rad[i, talking[0]])))
-        m["azimuth_mae_deg"] = float(np.degrees(np.mean(errs))) if errs else float("nan")
-        m["n_sound_blocks_scored"] = len(errs)
-    return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in m.items()}
+                          result.elapsed_s, match_distance_m)

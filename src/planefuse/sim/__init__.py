@@ -32,7 +32,7 @@ from ._motion import CameraMotionSpec, R_world_cam_at, max_motion_deg, omega_cam
 from ._render import CameraRenderer, body_surface_points, occluder_distance_image, render_background
 from ._scenarios import SCENARIOS, scenario_config, scenario_description
 from ._scene import Body, PeopleState, Scene, sample_points_in_bodies
-from ._sensors import audio_stream, laser_stream, tilting_unit_from_model, tilting_unit_from_spec
+from ._sensors import audio_stream, laser_stream, tilting_unit_from_spec
 from ._simulate import SimulatedRecording, groundtruth_of, sample_times, simulate
 
 __all__ = [
@@ -66,7 +66,6 @@ __all__ = [
     "render_background",
     "audio_stream",
     "laser_stream",
-    "tilting_unit_from_model",
     "tilting_unit_from_spec",
     "Body",
     "PeopleState",

@@ -110,7 +110,7 @@ class LaserSpec(_Model):
             raise ValueError(f"range_min_m {self.range_min_m} must be below max_range_m {self.max_range_m}")
         return self
 
-    def T_world_base(self) -> np.ndarray:
+    def T_world_laser(self) -> np.ndarray:
         """Pose (4, 4) of the (untilted) laser base in the world: x forward, z up."""
         return _T_world_yaw(self.position_m, self.yaw_deg, "laser")
 

@@ -20,7 +20,7 @@ from ..laser import LaserScannerSpec, TiltingUnit, simulate_nodding_sweep
 from ._config import HeadSpec, LaserSpec
 from ._scene import Scene
 
-__all__ = ["tilting_unit_from_spec", "tilting_unit_from_model", "laser_stream", "audio_stream", "SCAN_DURATION_S"]
+__all__ = ["tilting_unit_from_spec", "laser_stream", "audio_stream", "SCAN_DURATION_S"]
 
 #: Time a scanner takes to sweep its beams (UTM-30LX: 25 ms); each beam gets the tilt of its own instant.
 SCAN_DURATION_S = 0.025
@@ -46,7 +46,7 @@ def _model_of(unit: TiltingUnit) -> dict:
         "scanner": {"angle_min_rad": sc.angle_min_rad, "angle_increment_rad": sc.angle_increment_rad,
                     "n_beams": sc.n_beams, "range_min_m": sc.range_min_m, "range_max_m": sc.range_max_m,
                     "range_noise_sigma_m": sc.range_noise_sigma_m, "name": sc.name},
-        "offset_tilt_scanner_m": list(unit.offset_tilt_scanner_m),
+        "offset_tilt_scanner_m": tuple(unit.offset_tilt_scanner_m),
         "tilt_min_rad": unit.tilt_min_rad,
         "tilt_max_rad": unit.tilt_max_rad,
         "tilt_period_s": unit.tilt_period_s,
@@ -54,20 +54,10 @@ def _model_of(unit: TiltingUnit) -> dict:
     }
 
 
-def tilting_unit_from_model(model: dict) -> TiltingUnit:
-    """Rebuild the :class:`~planefuse.laser.TiltingUnit` from a recording's laser ``model`` entry."""
-    try:
-        return TiltingUnit(LaserScannerSpec(**model["scanner"]), tuple(model["offset_tilt_scanner_m"]),
-                           tilt_min_rad=model["tilt_min_rad"], tilt_max_rad=model["tilt_max_rad"],
-                           tilt_period_s=model["tilt_period_s"])
-    except (KeyError, TypeError) as exc:
-        raise ValueError(f"laser model entry lacks or mistypes a field: {exc}") from None
-
-
 def laser_stream(scene: Scene, spec: LaserSpec, times_s: np.ndarray, seed: int) -> LaserStream:
     """A lazily simulated laser stream: chunks of scans are ray cast when read (reproducibly)."""
     unit = tilting_unit_from_spec(spec)
-    T = spec.T_world_base()
+    T = spec.T_world_laser()
     times_s = np.asarray(times_s, dtype=float)
 
     def generate(max_scans: int, start: int = 0) -> Iterator[LaserScans]:

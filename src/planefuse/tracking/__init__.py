@@ -15,7 +15,7 @@ from ._bof import (
     bof_predict,
     bof_update,
     transition_probabilities,
-    velocity_grid_mps,
+    velocity_grid_m_s,
 )
 from ._bof_numpy import bof_predict_numpy, bof_update_numpy
 from ._clustering import ClusterParams, Clusters, cluster_occupancy, column_log_odds
@@ -48,5 +48,5 @@ __all__ = [
     "track_evidence",
     "EvidenceTracker",
     "transition_probabilities",
-    "velocity_grid_mps",
+    "velocity_grid_m_s",
 ]

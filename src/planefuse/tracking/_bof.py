@@ -69,6 +69,7 @@ import numpy as np
 
 from .._state import StateDict, float_or_none, get_shaped, optional_float
 from ..grid import PlaneStack
+from .._params import check_fields, require
 
 __all__ = [
     "BOFParams",
@@ -78,7 +79,7 @@ __all__ = [
     "bof_predict",
     "bof_update",
     "transition_probabilities",
-    "velocity_grid_mps",
+    "velocity_grid_m_s",
 ]
 
 
@@ -97,7 +98,7 @@ class BOFParams:
     n_velocities_per_axis : int
         ``n``: the velocity hypotheses are the ``n x n`` grid ``linspace(-v_max, v_max, n)`` on world X, Y
         (``K = n^2`` hypotheses per cell). Odd ``n`` includes the zero velocity.
-    velocity_max_mps : float
+    velocity_max_m_s : float
         ``v_max`` [m/s], largest speed along each axis.
     prior_occupancy : float
         ``p0`` in (0, 1): prior (and stationary) occupancy probability of a cell.
@@ -112,25 +113,20 @@ class BOFParams:
     """
 
     n_velocities_per_axis: int = 7
-    velocity_max_mps: float = 1.5
+    velocity_max_m_s: float = 1.5
     prior_occupancy: float = 0.05
     decay_rate_hz: float = 0.5
     velocity_noise_rate_hz: float = 1.0
     subcell: str = "bilinear"
 
     def __post_init__(self) -> None:
-        if int(self.n_velocities_per_axis) < 1:
-            raise ValueError(f"n_velocities_per_axis must be >= 1, got {self.n_velocities_per_axis}")
-        if not (np.isfinite(self.velocity_max_mps) and self.velocity_max_mps >= 0):
-            raise ValueError(f"velocity_max_mps must be finite and >= 0, got {self.velocity_max_mps}")
-        if not (0.0 < self.prior_occupancy < 1.0):
-            raise ValueError(f"prior_occupancy must be in (0, 1), got {self.prior_occupancy}")
-        for name in ("decay_rate_hz", "velocity_noise_rate_hz"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
-        if self.subcell not in ("accumulate", "bilinear"):
-            raise ValueError(f"subcell must be 'accumulate' or 'bilinear', got {self.subcell!r}")
+        check_fields(self, n_velocities_per_axis="int>=1", velocity_max_m_s=">=0", prior_occupancy="(0,1)",
+                     decay_rate_hz=">=0", velocity_noise_rate_hz=">=0")
+        # a walking or running person: a larger value is a unit error (km/h, mm/s) or a wasted velocity grid
+        require(self.velocity_max_m_s <= 10.0, self, "velocity_max_m_s",
+                f"must be at most 10 m/s, got {self.velocity_max_m_s}")
+        require(self.subcell in ("accumulate", "bilinear"), self, "subcell",
+                f"must be 'accumulate' or 'bilinear', got {self.subcell!r}")
 
     @property
     def n_velocities(self) -> int:
@@ -138,10 +134,10 @@ class BOFParams:
         return int(self.n_velocities_per_axis) ** 2
 
 
-def velocity_grid_mps(params: BOFParams) -> np.ndarray:
+def velocity_grid_m_s(params: BOFParams) -> np.ndarray:
     """Velocity hypotheses ``v_k`` [m/s], shape (K, 2) as (vx, vy); ``k = iv_y * n + iv_x``."""
     n = int(params.n_velocities_per_axis)
-    axis = np.linspace(-params.velocity_max_mps, params.velocity_max_mps, n) if n > 1 else np.zeros(1)
+    axis = np.linspace(-params.velocity_max_m_s, params.velocity_max_m_s, n) if n > 1 else np.zeros(1)
     vx, vy = np.meshgrid(axis, axis)
     return np.stack([vx.ravel(), vy.ravel()], axis=-1)
 
@@ -156,7 +152,7 @@ class BOFState:
         ``P(O = occ, V = v_k)`` per plane, hypothesis and cell.
     free : ndarray, shape (L, ny, nx), float32
         ``P(O = free)`` per cell.
-    velocities_mps : ndarray, shape (K, 2), float64
+    velocities_m_s : ndarray, shape (K, 2), float64
         The hypotheses ``v_k`` (vx, vy) [m/s].
     cell_size_m : float
         Grid cell side [m].
@@ -168,14 +164,14 @@ class BOFState:
 
     occ_v: np.ndarray
     free: np.ndarray
-    velocities_mps: np.ndarray
+    velocities_m_s: np.ndarray
     cell_size_m: float
     residual_cells: np.ndarray = field(default=None)  # type: ignore[assignment]
     time_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.residual_cells is None:
-            self.residual_cells = np.zeros((len(self.velocities_mps), 2))
+            self.residual_cells = np.zeros((len(self.velocities_m_s), 2))
 
     @property
     def occupancy(self) -> np.ndarray:
@@ -183,7 +179,7 @@ class BOFState:
         return self.moments()[0]
 
     @property
-    def velocity_mps(self) -> np.ndarray:
+    def velocity_m_s(self) -> np.ndarray:
         """Posterior mean velocity of the occupied mass ``E[V | occ]`` [m/s], shape (L, ny, nx, 2), float32."""
         return self.moments()[1]
 
@@ -191,13 +187,13 @@ class BOFState:
         """``(P(occ), E[V | occ])``: shapes (L, ny, nx) and (L, ny, nx, 2) [m/s], float32, in one pass."""
         occ = np.empty(self.free.shape, np.float32)
         vel = np.empty(self.free.shape + (2,), np.float32)
-        _moments_kernel(self.occ_v, self.velocities_mps.astype(np.float32), occ, vel)
+        _moments_kernel(self.occ_v, self.velocities_m_s.astype(np.float32), occ, vel)
         # float32 sums of K masses can exceed 1 by an ulp when a cell is (almost) surely occupied.
         np.clip(occ, 0.0, 1.0, out=occ)
         return occ, vel
 
     def copy(self) -> "BOFState":
-        return BOFState(self.occ_v.copy(), self.free.copy(), self.velocities_mps.copy(), self.cell_size_m,
+        return BOFState(self.occ_v.copy(), self.free.copy(), self.velocities_m_s.copy(), self.cell_size_m,
                         self.residual_cells.copy(), self.time_s)
 
 
@@ -207,7 +203,7 @@ def bof_initial_state(stack: PlaneStack, params: BOFParams) -> BOFState:
     L, ny, nx = stack.shape
     occ_v = np.full((L, K, ny, nx), params.prior_occupancy / K, dtype=np.float32)
     free = np.full((L, ny, nx), 1.0 - params.prior_occupancy, dtype=np.float32)
-    return BOFState(occ_v, free, velocity_grid_mps(params), float(stack.cell_size_m))
+    return BOFState(occ_v, free, velocity_grid_m_s(params), float(stack.cell_size_m))
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -368,7 +364,7 @@ def _velocity_mixing(n: int, p_mix: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _motion_offsets(state: BOFState, dt_s: float, bilinear: bool):
     """Antecedent offsets ``a_k(c) - c`` split into integer (oy, ox) and fractional (ty, tx) parts [cells]."""
-    d = state.velocities_mps * (dt_s / state.cell_size_m)  # (K, 2) displacement (dx, dy) [cells]
+    d = state.velocities_m_s * (dt_s / state.cell_size_m)  # (K, 2) displacement (dx, dy) [cells]
     if bilinear:
         back = -d
         o = np.floor(back)
@@ -454,7 +450,7 @@ class BayesianOccupancyFilter:
     --------
     >>> bof = BayesianOccupancyFilter(stack)            # doctest: +SKIP
     >>> bof.predict_to(0.1); bof.update(evidence.log_odds)  # doctest: +SKIP
-    >>> bof.occupancy, bof.velocity_mps                   # doctest: +SKIP
+    >>> bof.occupancy, bof.velocity_m_s                   # doctest: +SKIP
     """
 
     def __init__(self, stack: PlaneStack, params: BOFParams | None = None) -> None:
@@ -507,6 +503,6 @@ class BayesianOccupancyFilter:
         st.time_s = float_or_none(get_shaped(state, "time_s", (), "filter"))
 
     @property
-    def velocity_mps(self) -> np.ndarray:
+    def velocity_m_s(self) -> np.ndarray:
         """``E[V | occ]`` per cell [m/s], shape (L, ny, nx, 2) as (vx, vy)."""
-        return self.state.velocity_mps
+        return self.state.velocity_m_s

@@ -35,6 +35,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..grid import GroundDetections, PlaneStack, log_odds_from_probability, probability_from_log_odds
+from .._params import check_fields
 
 __all__ = ["ClusterParams", "Clusters", "cluster_occupancy", "column_log_odds"]
 
@@ -67,23 +68,15 @@ class ClusterParams:
     body_max_height_m: float = 1.5
     plane_cap: float = 4.0
     observed_min: float = 0.5
-    threshold: float = 2.5
+    threshold: float = 1.5
     smoothing_m: float = 0.1
     person_radius_m: float = 0.3
     min_separation_m: float = 0.4
     mean_shift_iterations: int = 3
 
     def __post_init__(self) -> None:
-        for name in ("smoothing_m", "person_radius_m", "min_separation_m"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {v}")
-        if not np.isfinite(self.threshold):
-            raise ValueError(f"threshold must be finite, got {self.threshold}")
-        if not (np.isfinite(self.plane_cap) and self.plane_cap > 0):
-            raise ValueError(f"plane_cap must be finite and > 0, got {self.plane_cap}")
-        if int(self.mean_shift_iterations) < 0:
-            raise ValueError(f"mean_shift_iterations must be >= 0, got {self.mean_shift_iterations}")
+        check_fields(self, smoothing_m=">=0", person_radius_m=">=0", min_separation_m=">=0", threshold="finite",
+                     plane_cap=">0", mean_shift_iterations="int>=0")
 
 
 @dataclass(frozen=True)
@@ -96,7 +89,7 @@ class Clusters:
         Time [s].
     xy_m : ndarray, shape (N, 2)
         Ground positions (world XY) [m].
-    velocity_mps : ndarray, shape (N, 2)
+    velocity_m_s : ndarray, shape (N, 2)
         Mean BOF velocity (vx, vy) [m/s].
     height_m : ndarray, shape (N,)
         Estimated height [m]; NaN where no plane reaches occupancy 0.5.
@@ -108,7 +101,7 @@ class Clusters:
 
     time_s: float
     xy_m: np.ndarray
-    velocity_mps: np.ndarray
+    velocity_m_s: np.ndarray
     height_m: np.ndarray
     confidence: np.ndarray
     column_log_odds: np.ndarray
@@ -171,7 +164,7 @@ def _height_from_profile(profile: np.ndarray, heights_m: np.ndarray) -> float:
 def cluster_occupancy(
     time_s: float,
     occupancy,
-    velocity_mps,
+    velocity_m_s,
     stack: PlaneStack,
     prior_occupancy: float,
     params: ClusterParams | None = None,
@@ -184,7 +177,7 @@ def cluster_occupancy(
         Time of the occupancy [s].
     occupancy : array_like, shape (L, ny, nx)
         Filtered ``P(occ)`` per plane.
-    velocity_mps : array_like, shape (L, ny, nx, 2)
+    velocity_m_s : array_like, shape (L, ny, nx, 2)
         BOF ``E[V | occ]`` per cell (vx, vy) [m/s].
     stack : PlaneStack
         The plane stack.
@@ -195,9 +188,9 @@ def cluster_occupancy(
     """
     params = params if params is not None else ClusterParams()
     occ = np.asarray(occupancy, dtype=float)
-    vel = np.asarray(velocity_mps, dtype=float)
+    vel = np.asarray(velocity_m_s, dtype=float)
     if vel.shape != stack.shape + (2,):
-        raise ValueError(f"velocity_mps must have shape {stack.shape + (2,)}, got {vel.shape}")
+        raise ValueError(f"velocity_m_s must have shape {stack.shape + (2,)}, got {vel.shape}")
     S = column_log_odds(occ, stack, prior_occupancy, params)
     cell = stack.cell_size_m
 

@@ -19,6 +19,7 @@ from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
 from ._tracker import MultiPersonTracker, TrackerParams, Tracks
+from .._params import check_fields
 
 __all__ = ["EvidenceTracker", "TrackerOutput", "TrackingParams", "track_evidence"]
 
@@ -48,12 +49,11 @@ class TrackingParams:
     cluster: ClusterParams = field(default_factory=ClusterParams)
     tracker: TrackerParams = field(default_factory=TrackerParams)
     window_s: float = 0.2
-    merge_tolerance_s: float = 1e-6
+    merge_tolerance_s: float = 0.05
     output_period_s: float | None = None
 
     def __post_init__(self) -> None:
-        if self.output_period_s is not None and not (np.isfinite(self.output_period_s) and self.output_period_s > 0):
-            raise ValueError(f"output_period_s must be None or finite and > 0, got {self.output_period_s}")
+        check_fields(self, window_s=">=0", merge_tolerance_s=">=0", output_period_s="?>0")
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ class TrackerOutput:
         Sensors fused since the previous output.
     occupancy : ndarray, shape (L, ny, nx), float32
         Filtered ``P(occ)`` per plane.
-    velocity_mps : ndarray, shape (L, ny, nx, 2), float32
+    velocity_m_s : ndarray, shape (L, ny, nx, 2), float32
         Filtered ``E[V | occ]`` per cell (vx, vy) [m/s].
     clusters : Clusters
         Person hypotheses (with the column evidence).
@@ -83,7 +83,7 @@ class TrackerOutput:
     time_s: float
     sensors: tuple[str, ...]
     occupancy: np.ndarray
-    velocity_mps: np.ndarray
+    velocity_m_s: np.ndarray
     clusters: Clusters
     detections: GroundDetections
     tracks: Tracks

@@ -10,7 +10,7 @@ Each step:
    velocity, ``v <- (1 - a) v + a v_cluster`` (``a = velocity_gain``);
 4. a confirmed track left without a cluster but predicted within the gate of a cluster taken by another
    confirmed track moving differently (two people merged while crossing: velocities differing by at
-   least ``share_min_relative_speed_mps``) shares it for at most ``max_shared_s``: both keep their own
+   least ``share_min_relative_speed_m_s``) shares it for at most ``max_shared_s``: both keep their own
    predicted positions and velocities;
 5. an unmatched track coasts on its prediction and counts a miss; a tentative track is confirmed after
    ``confirm_hits`` consecutive hits and dropped at its first miss, a confirmed track is deleted after more
@@ -31,6 +31,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .._state import StateDict, float_or_none, get, optional_float
 from ._clustering import Clusters
+from .._params import check_fields
 
 __all__ = ["MultiPersonTracker", "TrackerParams", "Tracks"]
 
@@ -53,36 +54,25 @@ class TrackerParams:
         ``a`` in (0, 1]: weight of the cluster's BOF velocity in the track velocity.
     max_shared_s : float
         Longest time [s] a track may share another track's cluster (people merged while crossing).
-    share_min_relative_speed_mps : float
+    share_min_relative_speed_m_s : float
         Tracks share a cluster only if their velocities differ by at least this [m/s] (people crossing;
         a track moving with the cluster's owner is a duplicate and is left to die).
     birth_exclusion_m : float
         No track is started on a cluster closer than this [m] to a confirmed track.
     """
 
-    gate_m: float = 0.5
+    gate_m: float = 0.75
     confirm_hits: int = 3
     max_misses: int = 10
     max_coast_report: int = 2
     velocity_gain: float = 0.7
     max_shared_s: float = 1.0
-    share_min_relative_speed_mps: float = 0.3
+    share_min_relative_speed_m_s: float = 0.3
     birth_exclusion_m: float = 0.5
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.gate_m) and self.gate_m > 0):
-            raise ValueError(f"gate_m must be finite and > 0, got {self.gate_m}")
-        if int(self.confirm_hits) < 1:
-            raise ValueError(f"confirm_hits must be >= 1, got {self.confirm_hits}")
-        if int(self.max_misses) < 0 or int(self.max_coast_report) < 0:
-            raise ValueError(f"max_misses and max_coast_report must be >= 0, got {self.max_misses}, "
-                             f"{self.max_coast_report}")
-        if not (np.isfinite(self.max_shared_s) and self.max_shared_s >= 0):
-            raise ValueError(f"max_shared_s must be finite and >= 0, got {self.max_shared_s}")
-        if not (np.isfinite(self.birth_exclusion_m) and self.birth_exclusion_m >= 0):
-            raise ValueError(f"birth_exclusion_m must be finite and >= 0, got {self.birth_exclusion_m}")
-        if not (0 < self.velocity_gain <= 1):
-            raise ValueError(f"velocity_gain must be in (0, 1], got {self.velocity_gain}")
+        check_fields(self, gate_m=">0", confirm_hits="int>=1", max_misses="int>=0", max_coast_report="int>=0",
+                     max_shared_s=">=0", birth_exclusion_m=">=0", velocity_gain="(0,1]")
 
 
 @dataclass(frozen=True)
@@ -97,7 +87,7 @@ class Tracks:
         Track identities (unique over the tracker's life).
     xy_m : ndarray, shape (N, 2)
         Ground positions (world XY) [m].
-    velocity_mps : ndarray, shape (N, 2)
+    velocity_m_s : ndarray, shape (N, 2)
         Velocities (vx, vy) [m/s].
     height_m : ndarray, shape (N,)
         Heights [m] (NaN if unknown).
@@ -110,7 +100,7 @@ class Tracks:
     time_s: float
     ids: np.ndarray
     xy_m: np.ndarray
-    velocity_mps: np.ndarray
+    velocity_m_s: np.ndarray
     height_m: np.ndarray
     confidence: np.ndarray
     misses: np.ndarray
@@ -185,7 +175,7 @@ class MultiPersonTracker:
                 free[ci] = False
                 matched.add(tr.id)
                 tr.xy = clusters.xy_m[ci].copy()
-                tr.v = (1 - p.velocity_gain) * tr.v + p.velocity_gain * clusters.velocity_mps[ci]
+                tr.v = (1 - p.velocity_gain) * tr.v + p.velocity_gain * clusters.velocity_m_s[ci]
                 if np.isfinite(clusters.height_m[ci]):
                     tr.height = float(clusters.height_m[ci])
                 tr.confidence = float(clusters.confidence[ci])
@@ -206,7 +196,7 @@ class MultiPersonTracker:
             near = np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1)
             if near.size and near.min() < p.birth_exclusion_m:
                 continue  # a second mode of someone already tracked, not a new person
-            alive.append(_Track(self._next_id, clusters.xy_m[ci].copy(), clusters.velocity_mps[ci].copy(),
+            alive.append(_Track(self._next_id, clusters.xy_m[ci].copy(), clusters.velocity_m_s[ci].copy(),
                                 float(clusters.height_m[ci]), float(clusters.confidence[ci]),
                                 confirmed=p.confirm_hits <= 1))
             self._next_id += 1
@@ -229,7 +219,7 @@ class MultiPersonTracker:
             if d.min() > self.params.gate_m or tr.shared_s + dt > self.params.max_shared_s:
                 continue
             owner = owners[int(cis[np.argmin(d)])]
-            if np.linalg.norm(tr.v - owner.v_before) < self.params.share_min_relative_speed_mps:
+            if np.linalg.norm(tr.v - owner.v_before) < self.params.share_min_relative_speed_m_s:
                 continue  # moving with the owner: a duplicate of the same person, not a crossing
             owner.xy, owner.v = owner.pred.copy(), owner.v_before.copy()
             tr.xy, tr.shared_s = tr.pred.copy(), tr.shared_s + dt

@@ -34,6 +34,7 @@ __all__ = [
     "epfl_ground_truth",
     "epfl_ground_truth_from_cameras",
     "epfl_lookups",
+    "epfl_sequences",
     "image_folder_frames",
     "load_epfl_sequence",
     "read_epfl_detections",
@@ -55,7 +56,7 @@ class EpflSequence:
     names : list of str
         Camera folder names (``terrace1-c0``...).
     homographies : list of EpflGroundHomography
-        Image -> ground (metres for terrace, top-view units otherwise).
+        Image -> ground [m].
     boxes : list of EpflBoxes
         Rows of each camera's ``gt/gt.txt``.
     """
@@ -70,19 +71,56 @@ class EpflSequence:
         return np.unique(np.concatenate([b.frame for b in self.boxes]))
 
 
-def load_epfl_sequence(root, sequence: str = "terrace1") -> EpflSequence:
-    """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``.
+def epfl_sequences(root) -> dict[str, int]:
+    """EPFL sequences under ``root``: name -> number of ``<name>-c<k>/Homography.txt`` camera folders."""
+    found: dict[str, int] = {}
+    for h in Path(root).rglob("Homography.txt"):
+        m = re.fullmatch(r"(.+)-c\d+", h.parent.name)
+        if m:
+            found[m.group(1)] = found.get(m.group(1), 0) + 1
+    return dict(sorted(found.items()))
 
-    ``root`` may be the data-set folder or its ``EPFL-Terrace`` / ``EPFL-Laboratory``
-    sub-folder. Terrace homographies are made metric with
-    :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE`; other sequences stay in
-    top-view units.
+
+def load_epfl_sequence(root, sequence: str = "terrace1", *, ground_unit_m: float | None = None) -> EpflSequence:
+    """Read ``<root>/<sequence>-c*/Homography.txt`` and ``gt/gt.txt``, ground in metres.
+
+    ``root`` may be the data-set folder or its ``EPFL-Terrace`` / ``EPFL-Laboratory`` sub-folder.
+
+    Parameters
+    ----------
+    ground_unit_m : float, optional
+        Metres per top-view unit of the homographies (top-view axes kept). Terrace sequences default to
+        :data:`planefuse.calib.H_WORLD_TOPVIEW_TERRACE` (the Tsai world, ~2.19 cm per unit); any other sequence
+        must give it (EPFL's files carry no unit; the laboratory's is 0.02 according to Al-Sa'd et al.).
+
+    Raises
+    ------
+    ValueError
+        ``root`` is not a folder, holds no camera folder of ``sequence`` (the message lists the sequences it
+        holds), a sequence other than the terrace comes without ``ground_unit_m``, or a homography /
+        ``gt.txt`` does not load.
     """
     root = Path(root)
+    if not root.is_dir():
+        raise ValueError(f"{root}: not a folder (EPFL data: <sequence>-c<k>/Homography.txt and gt/gt.txt)")
     dirs = sorted(p for p in root.rglob(f"{sequence}-c*") if p.is_dir() and (p / "Homography.txt").is_file())
     if not dirs:
-        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders")
-    W = H_WORLD_TOPVIEW_TERRACE if sequence.startswith("terrace") else None
+        there = epfl_sequences(root)
+        if there:
+            what = "it holds " + ", ".join(f"{k} ({n} cameras)" for k, n in there.items())
+        else:
+            entries = sorted(p.name for p in root.iterdir())[:8]
+            what = f"it holds no EPFL camera folder at all (entries: {entries})"
+        raise ValueError(f"{root}: no '{sequence}-c*/Homography.txt' camera folders; {what}")
+    if ground_unit_m is not None:
+        if not (np.isfinite(ground_unit_m) and ground_unit_m > 0):
+            raise ValueError(f"ground_unit_m must be a positive length [m], got {ground_unit_m}")
+        W = np.diag([ground_unit_m, ground_unit_m, 1.0])
+    elif sequence.startswith("terrace"):
+        W = H_WORLD_TOPVIEW_TERRACE
+    else:
+        raise ValueError(f"{dirs[0] / 'Homography.txt'}: the ground unit of sequence {sequence!r} is unknown (EPFL's "
+                         "files carry none): give it in metres (ground_unit_m / --ground-unit-m)")
     homs = [load_epfl_homography(d / "Homography.txt", H_world_topview=W) for d in dirs]
     boxes = [load_epfl_boxes(d / "gt" / "gt.txt") for d in dirs]
     return EpflSequence([d.name for d in dirs], homs, boxes)
@@ -207,7 +245,7 @@ def epfl_ground_truth_from_cameras(seq: EpflSequence, cameras, scored_cameras, f
     seq : EpflSequence
         Boxes of every camera (:func:`load_epfl_sequence`), in the order of ``cameras``.
     cameras : sequence of PinholeCamera
-        One per camera of ``seq`` (e.g. :func:`planefuse.calib.terrace_cameras` ``(0, 1, 2, 3)``), world in metres.
+        One per camera of ``seq`` (e.g. :func:`planefuse.calib.pinhole_from_tsai` of ``EPFL_TERRACE_TSAI``), world in metres.
     scored_cameras : sequence of int
         Indices (into ``cameras``) of the cameras the evaluated system sees.
     frames : iterable of int, optional
@@ -297,7 +335,9 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     names = sorted(rig)
     sub = Path(root) / "Image_subsets"
     if not sub.is_dir():
-        raise ValueError(f"{root}: no 'Image_subsets/' folder with the camera frames")
+        held = sorted(p.name for p in Path(root).iterdir())
+        raise ValueError(f"{root}: no 'Image_subsets/C<i>/' frame sequences (it holds {held}); background "
+                         "subtraction needs frames over time, single images per camera are not enough")
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from .._params import check_fields, require
 
 __all__ = [
     "BackgroundSubtractor",
@@ -101,26 +102,14 @@ class ForegroundParams:
     relearn_rate: float = 0.2
 
     def __post_init__(self) -> None:
-        if self.method not in ("mog2", "knn"):
-            raise ValueError(f"ForegroundParams.method must be 'mog2' or 'knn', got {self.method!r}")
-        if self.history < 1:
-            raise ValueError(f"ForegroundParams.history must be >= 1, got {self.history}")
-        if not 0.0 <= self.shadow_likelihood <= 1.0:
-            raise ValueError(f"ForegroundParams.shadow_likelihood must be in [0, 1], got {self.shadow_likelihood}")
-        if not 0.0 <= self.floor < self.ceiling <= 1.0:
-            raise ValueError(f"ForegroundParams needs 0 <= floor < ceiling <= 1, got {self.floor}, {self.ceiling}")
-        for name in ("open_px", "close_px", "blur_px"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"ForegroundParams.{name} must be >= 0, got {getattr(self, name)}")
-        if len(self.gain_blocks) != 2 or min(self.gain_blocks) < 1:
-            raise ValueError(f"ForegroundParams.gain_blocks must be (rows, cols) >= 1, got {self.gain_blocks}")
-        for name in ("gain_rate", "relearn_rate"):
-            if not 0.0 < getattr(self, name) <= 1.0:
-                raise ValueError(f"ForegroundParams.{name} must be in (0, 1], got {getattr(self, name)}")
-        if self.relearn_fraction is not None and not 0.0 < self.relearn_fraction < 1.0:
-            raise ValueError(f"ForegroundParams.relearn_fraction must be in (0, 1) or None, got {self.relearn_fraction}")
-        if self.relearn_frames < 1:
-            raise ValueError(f"ForegroundParams.relearn_frames must be >= 1, got {self.relearn_frames}")
+        require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
+        check_fields(self, history="int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
+                     ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
+        require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
+        check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
+                     relearn_frames="int>=1")
+        require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
+                f"must be (rows, cols) >= 1, got {self.gain_blocks}")
 
 
 class BackgroundSubtractor:

@@ -30,6 +30,7 @@ from numba import njit
 
 from ..grid import Evidence, PlaneStack
 from ..registration import ImagePlaneLookup
+from .._params import check_fields, require
 
 __all__ = ["CameraFusion", "FusionParams", "log_odds_table", "max_log_ratio"]
 
@@ -53,11 +54,10 @@ class FusionParams:
     p_false_alarm: float = 0.2
 
     def __post_init__(self) -> None:
-        if not 0.0 < self.p_false_alarm < self.p_detect < 1.0:
-            raise ValueError(
-                "FusionParams needs 0 < p_false_alarm < p_detect < 1, "
-                f"got p_false_alarm={self.p_false_alarm}, p_detect={self.p_detect}"
-            )
+        check_fields(self, p_detect="(0,1)", p_false_alarm="(0,1)")
+        require(self.p_false_alarm < self.p_detect, self, "p_false_alarm",
+                f"P(foreground | free) = {self.p_false_alarm} must be below P(foreground | occupied) = "
+                f"{self.p_detect} (otherwise foreground would be evidence of free space)")
 
 
 def max_log_ratio(params: FusionParams) -> float:

@@ -40,6 +40,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..grid import GroundDetections, PlaneStack
+from .._params import check_fields
 
 __all__ = ["PersonParams", "ground_detections_from_log_odds", "person_score_map"]
 
@@ -72,12 +73,9 @@ class PersonParams:
     min_cameras: int = 2
 
     def __post_init__(self) -> None:
-        if not (self.radius_m > 0 and self.nms_radius_m > 0):
-            raise ValueError(f"PersonParams radii must be > 0, got {self.radius_m}, {self.nms_radius_m}")
-        if not 0.0 < self.min_agreement <= 1.0:
-            raise ValueError(f"PersonParams.min_agreement must be in (0, 1], got {self.min_agreement}")
-        if self.min_cameras < 1:
-            raise ValueError(f"PersonParams.min_cameras must be >= 1, got {self.min_cameras}")
+        check_fields(self, min_height_m=">=0", radius_m=">0", nms_radius_m=">0", min_agreement="(0,1]",
+                     min_cameras="int>=1")
+
 
 
 #: Agreement values within this of a peak belong to its plateau (position = plateau centroid).

@@ -148,7 +148,7 @@ def score(truth: TerraceTruth, frames, detections, tracks=None) -> dict:
                 ids, xy = ids[keep], xy[keep]
             gt_frames.append((f / FPS, truth.ids[f], truth.xy_m[f]))
             hyp_frames.append((f / FPS, ids, xy))
-        mot = tracking_metrics(gt_frames, hyp_frames, max_distance_m=0.5)
+        mot = tracking_metrics(gt_frames, hyp_frames, match_distance_m=0.5)
         out.update(mota=mot["mota"], idf1=mot["idf1"], id_switches=int(mot["num_switches"]))
     return out
 

@@ -32,6 +32,7 @@ __all__ = [
     "EpflSequence",
     "epfl_box_frames",
     "epfl_ground_truth",
+    "epfl_ground_truth_from_cameras",
     "epfl_lookups",
     "epfl_sequences",
     "image_folder_frames",
@@ -227,6 +228,62 @@ def epfl_ground_truth(seq: EpflSequence, min_views: int = 2) -> dict[int, tuple[
     for f in np.unique(frames):
         sel = frames == f
         out[int(f)] = (med[sel & (counts >= min_views)], med[sel & (counts < min_views)])
+    return out
+
+
+def epfl_ground_truth_from_cameras(seq: EpflSequence, cameras, scored_cameras, frames=None
+                                   ) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Ground-truth feet from every camera's boxes back-projected through calibrated camera models.
+
+    A person's position is the per-axis median, over the cameras whose box is visible, of the box's bottom
+    centre back-projected to the ground (z = 0) through that camera's model (lens distortion included). A
+    person seen by none of ``scored_cameras`` (the cameras whose frames the system gets) cannot be detected
+    from them: it is returned apart, to be ignored by the scoring.
+
+    Parameters
+    ----------
+    seq : EpflSequence
+        Boxes of every camera (:func:`load_epfl_sequence`), in the order of ``cameras``.
+    cameras : sequence of PinholeCamera
+        One per camera of ``seq`` (e.g. :func:`planefuse.calib.pinhole_from_tsai` of ``EPFL_TERRACE_TSAI``), world in metres.
+    scored_cameras : sequence of int
+        Indices (into ``cameras``) of the cameras the evaluated system sees.
+    frames : iterable of int, optional
+        Frames wanted (default: every annotated frame).
+
+    Returns
+    -------
+    dict
+        ``frame -> (ids (G,), xy_m (G, 2), ignore_xy_m (I, 2))``, world XY [m].
+    """
+    if len(cameras) != len(seq.boxes):
+        raise ValueError(f"cameras: expected one per camera of the sequence ({len(seq.boxes)}), got {len(cameras)}")
+    rows = []
+    for i, (cam, b) in enumerate(zip(cameras, seq.boxes)):
+        vis = ~b.lost
+        xy = cam.backproject_to_height(b.foot_uv()[vis], 0.0)[:, :2]
+        rows.append(np.c_[b.frame[vis], b.track_id[vis], xy, np.full(int(vis.sum()), i)])
+    a = np.concatenate(rows)
+    a = a[np.isfinite(a[:, 2:4]).all(axis=1)]
+    wanted = seq.frames if frames is None else np.unique(np.asarray(list(frames), dtype=int))
+    a = a[np.isin(a[:, 0], wanted)]
+    key = a[:, 0] * 100_000 + a[:, 1]
+    order = np.argsort(key, kind="stable")
+    a, key = a[order], key[order]
+    starts = np.flatnonzero(np.r_[True, np.diff(key) != 0]) if len(a) else np.zeros(0, int)
+    bounds = np.r_[starts, len(a)]
+    empty = (np.zeros(0, int), np.zeros((0, 2)), np.zeros((0, 2)))
+    out: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {int(f): empty for f in wanted}
+    per_frame: dict[int, list] = {}
+    for s, e in zip(bounds[:-1], bounds[1:]):
+        r = a[s:e]
+        scored = bool(np.isin(r[:, 4], list(scored_cameras)).any())
+        per_frame.setdefault(int(r[0, 0]), []).append((int(r[0, 1]), np.median(r[:, 2:4], axis=0), scored))
+    for f, people in per_frame.items():
+        ids = np.array([p for p, _, sc in people if sc], dtype=int)
+        xy = np.array([m for _, m, sc in people if sc]).reshape(-1, 2)
+        ign = np.array([m for _, m, sc in people if not sc]).reshape(-1, 2)
+        out[f] = (ids, xy, ign)
     return out
 
 

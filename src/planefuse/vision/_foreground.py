@@ -18,6 +18,7 @@ from .._params import check_fields, require
 __all__ = [
     "BackgroundSubtractor",
     "ForegroundParams",
+    "GainCompensator",
     "foreground_from_boxes",
     "foreground_from_mask",
     "read_mot_detections",
@@ -59,6 +60,27 @@ class ForegroundParams:
         a person (camouflage), its "foreground" ``1 - ceiling`` of noise.
     learning_rate : float
         OpenCV learning rate (-1 = automatic from ``history``).
+    gain_compensation : bool
+        Divide every frame by a smooth per-channel gain field before the subtractor sees it, so that a camera's
+        automatic exposure or white balance, or a cloud, does not turn the whole image into foreground. The
+        field is the median ratio of the frame to a reference background (a running average of the
+        compensated frames' background pixels, so it stays in the units the subtractor learnt) over
+        ``gain_blocks`` blocks, interpolated between block centres.
+    gain_blocks : tuple of int
+        ``(rows, cols)`` of the gain field's blocks. One block (a global gain per channel) was the most robust on
+        the EPFL terrace's tuning frames (0-1499; docs/results.md): with several, a person filling much of a
+        block biases its median.
+    gain_rate : float
+        Rate of the reference background's running average, per frame, in (0, 1].
+    relearn_fraction : float or None
+        A frame (after compensation) with more than this share of its pixels foreground is a sudden global
+        change the compensation could not follow (light switched, camera bumped): it gives no evidence (the
+        likelihood is 0.5 everywhere, which the fusion reads as "unobserved") and the subtractor relearns
+        the scene at ``relearn_rate`` for ``relearn_frames`` frames. ``None`` disables.
+    relearn_frames : int
+        Frames of fast relearning after a sudden change.
+    relearn_rate : float
+        Learning rate while relearning, in (0, 1].
     """
 
     method: str = "knn"
@@ -72,12 +94,22 @@ class ForegroundParams:
     floor: float = 0.02
     ceiling: float = 0.98
     learning_rate: float = -1.0
+    gain_compensation: bool = False
+    gain_blocks: tuple[int, int] = (1, 1)
+    gain_rate: float = 0.05
+    relearn_fraction: float | None = None
+    relearn_frames: int = 5
+    relearn_rate: float = 0.2
 
     def __post_init__(self) -> None:
         require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
         check_fields(self, history="int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
                      ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
+        check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
+                     relearn_frames="int>=1")
+        require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
+                f"must be (rows, cols) >= 1, got {self.gain_blocks}")
 
 
 class BackgroundSubtractor:
@@ -119,6 +151,11 @@ class BackgroundSubtractor:
         self._rate = params.learning_rate
         self._close = _kernel(params.close_px)
         self._n_learned = 0
+        self._gain = GainCompensator(params.gain_blocks, params.gain_rate) if params.gain_compensation else None
+        self._relearn_left = 0
+        #: Sudden global changes detected after the first ``relearn_frames`` frames (each gave no evidence and
+        #: restarted a fast relearning).
+        self.n_sudden_changes = 0
 
     def prime(self, empty_frame, n_frames: int = 30) -> None:
         """Initialise the background model with an image of the empty scene (calibration plate).
@@ -171,7 +208,15 @@ class BackgroundSubtractor:
         # the frames alone (reproducible, and exactly replayed by a resumed run).
         cv2.setRNGSeed(_frame_seed(self._n_learned))
         self._n_learned += 1
-        return self._model.apply(img, learningRate=rate)
+        if self._relearn_left > 0:
+            rate = self.params.relearn_rate
+            self._relearn_left -= 1
+        if self._gain is None:
+            return self._model.apply(img, learningRate=rate)
+        compensated = self._gain.compensate(img)
+        mask = self._model.apply(compensated, learningRate=rate)
+        self._gain.learn(compensated, mask == 0, self.params.relearn_rate if self._relearn_left else None)
+        return mask
 
     def apply(self, frame) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.
@@ -187,7 +232,17 @@ class BackgroundSubtractor:
             Foreground likelihood in ``[floor, ceiling]``.
         """
         img = self._check(frame)
+        relearning = self._relearn_left > 0
         mask = self._learn(img, self._rate)
+        p = self.params
+        if p.relearn_fraction is not None and not relearning and np.count_nonzero(mask == _CV_FOREGROUND) > \
+                p.relearn_fraction * mask.size:
+            self._relearn_left = p.relearn_frames
+            # a cold model (OpenCV's KNN) calls its first few frames all foreground: not a change of the scene
+            self.n_sudden_changes += int(self._n_learned > p.relearn_frames)
+            relearning = True
+        if relearning:  # the model is being rebuilt: no evidence either way
+            return np.full(mask.shape, 0.5, dtype=np.float32)
         # Clean the hard decision (foreground only) before softening it.
         hard = np.where(mask == _CV_FOREGROUND, np.uint8(255), np.uint8(0))
         if self._open is not None:
@@ -197,6 +252,84 @@ class BackgroundSubtractor:
         cleaned = np.where(hard == 255, np.uint8(_CV_FOREGROUND), np.where(mask == _CV_SHADOW, _CV_SHADOW, 0))
         like = self._lut[cleaned.astype(np.uint8)]
         return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling)
+
+
+class GainCompensator:
+    """Smooth per-channel gain of frames against a slowly learnt reference background.
+
+    ``compensate(frame) = frame / G`` with ``G`` the per-block median of ``frame / reference`` over the pixels
+    that were background in the previous frame (not too dark, not saturated), bilinearly interpolated
+    between block centres; blocks with too few such pixels take the image's median. ``learn`` moves the
+    reference towards the compensated frame on its background pixels at ``rate`` per frame, so the
+    reference stays in the units of the first frame and a global exposure step is divided out at once.
+
+    Parameters
+    ----------
+    blocks : (int, int)
+        Rows and columns of the gain field's blocks.
+    rate : float
+        Running-average rate of the reference, per frame.
+    """
+
+    #: Pixels darker than this in the reference, or saturated in either image, say nothing about the gain [grey level].
+    DARK, SATURATED = 16.0, 250.0
+    #: Fewest background pixels (fraction of the image) the gain is measured on; below it all pixels are used.
+    MIN_VALID = 0.05
+    #: Bound on the gain of a block (and its inverse): beyond it the frame is not the same scene.
+    MAX_GAIN = 4.0
+
+    def __init__(self, blocks: tuple[int, int], rate: float) -> None:
+        self.blocks = (int(blocks[0]), int(blocks[1]))
+        self.rate = float(rate)
+        self.reference: np.ndarray | None = None
+        self._valid: np.ndarray | None = None
+
+    def compensate(self, frame: np.ndarray) -> np.ndarray:
+        """The frame (H, W[, C]) uint8 divided by its gain field, uint8."""
+        img = frame.astype(np.float32)
+        if self.reference is None:
+            self.reference = img.copy()
+            return frame
+        ref = self.reference
+        ok = (ref > self.DARK) & (ref < self.SATURATED) & (img < self.SATURATED)
+        if ok.ndim == 3:
+            ok = ok.all(axis=2)
+        if self._valid is not None and np.count_nonzero(ok & self._valid) >= self.MIN_VALID * ok.size:
+            ok &= self._valid  # else the subtractor called (nearly) everything foreground: a cold model
+        if ok.ndim < img.ndim:
+            ok = ok[..., None]
+        ratio = np.where(ok, img / np.maximum(ref, 1.0), np.nan)
+        gain = np.clip(_block_medians(ratio, self.blocks), 1.0 / self.MAX_GAIN, self.MAX_GAIN)
+        field = cv2.resize(gain, (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
+        return np.clip(img / field.reshape(img.shape), 0, 255).astype(np.uint8)
+
+    def learn(self, compensated: np.ndarray, background: np.ndarray, rate: float | None = None) -> None:
+        """Update the reference with a compensated frame on its ``background`` (H, W) bool pixels (all pixels
+        at ``rate`` when given: the scene is being relearnt)."""
+        a = self.rate if rate is None else rate
+        img = compensated.astype(np.float32)
+        w = np.full(background.shape, a, np.float32) if rate is not None else background.astype(np.float32) * a
+        w = w.reshape(w.shape + (1,) * (img.ndim - 2))
+        self.reference += w * (img - self.reference)
+        self._valid = background
+
+
+def _block_medians(ratio: np.ndarray, blocks: tuple[int, int]) -> np.ndarray:
+    """Per-block, per-channel nan-median of ``ratio`` (H, W[, C]) -> (rows, cols[, C]) float32; blocks with
+    fewer than 5 % valid pixels take the whole image's median (1 where it has none)."""
+    h, w = ratio.shape[:2]
+    rows, cols = blocks
+    chans = ratio.shape[2:]
+    flat = ratio.reshape(h * w, -1)
+    glob = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else 1.0 for c in flat.T])
+    out = np.empty((rows, cols, flat.shape[1]), np.float32)
+    ys, xs = np.linspace(0, h, rows + 1).astype(int), np.linspace(0, w, cols + 1).astype(int)
+    for i in range(rows):
+        for j in range(cols):
+            blk = ratio[ys[i]:ys[i + 1], xs[j]:xs[j + 1]].reshape(-1, flat.shape[1])
+            good = np.isfinite(blk[:, 0])
+            out[i, j] = np.median(blk[good], axis=0) if good.mean() >= 0.05 else glob
+    return out.reshape((rows, cols) + chans)
 
 
 def _frame_seed(n: int) -> int:

@@ -62,6 +62,13 @@ class GenerativeSensorParams:
         Foreground likelihoods at or above this are foreground (1), the rest background (0), as POM's binary
         masks; None keeps the likelihoods. A subtractor's floor (0.02 on every background pixel) otherwise
         sums, over a whole image, to more than the silhouettes of several people.
+    evidence_prior : float or None
+        What the evidence is measured against: None = the model's prior ``P_0`` (module notes: the likelihood
+        ratio the images carry); p in (0, 1) = ``logit(p)`` instead, reading the marginals as calibrated
+        posteriors, so that a cell the explaining-away leaves below p is evidence *against* a body. With two
+        cameras, ghosts left at q ~ 0.3 frame after frame otherwise gain evidence at every frame and the filter
+        accumulates them (EPFL terrace, frames 0-1499: filtered MODA 0.13 with None, 0.64 with 0.5;
+        docs/results.md).
     """
 
     people_per_m2: float = 0.05
@@ -71,12 +78,15 @@ class GenerativeSensorParams:
     max_log_odds: float = 6.0
     detection_mass: float = 0.4
     foreground_threshold: float | None = 0.5
+    evidence_prior: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"GenerativeSensorParams.{name} must be finite and > 0, got {v}")
+        if self.evidence_prior is not None and not 0.0 < self.evidence_prior < 1.0:
+            raise ValueError(f"GenerativeSensorParams.evidence_prior must be in (0, 1) or None, got {self.evidence_prior}")
 
     def person(self, stack: PlaneStack) -> PersonVolume:
         """The person's volume on ``stack``."""
@@ -139,6 +149,8 @@ class GenerativeCameraSensor:
         # the prior's log P(no person within r) per cell, with the same truncation of the disc at the grid's edge
         self._log_free0 = cv2.filter2D(np.full((stack.ny, stack.nx), np.log1p(-self._solver_params.prior)),
                                        cv2.CV_64F, self._disc, borderType=cv2.BORDER_CONSTANT)
+        if params.evidence_prior is not None:  # logit(1 - e^a0) = logit(evidence_prior)
+            self._log_free0 = np.full((stack.ny, stack.nx), np.log1p(-params.evidence_prior))
         band_mid = 0.5 * (np.asarray(stack.band_edges_m[:-1]) + np.asarray(stack.band_edges_m[1:]))
         lo, hi = self.person.height_range_m
         self._planes = (band_mid >= lo) & (band_mid <= hi)

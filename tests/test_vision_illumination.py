@@ -1,0 +1,105 @@
+"""Foreground front end under lighting changes (gain compensation, sudden-change relearning); generative evidence."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from planefuse.vision import BackgroundSubtractor, ForegroundParams, GainCompensator
+
+
+def _scene(rng, h=96, w=128):
+    """A textured background (tiles of random colours, 8 px, like a paved floor)."""
+    tiles = rng.uniform(60, 180, (h // 8 + 1, w // 8 + 1, 3)).astype(np.float32)
+    return cv2.GaussianBlur(np.repeat(np.repeat(tiles, 8, 0), 8, 1)[:h, :w], (0, 0), 1)
+
+
+def _frame(img, rng):
+    return np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("compensate", [False, True])
+def test_exposure_step_is_divided_out(compensate, rng):
+    """A camera's automatic exposure raises the whole image by 15 % while a person walks in: without
+    compensation the subtractor calls most of the image foreground, with it only the person."""
+    bg = _scene(rng)
+    params = ForegroundParams(history=100, gain_compensation=compensate)
+    bs = BackgroundSubtractor(128, 96, params)
+    for _ in range(40):
+        bs.apply(_frame(bg, rng))
+    frame = bg * 1.15
+    frame[30:70, 50:70] = (30, 40, 220)  # a red jacket
+    like = bs.apply(_frame(frame, rng))
+    person = like[35:65, 55:65].mean()
+    rest = np.delete(like, np.s_[25:75], axis=0).mean()
+    assert person > 0.9
+    if compensate:
+        assert rest < 0.1
+    else:
+        assert rest > 0.5  # the failure the compensation removes
+
+
+def test_gain_field_follows_a_smooth_illumination_gradient(rng):
+    """A cloud darkening the left half progressively: the blockwise gain field divides it out to a few grey levels."""
+    bg = _scene(rng, 120, 180)
+    comp = GainCompensator((3, 4), 0.05)
+    comp.compensate(bg.astype(np.uint8))
+    comp.learn(bg.astype(np.uint8), np.ones((120, 180), bool))
+    ramp = np.linspace(0.7, 1.0, 180)[None, :, None]
+    out = comp.compensate(np.clip(bg * ramp, 0, 255).astype(np.uint8)).astype(float)
+    err = np.abs(out - bg)
+    assert np.median(err) < 3.0
+    assert np.median(np.abs(bg * ramp - bg)) > 10.0  # the change was large
+
+
+def test_sudden_change_gives_no_evidence_then_relearns(rng):
+    """A change no gain explains (the scene's texture replaced, e.g. the camera bumped): that frame is
+    'unobserved' (0.5 everywhere) and the model relearns within relearn_frames frames."""
+    a = _scene(rng)
+    b = 240.0 - a  # a different scene: bright where the old one was dark
+    params = ForegroundParams(history=100, gain_compensation=True, relearn_fraction=0.4, relearn_frames=5,
+                              relearn_rate=0.5)
+    bs = BackgroundSubtractor(128, 96, params)
+    for _ in range(30):
+        bs.apply(_frame(a, rng))
+    like = bs.apply(_frame(b, rng))
+    assert bs.n_sudden_changes == 1
+    np.testing.assert_array_equal(like, 0.5)
+    outs = [bs.apply(_frame(b, rng)) for _ in range(12)]
+    assert all(np.all(o == 0.5) for o in outs[:5])
+    assert outs[-1].mean() < 0.1 and bs.n_sudden_changes == 1
+
+
+def test_foreground_params_reject_bad_values():
+    for kw, match in [(dict(gain_blocks=(0, 3)), "gain_blocks"), (dict(gain_rate=0.0), "gain_rate"),
+                      (dict(relearn_fraction=1.5), "relearn_fraction"), (dict(relearn_frames=0), "relearn_frames"),
+                      (dict(relearn_rate=2.0), "relearn_rate")]:
+        with pytest.raises(ValueError, match=match):
+            ForegroundParams(**kw)
+
+
+# -- generative evidence measured against even odds ------------------------------------------------------------
+def test_generative_evidence_prior_makes_weak_marginals_evidence_against():
+    """``evidence_prior=0.5``: a cell whose disc holds a total marginal below one half (a ghost the explaining-away
+    left at q ~ 0.3) gets negative evidence, a person (q ~ 1) positive; with the model's prior both are positive
+    (the filter then accumulates the ghost)."""
+    from planefuse.geometry import default_camera_ring
+    from planefuse.grid import PlaneStack
+    from planefuse.vision import GenerativeCameraSensor, GenerativeSensorParams
+
+    stack = PlaneStack.from_extent([0.1, 0.9, 1.6], (0, 10), (0, 10), 0.1)
+    cams = [default_camera_ring(4)[i] for i in (0, 1)]
+    q = np.zeros((stack.ny, stack.nx))
+    person, ghost = (30, 40), (70, 60)
+    q[person] = 0.99
+    q[ghost] = 0.3
+    ev = {}
+    for ref in (None, 0.5):
+        sensor = GenerativeCameraSensor(cams, stack, GenerativeSensorParams(evidence_prior=ref))
+        ev[ref] = sensor.log_odds_from_marginals(q)[0]
+    assert ev[None][person] > 0 and ev[None][ghost] > 0
+    assert ev[0.5][person] > 0 > ev[0.5][ghost]
+    assert ev[0.5][50, 50] < ev[0.5][ghost]  # an empty cell says "nobody" more firmly
+    with pytest.raises(ValueError, match="evidence_prior"):
+        GenerativeSensorParams(evidence_prior=1.0)

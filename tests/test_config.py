@@ -195,7 +195,7 @@ def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch)
     times = {c.name: np.arange(50) * 0.04 for c in cams} | {"laser": np.arange(20) * 0.1}
     from planefuse.cli import _check
 
-    rec = SimpleNamespace(cameras=cams, room_xy_m=(-0.2, 10.2, -0.2, 10.2), planes_heights_m=(0.1, 1.0),
+    rec = SimpleNamespace(cameras=cams, lasers={}, room_xy_m=(-0.2, 10.2, -0.2, 10.2), planes_heights_m=(0.1, 1.0),
                           camera_streams={}, root=tmp_path / "scene", source="fake", duration_s=2.0, provenance=None)
     monkeypatch.setattr(_check, "read_recording_for_check",
                         lambda cfg: (rec, times, [c.name for c in cams] + ["laser", "binaural"]))

@@ -21,11 +21,13 @@ from planefuse.viz import (
     RerunLogger,
     animate_stack,
     grid_lines_world,
+    occupancy_mean,
     plane_entity,
     plot_camera_grid,
     plot_metrics,
     plot_saliency,
     rrd_entity_paths,
+    run_figures,
     stack_frames,
 )
 
@@ -116,6 +118,43 @@ def test_animation_gif_and_mp4(tmp_path, stack, rng):
     with pytest.raises(ValueError, match=".gif or .mp4"):
         animate_stack(tmp_path / "a.avi", stack, occ)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.gif", "a.mp4", "b.gif"]
+
+
+class _BlockReads:
+    """An occupancy array that refuses to be read more than ``block`` steps at a time (what a long run's
+    figures and animation must do with ``occupancy.zarr``), and counts the steps read."""
+
+    def __init__(self, occ, block):
+        self.occ, self.block, self.steps_read = occ, block, 0
+        self.shape = occ.shape
+
+    def __getitem__(self, key):
+        got = np.asarray(self.occ[key])
+        n = 1 if isinstance(key, (int, np.integer)) else got.shape[0]
+        assert n <= self.block, f"read {n} steps at once"
+        self.steps_read += n
+        return got
+
+
+def test_figures_and_animation_read_occupancy_a_block_at_a_time(tmp_path, stack, rng):
+    occ = rng.random((150,) + stack.shape).astype(np.float32)
+    occ[:40, 0, 2, 3] = np.nan  # a cell unobserved in the first 40 steps
+    occ[:, 1, 0, 0] = np.nan  # a cell never observed
+    with pytest.warns(RuntimeWarning, match="Mean of empty slice"):
+        ref = np.nanmean(occ, axis=0)
+    np.testing.assert_allclose(occupancy_mean(_BlockReads(occ, 64)), ref, rtol=1e-6, equal_nan=True)
+    lazy = _BlockReads(occ, 64)
+    figs = run_figures(stack, lazy, np.arange(150) * 0.1, {"step": np.array([])}, {}, {}, FigureInputs(), dpi=40)
+    assert {"occupancy_last", "occupancy_mean"} <= set(figs) and lazy.steps_read == 151
+    lazy = _BlockReads(occ, 1)
+    with pytest.warns(UserWarning, match="shows 100 of 150"):
+        gif = animate_stack(tmp_path / "a.gif", stack, lazy, max_frames=100, block_steps=16)
+    assert lazy.steps_read == 100 and iio.imread(gif, index=None).shape[0] == 100
+    zarr = pytest.importorskip("zarr")
+    z = zarr.create_array(zarr.storage.MemoryStore(), shape=occ.shape, chunks=(10,) + stack.shape, dtype="float32")
+    z[:] = occ
+    assert np.array_equal(animate_stack(tmp_path / "z.gif", stack, z).read_bytes(),
+                          animate_stack(tmp_path / "n.gif", stack, occ).read_bytes())
 
 
 def test_plot_input_checks():

@@ -550,8 +550,13 @@ class OutputWriter:
         return self._steps_written
 
     def occupancy(self) -> np.ndarray:
-        """All occupancy written so far, shape (T, L, ny, nx) float32."""
+        """All occupancy written so far, shape (T, L, ny, nx) float32, in memory (see :meth:`occupancy_array`)."""
         return self._occ[:]
+
+    def occupancy_array(self):
+        """The occupancy written so far as the store's array, shape (T, L, ny, nx) float32: indexing it reads
+        only the steps asked for (from ``occupancy.zarr`` when the run keeps it on disk)."""
+        return self._occ
 
     def times_s(self) -> np.ndarray:
         """Times [s] of the written steps, shape (T,)."""

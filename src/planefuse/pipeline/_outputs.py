@@ -161,7 +161,7 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
     if settings.figures or settings.report:
         from ..viz import run_figures
 
-        figs = run_figures(out.stack, out.occupancy(), out.times_s(), out.detections_table(), out.tracks_table(),
+        figs = run_figures(out.stack, out.occupancy_array(), out.times_s(), out.detections_table(), out.tracks_table(),
                            out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
     if settings.figures:
         names = [f"{check_name(name, 'figure name')}.png" for name in figs]
@@ -175,7 +175,7 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         from ..viz import animate_stack
 
         p = out.out_dir / f"animation.{settings.animation}"
-        animate_stack(p, out.stack, out.occupancy(), out.tracks_table())
+        animate_stack(p, out.stack, out.occupancy_array(), out.tracks_table())
         written["animation"] = p
     if settings.report:
         from ..report import write_report

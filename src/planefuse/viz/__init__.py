@@ -4,6 +4,7 @@ from ._animation import animate_stack, stack_frames
 from ._figures import (
     FigureInputs,
     grid_lines_world,
+    occupancy_mean,
     plot_camera_grid,
     plot_laser_points,
     plot_metrics,
@@ -19,6 +20,7 @@ __all__ = [
     "RerunLogger",
     "animate_stack",
     "grid_lines_world",
+    "occupancy_mean",
     "plane_entity",
     "plot_camera_grid",
     "plot_laser_points",

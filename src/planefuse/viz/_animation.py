@@ -1,8 +1,10 @@
-"""Animation of the plane stack over time (GIF through imageio; MP4 through imageio or OpenCV).
+"""Animation of the plane stack over time (GIF through Pillow; MP4 through OpenCV).
 
 Frames are built directly from the arrays (colour map + nearest-neighbour
 upscaling), not by redrawing a matplotlib figure per step, so a few hundred
-steps take a second or two.
+steps take a second or two. They are built and encoded a block of steps at a
+time from the (on-disk) occupancy array, so the memory of an animation does
+not grow with the length of the run.
 """
 
 from __future__ import annotations
@@ -12,9 +14,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import cv2
-import imageio.v3 as iio
 import matplotlib
 import numpy as np
+from PIL import Image
 
 from ..grid import PlaneStack
 from ..outputs._atomic import TMP_MARK
@@ -89,12 +91,15 @@ def animate_stack(
     fps: float = 10.0,
     max_frames: int = 300,
     max_width_px: int = 1200,
+    block_steps: int = 32,
 ) -> Path:
     """Write an animation of the plane stack over time to ``path`` (``.gif`` or ``.mp4``).
 
     Parameters
     ----------
-    occupancy : ndarray, shape (T, L, ny, nx)
+    occupancy : array-like, shape (T, L, ny, nx)
+        An ndarray or an on-disk array (:meth:`OutputWriter.occupancy_array`); read ``block_steps`` steps
+        at a time.
     tracks : dict of column arrays, optional
     fps : float
         Frames per second of the animation.
@@ -102,6 +107,9 @@ def animate_stack(
         Longer runs are subsampled evenly (the count dropped is warned about).
     max_width_px : int
         Cells are drawn with as many pixels as fit this width (at least 1, at most 8).
+    block_steps : int
+        Frames built at once; a GIF's encoder keeps one palette image (1 byte per pixel) per frame that
+        differs from the previous one, an MP4's nothing.
 
     Returns
     -------
@@ -112,8 +120,7 @@ def animate_stack(
     suffix = path.suffix.lower()
     if suffix not in (".gif", ".mp4"):
         raise ValueError(f"animation path must end in .gif or .mp4, got {path.name!r}")
-    occ = np.asarray(occupancy)
-    T = occ.shape[0]
+    T = occupancy.shape[0]
     if T == 0:
         raise ValueError("occupancy has no time steps to animate")
     idx = np.unique(np.linspace(0, T - 1, min(T, max_frames)).round().astype(int))
@@ -121,31 +128,39 @@ def animate_stack(
         warnings.warn(f"animation shows {len(idx)} of {T} steps (max_frames={max_frames})", stacklevel=2)
     L, ny, nx = stack.shape
     cell_px = max(1, min(8, (max_width_px - 4 * (L - 1)) // (L * nx)))
-    frames = stack_frames(stack, occ[idx], tracks, steps=idx, cell_px=cell_px)
-    if suffix == ".mp4":  # codecs want even sizes
-        frames = frames[:, : frames.shape[1] // 2 * 2, : frames.shape[2] // 2 * 2]
+
+    def frames():
+        for a in range(0, len(idx), block_steps):
+            steps = idx[a: a + block_steps]
+            block = np.stack([np.asarray(occupancy[int(s)]) for s in steps])
+            f = stack_frames(stack, block, tracks, steps=steps, cell_px=cell_px)
+            yield from f[:, : f.shape[1] // 2 * 2, : f.shape[2] // 2 * 2] if suffix == ".mp4" else f
+
     tmp = path.with_name(f".{path.stem}{TMP_MARK}{path.suffix}")
     try:
         if suffix == ".gif":
-            iio.imwrite(tmp, frames, duration=1000.0 / fps, loop=0)
+            images = (Image.fromarray(f) for f in frames())
+            next(images).save(tmp, format="GIF", save_all=True, append_images=images,
+                              duration=1000.0 / fps, loop=0)
         else:
-            _write_mp4(tmp, frames, fps)
+            _write_mp4(tmp, frames(), fps)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
 
 
-def _write_mp4(path: Path, frames: np.ndarray, fps: float) -> None:
+def _write_mp4(path: Path, frames, fps: float) -> None:
+    """MPEG-4 through OpenCV's FFmpeg backend, one RGB frame at a time (codecs want even sizes)."""
+    vw = None
     try:
-        iio.imwrite(path, frames, fps=fps)
-        return
-    except (OSError, ImportError, ValueError):
-        pass  # no imageio video plugin installed: OpenCV's FFmpeg backend writes MPEG-4 Part 2
-    h, w = frames.shape[1:3]
-    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
-    if not vw.isOpened():
-        raise OSError(f"cannot write MP4 {path}: neither imageio (ffmpeg/pyav) nor OpenCV can encode video here")
-    for f in frames:
-        vw.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
-    vw.release()
+        for f in frames:
+            if vw is None:
+                h, w = f.shape[:2]
+                vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
+                if not vw.isOpened():
+                    raise OSError(f"cannot write MP4 {path}: OpenCV has no video encoder here")
+            vw.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+    finally:
+        if vw is not None:
+            vw.release()

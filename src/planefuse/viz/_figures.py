@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -33,6 +32,7 @@ __all__ = [
     "png_bytes",
     "run_figures",
     "grid_lines_world",
+    "occupancy_mean",
 ]
 
 
@@ -304,7 +304,10 @@ def run_figures(
 
     Parameters
     ----------
-    occupancy : ndarray, shape (T, L, ny, nx)
+    occupancy : array-like, shape (T, L, ny, nx)
+        P(occupied) over time: an ndarray or an on-disk array read one block of steps at a time
+        (:meth:`OutputWriter.occupancy_array`), so the figures of a long run need memory for a block of
+        steps only, not for the whole run.
     times_s : ndarray, shape (T,)
     detections, tracks : dict of column arrays
         As returned by :meth:`OutputWriter.detections_table` / ``tracks_table``.
@@ -312,7 +315,7 @@ def run_figures(
     inputs : FigureInputs
     progress : ProgressReporter, optional
     """
-    occ = np.asarray(occupancy)
+    occ = occupancy
     jobs: list[tuple[str, object]] = []
     if occ.shape[0]:
         last = occ.shape[0] - 1
@@ -345,10 +348,34 @@ def run_figures(
     return out
 
 
-def _mean_fig(stack: PlaneStack, occ: np.ndarray, tracks, ground_truth) -> Figure:
-    with warnings.catch_warnings():  # all-NaN cells (never observed) stay NaN
-        warnings.simplefilter("ignore", RuntimeWarning)
-        mean = np.nanmean(occ, axis=0)
-    fig = plot_plane_occupancy(stack, mean, tracks=tracks, ground_truth=ground_truth)
+def occupancy_mean(occupancy, block_steps: int = 64) -> np.ndarray:
+    """Mean over time of every cell's P(occupied), ignoring NaN (unobserved) steps, read block by block.
+
+    Parameters
+    ----------
+    occupancy : array-like, shape (T, L, ny, nx)
+        Any array indexable by a slice of steps (ndarray, zarr array), T >= 1.
+    block_steps : int
+        Steps read at once: memory is ``block_steps`` steps, whatever T.
+
+    Returns
+    -------
+    ndarray, shape (L, ny, nx), float64
+        The mean of the non-NaN steps of each cell; NaN where a cell was never observed.
+    """
+    T = occupancy.shape[0]
+    total = np.zeros(occupancy.shape[1:], np.float64)
+    count = np.zeros(occupancy.shape[1:], np.int64)
+    for a in range(0, T, block_steps):
+        block = np.asarray(occupancy[a: a + block_steps], np.float64)
+        seen = ~np.isnan(block)
+        total += np.where(seen, block, 0.0).sum(axis=0)
+        count += seen.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def _mean_fig(stack: PlaneStack, occ, tracks, ground_truth) -> Figure:
+    fig = plot_plane_occupancy(stack, occupancy_mean(occ), tracks=tracks, ground_truth=ground_truth)
     fig.suptitle(f"Mean occupancy over {occ.shape[0]} steps, with all tracks")
     return fig

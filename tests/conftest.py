@@ -50,3 +50,14 @@ def shared_data(name: str) -> Path:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(0)
+
+
+def edit_laser_npz(rec: Path, edit) -> Path:
+    """Rewrite the first laser chunk (NPZ) of the recording folder ``rec`` after ``edit(arrays)`` changed its
+    dict of arrays in place; returns the chunk's path (hostile-input tests)."""
+    p = next((rec / "laser").rglob("*.npz"))
+    with np.load(p) as z:
+        arrays = {k: z[k] for k in z.files}
+    edit(arrays)
+    np.savez(p, **arrays)
+    return p

@@ -19,6 +19,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
+from conftest import edit_laser_npz
 
 from planefuse.cli import app
 from planefuse.config import ConfigError, example_yaml, load_config
@@ -64,14 +65,6 @@ def _drop_frames(rec: Path, cam: int, row: int, n: int) -> None:
     (rec / "scene.yaml").write_text(yaml.safe_dump(m))
 
 
-def _laser(rec: Path, edit) -> None:
-    p = next((rec / "laser").rglob("*.npz"))
-    with np.load(p) as z:
-        arrays = {k: z[k] for k in z.files}
-    edit(arrays)
-    np.savez(p, **arrays)
-
-
 def _manifest_value(rec: Path, cam: int, key: str, value) -> None:
     m = yaml.safe_load((rec / "scene.yaml").read_text())
     [s for s in m["sensors"] if s["type"] == "camera"][cam][key] = value
@@ -89,11 +82,11 @@ CORRUPTIONS = {
     "time stamp hostile": (lambda r, c, i, v: _set_time(r, c, i, str(v)), False),
     "time stamp repeated": (lambda r, c, i, v: _set_time(r, c, i, _times_rows(r, c)[1][i].split(",")[0]), False),
     "frames dropped": (lambda r, c, i, v: _drop_frames(r, c, i, 5), True),
-    "laser times hostile": (lambda r, c, i, v: _laser(r, lambda a: a["time_s"].__setitem__(
+    "laser times hostile": (lambda r, c, i, v: edit_laser_npz(r, lambda a: a["time_s"].__setitem__(
         i % len(a["time_s"]), v if isinstance(v, float) else np.nan)), False),
-    "laser chunk emptied": (lambda r, c, i, v: _laser(
+    "laser chunk emptied": (lambda r, c, i, v: edit_laser_npz(
         r, lambda a: a.update({k: x[:0] for k, x in a.items() if k != "angles_rad"})), False),
-    "laser ranges reshaped": (lambda r, c, i, v: _laser(r, lambda a: a.update(ranges_m=a["ranges_m"][:, :-1])),
+    "laser ranges reshaped": (lambda r, c, i, v: edit_laser_npz(r, lambda a: a.update(ranges_m=a["ranges_m"][:, :-1])),
                               False),
     "camera field hostile": (lambda r, c, i, v: _manifest_value(
         r, c, ["K", "T_world_cam", "rate_hz", "width_px", "dist", "n_frames"][i % 6], v), False),

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 from typer.testing import CliRunner
+from conftest import edit_laser_npz
 
 from planefuse.cli import app
 from planefuse.config import example_yaml
@@ -239,21 +240,12 @@ def test_rerun_without_rerun_sdk_is_a_one_line_error(recording_dir, tmp_path, mo
     assert not (tmp_path / "out").exists()  # refused before anything was written
 
 
-def _laser_npz(rec: Path, edit) -> Path:
-    p = next((rec / "laser").rglob("*.npz"))
-    with np.load(p) as z:
-        arrays = {k: z[k] for k in z.files}
-    edit(arrays)
-    np.savez(p, **arrays)
-    return p
-
-
 @pytest.mark.parametrize("edit, match", [
     (lambda a: a.update({k: v[:0] for k, v in a.items() if k != "angles_rad"}), "n_scans|no scans|empty"),
     (lambda a: a["time_s"].__setitem__(slice(3, 5), np.nan), "NaN|finite"),
 ])
 def test_bad_laser_chunks_are_one_line_errors(rec_copy, edit, match):
-    p = _laser_npz(rec_copy, edit)
+    p = edit_laser_npz(rec_copy, edit)
     with pytest.raises(ValueError, match=match) as exc:
         rec = read_recording(rec_copy)
         for name in rec.lasers:

@@ -9,7 +9,10 @@ import numpy as np
 from ._detection import detection_scores
 from ._tracking import tracking_metrics
 
-__all__ = ["system_metrics"]
+__all__ = ["system_metrics", "EVAL_WARMUP_S"]
+
+#: The evaluation skips this much of the start of a recording [s] (background models and filter learning).
+EVAL_WARMUP_S = 1.0
 
 
 def _lateral(azimuth_rad: float) -> float:
@@ -23,7 +26,7 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
     """Scores of a whole-system run against its recording's ground truth, from the output steps alone (in
     memory, or read back from a run folder): MODA/MODP/precision/recall of the filtered detections, MOTA/IDF1
     (motmetrics) of the tracks, MODA of the cameras alone and the sound azimuth error on single-talker blocks,
-    after a 1 s warm-up.
+    after the first :data:`EVAL_WARMUP_S` seconds (warm-up).
 
     Parameters
     ----------
@@ -49,8 +52,7 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
         raise ValueError(f"times_s ({len(times_s)}), detections_xy_m ({len(detections_xy_m)}) and tracks "
                          f"({len(tracks)}) must have one entry per step")
     gt = rec.groundtruth.people
-    # skip the first second: the background model and the filter are still learning
-    warm = gt.times_s[0] + 1.0
+    warm = gt.times_s[0] + EVAL_WARMUP_S  # the background model and the filter are still learning
     keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
     gt_frames = [(float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]) for t in times_s[keep]]
     det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), match_distance_m)

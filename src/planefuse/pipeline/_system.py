@@ -11,7 +11,7 @@ import numpy as np
 
 from .._params import check_fields, require
 from .._state import StateDict, get, sub_state, with_prefix
-from ..eval import system_metrics
+from ..eval import EVAL_WARMUP_S, system_metrics
 from ..grid import PlaneStack
 from ..io import Recording
 from ..laser import LaserSensorModel
@@ -148,10 +148,6 @@ def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: 
         check_cameras_against_stack(rec.cameras, stack)
     check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
     return stack
-
-
-#: The evaluation skips this much of the start of a recording [s] (background models and filter learning).
-EVAL_WARMUP_S = 1.0
 
 
 def can_evaluate(rec: Recording, times_s) -> bool:

@@ -396,3 +396,21 @@ def test_laser_and_audio_round_trip_any_shape(tmp_path_factory, n_scans, n_beams
     h = back.binaural("h")
     np.testing.assert_array_equal(h.read(), audio)
     assert h.start_time_s == 0.25 and h.fs_hz == 8000
+
+
+def test_laser_device_schema_has_the_fields_of_the_library_classes():
+    """The manifest's laser device entry (io) and the library's scanner and unit (laser) are written twice (io
+    must not import laser): they must keep the same fields and defaults."""
+    import dataclasses
+    import inspect
+
+    from planefuse.io import LaserScannerDevice, LaserUnitDevice
+    from planefuse.laser import LaserScannerSpec, TiltingUnit
+
+    spec = {f.name: f.default for f in dataclasses.fields(LaserScannerSpec)}
+    schema = {k: (v.default if not v.is_required() else dataclasses.MISSING)
+              for k, v in LaserScannerDevice.model_fields.items()}
+    assert schema == spec
+    unit = {k: p.default for k, p in inspect.signature(TiltingUnit).parameters.items() if k != "scanner"}
+    device = {k: v.default for k, v in LaserUnitDevice.model_fields.items() if k not in ("scanner", "scan_duration_s")}
+    assert {k: unit[k] for k in device} == device

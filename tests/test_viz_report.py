@@ -107,9 +107,14 @@ def test_stack_frames_put_cells_and_tracks_where_the_world_is(stack):
 
 def test_animation_gif_and_mp4(tmp_path, stack, rng):
     occ = rng.random((9,) + stack.shape).astype(np.float32)
-    gif = animate_stack(tmp_path / "a.gif", stack, occ, fps=5)
+    gif = animate_stack(tmp_path / "a.gif", stack, occ, fps=5, block_steps=4)
     frames = iio.imread(gif, index=None)
-    assert frames.shape[0] == 9 and frames.shape[-1] in (3, 4)
+    L, ny, nx = stack.shape
+    expected = stack_frames(stack, occ, cell_px=max(1, min(8, (1200 - 4 * (L - 1)) // (L * nx))))
+    assert np.array_equal(frames[..., :3], expected)  # every frame exact: one global palette, no quantisation
+    from PIL import Image
+    with Image.open(gif) as im:
+        assert im.n_frames == 9 and im.info["duration"] == 200 and im.info["loop"] == 0
     mp4 = animate_stack(tmp_path / "a.mp4", stack, occ)
     cap = cv2.VideoCapture(str(mp4))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 9

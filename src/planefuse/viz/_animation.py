@@ -16,12 +16,20 @@ from pathlib import Path
 import cv2
 import matplotlib
 import numpy as np
-from PIL import Image
+from PIL import GifImagePlugin, Image
 
 from ..grid import PlaneStack
 from ..outputs._atomic import TMP_MARK
 
-__all__ = ["stack_frames", "animate_stack"]
+__all__ = ["stack_frames", "stack_palette_frames", "animate_stack", "PALETTE"]
+
+
+#: Palette of the animation frames: 254 levels of matplotlib's "magma" for P(occupied) 0..1, then grey
+#: (unobserved cells) and white (gaps between planes, track dots).
+_N_LEVELS = 254
+_GREY, _WHITE = 254, 255
+PALETTE = np.vstack([matplotlib.colormaps["magma"](np.linspace(0.0, 1.0, _N_LEVELS), bytes=True)[:, :3],
+                     [[90, 90, 90], [255, 255, 255]]]).astype(np.uint8)
 
 
 def stack_frames(
@@ -52,18 +60,32 @@ def stack_frames(
     Returns
     -------
     ndarray, shape (T, ny * cell_px, L * (nx * cell_px + gap_px) - gap_px, 3), uint8
+        ``PALETTE[stack_palette_frames(...)]``.
     """
+    return PALETTE[stack_palette_frames(stack, occupancy, tracks, steps=steps, cell_px=cell_px, gap_px=gap_px)]
+
+
+def stack_palette_frames(
+    stack: PlaneStack,
+    occupancy,
+    tracks: Mapping[str, np.ndarray] | None = None,
+    *,
+    steps=None,
+    cell_px: int = 2,
+    gap_px: int = 4,
+) -> np.ndarray:
+    """The frames of :func:`stack_frames` as indices into :data:`PALETTE`, shape (T, H, W) uint8."""
     occ = np.asarray(occupancy, dtype=np.float32)
     if occ.ndim != 4 or occ.shape[1:] != stack.shape:
         raise ValueError(f"occupancy must have shape (T, {', '.join(map(str, stack.shape))}), got {occ.shape}")
     T, L, ny, nx = occ.shape
     steps = np.arange(T) if steps is None else np.asarray(steps)
-    rgba = matplotlib.colormaps["magma"](np.nan_to_num(occ, nan=0.0), bytes=True)[..., :3]
-    rgba[np.isnan(occ)] = 90
-    rgba = rgba[:, :, ::-1]  # row iy grows with world Y: flip so Y points up in the image
-    big = np.repeat(np.repeat(rgba, cell_px, axis=2), cell_px, axis=3)
+    idx = np.rint(np.clip(np.nan_to_num(occ, nan=0.0), 0.0, 1.0) * (_N_LEVELS - 1)).astype(np.uint8)
+    idx[np.isnan(occ)] = _GREY
+    idx = idx[:, :, ::-1]  # row iy grows with world Y: flip so Y points up in the image
+    big = np.repeat(np.repeat(idx, cell_px, axis=2), cell_px, axis=3)
     h, w = ny * cell_px, nx * cell_px
-    frames = np.full((T, h, L * (w + gap_px) - gap_px, 3), 255, np.uint8)
+    frames = np.full((T, h, L * (w + gap_px) - gap_px), _WHITE, np.uint8)
     for l in range(L):
         frames[:, :, l * (w + gap_px): l * (w + gap_px) + w] = big[:, l]
     if tracks is not None and len(tracks.get("step", [])):
@@ -78,7 +100,7 @@ def stack_frames(
             v = (ny - 1 - y) * cell_px
             for l in range(L):
                 u = l * (w + gap_px) + x * cell_px
-                frames[f, max(v - r, 0): v + r + 1, max(u - r, 0): min(u + r + 1, l * (w + gap_px) + w)] = 255
+                frames[f, max(v - r, 0): v + r + 1, max(u - r, 0): min(u + r + 1, l * (w + gap_px) + w)] = _WHITE
     return frames
 
 
@@ -108,8 +130,7 @@ def animate_stack(
     max_width_px : int
         Cells are drawn with as many pixels as fit this width (at least 1, at most 8).
     block_steps : int
-        Frames built at once; a GIF's encoder keeps one palette image (1 byte per pixel) per frame that
-        differs from the previous one, an MP4's nothing.
+        Frames built at once; the GIF and MP4 encoders keep no frame, so memory does not grow with the run.
 
     Returns
     -------
@@ -129,25 +150,37 @@ def animate_stack(
     L, ny, nx = stack.shape
     cell_px = max(1, min(8, (max_width_px - 4 * (L - 1)) // (L * nx)))
 
-    def frames():
+    def frames():  # palette indices, a block of steps at a time
         for a in range(0, len(idx), block_steps):
             steps = idx[a: a + block_steps]
             block = np.stack([np.asarray(occupancy[int(s)]) for s in steps])
-            f = stack_frames(stack, block, tracks, steps=steps, cell_px=cell_px)
-            yield from f[:, : f.shape[1] // 2 * 2, : f.shape[2] // 2 * 2] if suffix == ".mp4" else f
+            yield from stack_palette_frames(stack, block, tracks, steps=steps, cell_px=cell_px)
 
     tmp = path.with_name(f".{path.stem}{TMP_MARK}{path.suffix}")
     try:
         if suffix == ".gif":
-            images = (Image.fromarray(f) for f in frames())
-            next(images).save(tmp, format="GIF", save_all=True, append_images=images,
-                              duration=1000.0 / fps, loop=0)
+            _write_gif(tmp, frames(), fps)
         else:
-            _write_mp4(tmp, frames(), fps)
+            _write_mp4(tmp, (PALETTE[f[: f.shape[0] // 2 * 2, : f.shape[1] // 2 * 2]] for f in frames()), fps)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+def _write_gif(path: Path, frames, fps: float) -> None:
+    """An animated GIF (looping, global :data:`PALETTE`), written one frame at a time: Pillow encodes each
+    palette frame (``GifImagePlugin.getheader``/``getdata``), nothing is kept between frames."""
+    duration_ms = int(round(1000.0 / fps))
+    with open(path, "wb") as fp:
+        for k, f in enumerate(frames):
+            im = Image.fromarray(f, mode="P")
+            im.putpalette(PALETTE.ravel().tolist())
+            if k == 0:
+                header, _ = GifImagePlugin.getheader(im, None, {"loop": 0, "duration": duration_ms})
+                fp.write(b"".join(header))
+            fp.write(b"".join(GifImagePlugin.getdata(im, duration=duration_ms)))
+        fp.write(b";")  # GIF trailer
 
 
 def _write_mp4(path: Path, frames, fps: float) -> None:

@@ -25,8 +25,10 @@ from ._checks import check_finite, check_intrinsics_matrix, check_points, check_
 
 __all__ = [
     "ATTITUDE_METHODS",
+    "DEFAULT_ATTITUDE_FILTER",
     "attitude_from_imu",
     "inclination_error_rad",
+    "still_samples",
     "R_world_cam_from_attitude",
     "yaw_from_ground_points",
 ]
@@ -36,16 +38,42 @@ __all__ = [
 #: winds up during fast rotation and stays ~20 deg off at rest afterwards on the
 #: x-io log, where Madgwick and imufusion agree; see docs/results.md.
 ATTITUDE_METHODS = ("madgwick", "mahony", "ekf", "imufusion")
+#: The default filter (method of :func:`attitude_from_imu`), with its parameters' defaults.
+DEFAULT_ATTITUDE_FILTER = ATTITUDE_METHODS[0]
 
 _G_M_S2 = 9.80665
 
 # Filter parameters each method accepts (ahrs' constructors swallow unknown keywords silently).
+# "rest_gain" (with "rest_rate_rad_s", "rest_accel_tolerance") is planefuse's gain schedule around the library's
+# filter: the gain while the IMU is still (:func:`still_samples`), the method's own gain while it moves.
+_SCHEDULE = {"rest_gain", "rest_rate_rad_s", "rest_accel_tolerance"}
 _PARAMS = {
-    "madgwick": {"gain"},
+    "madgwick": {"gain"} | _SCHEDULE,
     "mahony": {"k_P", "k_I"},
     "ekf": {"noises", "var_acc", "var_gyr", "P"},
-    "imufusion": {"gain", "gyroscope_range_deg_s", "acceleration_rejection_deg", "rejection_timeout_s"},
+    "imufusion": {"gain", "gyroscope_range_deg_s", "acceleration_rejection_deg", "rejection_timeout_s",
+                  "gyro_bias"} | _SCHEDULE,
 }
+
+
+def still_samples(gyro_rad_s: np.ndarray, accel_m_s2: np.ndarray, rate_rad_s: float = 0.1,
+                  accel_tolerance: float = 0.05) -> np.ndarray:
+    """Samples (N,) bool where the IMU is still: ``|gyro| < rate_rad_s`` [rad/s] and ``|acc|`` within
+    ``accel_tolerance`` (fraction) of 1 g, so that the accelerometer reads gravity alone."""
+    return (np.linalg.norm(gyro_rad_s, axis=1) < rate_rad_s) \
+        & (np.abs(np.linalg.norm(accel_m_s2, axis=1) / _G_M_S2 - 1.0) < accel_tolerance)
+
+
+def _schedule(params: dict, gyr: np.ndarray, acc: np.ndarray, gain: float,
+              rest_gain: float | None = None) -> np.ndarray | None:
+    """Per-sample gain of the schedule (None without ``rest_gain``, or with 0); removes the schedule's keys
+    from ``params``. ``rest_gain`` is the method's default."""
+    rest_gain = params.pop("rest_gain", rest_gain)
+    rate = float(params.pop("rest_rate_rad_s", 0.1))
+    tol = float(params.pop("rest_accel_tolerance", 0.05))
+    if not rest_gain:
+        return None
+    return np.where(still_samples(gyr, acc, rate, tol), float(rest_gain), gain)
 
 
 def _check_imu_streams(time_s, gyro_rad_s, accel_m_s2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -75,6 +103,7 @@ def _run_ahrs(method: str, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, par
     from ahrs.filters import EKF, Madgwick, Mahony
 
     fs_hz = 1.0 / float(np.median(dt))
+    gains = _schedule(params, gyr, acc, float(params.get("gain", 0.033))) if method == "madgwick" else None
     if method == "mahony":
         flt = Mahony(frequency=fs_hz, **params)
         step = flt.updateIMU
@@ -94,6 +123,8 @@ def _run_ahrs(method: str, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, par
     Q[0] = acc2q(acc[0])
     # The filters are recursive: one update per sample is the algorithm (ahrs' own batch mode loops the same way).
     for k in range(1, gyr.shape[0]):
+        if gains is not None:
+            flt.gain = gains[k]
         Q[k] = step(Q[k - 1], gyr[k], acc[k], dt=dt[k - 1])
     return Q
 
@@ -109,13 +140,23 @@ def _run_imufusion(dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, params: dic
     settings.gyroscope_range = float(params.get("gyroscope_range_deg_s", 2000.0))
     settings.acceleration_rejection = float(params.get("acceleration_rejection_deg", 10.0))
     settings.rejection_timeout = float(params.get("rejection_timeout_s", 5.0))
+    gains = _schedule(params, gyr, acc, settings.gain)
     ahrs = imufusion.Ahrs()
     ahrs.set_settings(settings)
     gyr_deg_s = np.degrees(gyr)
+    if params.get("gyro_bias", False):  # imufusion's own gyroscope offset tracking while still
+        bias = imufusion.Bias()
+        bias_settings = imufusion.BiasSettings()
+        bias_settings.sample_rate = settings.sample_rate
+        bias.set_settings(bias_settings)
+        gyr_deg_s = np.array([bias.update(g) for g in gyr_deg_s])
     acc_g = acc / _G_M_S2
     dts = np.concatenate([[np.median(dt)], dt])
     Q = np.empty((gyr.shape[0], 4))
     for k in range(gyr.shape[0]):
+        if gains is not None and (k == 0 or gains[k] != gains[k - 1]):
+            settings.gain = float(gains[k])
+            ahrs.set_settings(settings)
         ahrs.set_sample_period(float(dts[k]))
         ahrs.update_no_magnetometer(gyr_deg_s[k], acc_g[k])
         Q[k] = ahrs.get_quaternion()
@@ -153,7 +194,11 @@ def attitude_from_imu(
         Madgwick; ``k_P``, ``k_I`` for Mahony; ``noises``, ``var_acc``,
         ``var_gyr``, ``P`` for the EKF); for ``imufusion``: ``gain``,
         ``gyroscope_range_deg_s`` (default 2000), ``acceleration_rejection_deg``
-        (default 10), ``rejection_timeout_s`` (default 5); 0 disables the last three.
+        (default 10), ``rejection_timeout_s`` (default 5); 0 disables the last three; ``gyro_bias`` (bool,
+        default False): imufusion's gyroscope offset tracking while still. Madgwick and imufusion take a
+        gain schedule: ``rest_gain``, the gain while the IMU is still (:func:`still_samples` with
+        ``rest_rate_rad_s``, default 0.1, and ``rest_accel_tolerance``, default 0.05), the method's gain
+        otherwise.
 
     Returns
     -------

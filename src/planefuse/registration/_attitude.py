@@ -6,9 +6,15 @@ Each camera takes its attitude from one of two sources (:class:`RegistrationPara
 * ``"imu"``: roll and pitch from the camera's IMU (an :func:`~planefuse.geometry.attitude_from_imu` filter),
   the heading about gravity fixed once by :func:`~planefuse.geometry.yaw_from_ground_points` on ground points
   the calibrated camera sees at its first frame (the calibration's moment) and followed afterwards by the
-  filter's gyroscope integration, the optical centre from the calibration. The camera's image -> plane
-  lookup follows this attitude: it is rebuilt when the attitude has turned far enough from the one it was
-  built for to move some image point by more than ``tolerance_px`` pixels, so a still camera costs nothing.
+  filter's gyroscope integration, the optical centre from the calibration. At that moment the calibration,
+  measured on the images, is trusted over the IMU: what still separates the two attitudes (the IMU's
+  mounting error on the camera and the accelerometer bias, ~0.1-0.5 deg for the simulator's IMU, i.e. a few
+  pixels) is kept as a fixed correction in the camera frame (``refine_mount``), so the IMU gives the
+  camera's motion since calibration, not a second, slightly different rest attitude. Before that moment
+  (the filter settling over the still start of the stream) the attitude is the one at it. The camera's
+  image -> plane lookup follows this attitude: it is rebuilt when the attitude has turned far enough from
+  the one it was built for to move some image point by more than ``tolerance_px`` pixels, so a still
+  camera costs nothing.
 
 The camera turns about its optical centre, so a change of attitude ``R_built -> R`` moves an undistorted
 pixel ``u`` to ``pi(K R^T R_built K^-1 u)`` (the infinite homography); the displacement is measured on a
@@ -33,7 +39,7 @@ from ..grid import PlaneStack
 from ._lookup import ImagePlaneLookup
 
 __all__ = ["ATTITUDE_SOURCES", "AttitudeTrack", "CameraRegistration", "RegistrationParams",
-           "gyro_bias_at_rest", "pixel_shift_px", "rest_at_start_s"]
+           "ground_reprojection_error_m", "gyro_bias_at_rest", "pixel_shift_px", "rest_at_start_s"]
 
 #: Where a camera's attitude comes from.
 ATTITUDE_SOURCES = ("calibration", "imu")
@@ -51,6 +57,12 @@ class RegistrationParams:
         Per-camera exceptions (camera name -> source).
     tolerance_px : float
         A following lookup is rebuilt when the attitude has moved some image point by more than this [px].
+        The default, 1 px, is above the jitter of the default filter on a still simulated camera (at most
+        0.5 px over 10 s, so a still camera is never rebuilt) and a fraction of a 0.1 m cell wherever a
+        360 x 288 px camera sees a 10 m room (a pixel spans at most ~6 cm of ground at 10 m).
+    refine_mount : bool
+        Keep the difference between the calibration and the IMU attitude at the calibration's moment as a
+        fixed camera-frame correction (see the module docstring); False: the filter's roll and pitch as is.
     imu_filter : str
         :func:`~planefuse.geometry.attitude_from_imu` method.
     imu_filter_params : mapping, optional
@@ -65,7 +77,8 @@ class RegistrationParams:
 
     attitude_source: str = "calibration"
     attitude_source_by_camera: Mapping[str, str] = field(default_factory=dict)
-    tolerance_px: float = 0.5
+    tolerance_px: float = 1.0
+    refine_mount: bool = True
     imu_filter: str = "madgwick"
     imu_filter_params: Mapping[str, float] | None = None
     gyro_bias_rest_s: float = 1.0
@@ -119,6 +132,34 @@ def pixel_shift_px(K, R_world_cam_a, R_world_cam_b, width_px: int, height_px: in
     return float(np.max(np.where(q[:, 2] > 0, shift, np.inf)))
 
 
+def ground_reprojection_error_m(center_world, R_world_cam_true, R_world_cam_used, xy_world) -> np.ndarray:
+    """How far a registration puts ground points (z = 0) that a camera sees: each point is projected into the
+    image with the camera's true attitude, and its pixel taken back to the ground with the attitude the
+    registration uses [m], (N,); NaN for points behind the true camera or whose pixel's ray misses the ground.
+
+    The pixel's ray is the point's direction in the camera frame whatever the intrinsics and lens (the same
+    on both sides), so only attitudes enter.
+
+    Parameters
+    ----------
+    center_world : array_like, shape (3,)
+        Optical centre [m], world frame.
+    R_world_cam_true, R_world_cam_used : array_like, shape (3, 3)
+        True attitude and the one the registration uses (camera -> world).
+    xy_world : array_like, shape (N, 2)
+        Ground points, world XY [m].
+    """
+    c = np.asarray(center_world, dtype=float)
+    xy = np.asarray(xy_world, dtype=float).reshape(-1, 2)
+    p = np.c_[xy, np.zeros(len(xy))]
+    x_cam = (p - c) @ np.asarray(R_world_cam_true)  # rows: R^T (p - c)
+    d = x_cam @ np.asarray(R_world_cam_used).T  # the same pixel's ray, turned by the used attitude
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = -c[2] / d[:, 2]
+        err = np.linalg.norm(c[:2] + s[:, None] * d[:, :2] - p[:, :2], axis=1)
+    return np.where((x_cam[:, 2] > 0) & (d[:, 2] < 0), err, np.nan)
+
+
 @dataclass(frozen=True)
 class AttitudeTrack:
     """A camera's attitude in the world over time, from its IMU.
@@ -130,15 +171,22 @@ class AttitudeTrack:
     R_world_cam : ndarray, shape (N, 3, 3)
         Camera axes in the world at each sample.
     yaw_rad : float
-        Heading offset from the filter's gravity frame to the world (``R_world_cam = Rz(yaw) R_gravity_cam``).
+        Heading offset from the filter's gravity frame to the world.
     gyro_bias_rad_s : ndarray, shape (3,)
         Gyroscope bias removed before filtering (IMU frame).
+    R_mount : ndarray, shape (3, 3)
+        Camera-frame correction: ``R_world_cam = Rz(yaw) R_gravity_cam R_mount`` (identity without
+        ``refine_mount``).
+    reference_time_s : float
+        When the attitude was anchored on the calibration; earlier samples hold the attitude there.
     """
 
     times_s: np.ndarray
     R_world_cam: np.ndarray
     yaw_rad: float
     gyro_bias_rad_s: np.ndarray
+    R_mount: np.ndarray = field(default_factory=lambda: np.eye(3))
+    reference_time_s: float = 0.0
 
     @classmethod
     def from_imu(cls, camera: PinholeCamera, time_s, gyro_rad_s, accel_m_s2, R_imu_cam, reference_time_s: float,
@@ -172,7 +220,11 @@ class AttitudeTrack:
             raise ValueError(f"{camera.name}: the IMU attitude at t={t[k]:.3f} s sees the ground in fewer than 2 "
                              "of the calibration's ground points; is the IMU's T_cam_imu right?")
         yaw = yaw_from_ground_points(camera.K, R_gravity_cam[k], camera.center_world, uv[down], xy[down])
-        return cls(t, R_world_cam_from_attitude(R_gravity_cam, yaw), yaw, bias)
+        R_world_cam = R_world_cam_from_attitude(R_gravity_cam, yaw)
+        R_mount = R_world_cam[k].T @ camera.R_world_cam if params.refine_mount else np.eye(3)
+        R_world_cam = R_world_cam @ R_mount
+        R_world_cam[:k] = R_world_cam[k]  # the filter settling over the still start: the camera has not moved
+        return cls(t, R_world_cam, yaw, bias, R_mount, float(t[k]))
 
     def at(self, time_s: float) -> np.ndarray:
         """The attitude (3, 3) of the last IMU sample at or before ``time_s`` (the first before the stream)."""
@@ -217,10 +269,12 @@ class CameraRegistration:
     ----------
     n_rebuilds : list of int
         Lookups rebuilt per camera after the first (the cost of following the attitude).
+    rebuild_times_s : list of list of float
+        Per camera, the instants [s] its lookup was rebuilt.
     """
 
     def __init__(self, cameras: Sequence[PinholeCamera], stack: PlaneStack,
-                 tracks: Mapping[str, AttitudeTrack] | None = None, tolerance_px: float = 0.5,
+                 tracks: Mapping[str, AttitudeTrack] | None = None, tolerance_px: float = 1.0,
                  ignore_masks: Sequence[np.ndarray | None] | None = None) -> None:
         self.cameras = list(cameras)
         if ignore_masks is not None and len(ignore_masks) != len(self.cameras):
@@ -234,6 +288,7 @@ class CameraRegistration:
             raise ValueError(f"attitude tracks for unknown cameras {sorted(unknown)}")
         self.tolerance_px = float(tolerance_px)
         self.n_rebuilds = [0] * len(self.cameras)
+        self.rebuild_times_s: list[list[float]] = [[] for _ in self.cameras]
         self._built: list[np.ndarray | None] = [None] * len(self.cameras)
 
     @classmethod
@@ -321,5 +376,6 @@ class CameraRegistration:
                 continue
             self._built[c] = R
             self.n_rebuilds[c] += 1
+            self.rebuild_times_s[c].append(float(time_s))
             out.append(c)
         return out

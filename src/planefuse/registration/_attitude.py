@@ -23,6 +23,7 @@ pixel ``u`` to ``pi(K R^T R_built K^-1 u)`` (the infinite homography); the displ
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -267,6 +268,10 @@ class CameraRegistration:
 
     Attributes
     ----------
+    imu_gaps : dict of str -> list of Gap
+        Per camera registered through its IMU, the gaps of its IMU stream (longer than 1.5 sample periods):
+        the filter bridges each with one step over the gap (its gyroscope rate held), and they are reported
+        (a warning per IMU, and the count in the run's metrics), never silently.
     n_rebuilds : list of int
         Lookups rebuilt per camera after the first (the cost of following the attitude).
     rebuild_times_s : list of list of float
@@ -283,6 +288,7 @@ class CameraRegistration:
         self.ignore_masks = list(ignore_masks) if ignore_masks is not None else [None] * len(self.cameras)
         self.stack = stack
         self.tracks = dict(tracks or {})
+        self.imu_gaps: dict[str, list] = {}
         unknown = set(self.tracks) - {c.name for c in self.cameras}
         if unknown:
             raise ValueError(f"attitude tracks for unknown cameras {sorted(unknown)}")
@@ -307,18 +313,29 @@ class CameraRegistration:
         if unknown:
             raise ValueError(f"attitude_source_by_camera names cameras {sorted(unknown)} not in the recording "
                              f"(cameras: {names})")
-        tracks = {}
+        tracks, gaps = {}, {}
         for cam in rec.cameras:
             if params.source_of(cam.name) != "imu":
                 continue
             imu = rec.imu_for(cam.name)
-            data = imu.read()
+            data = imu.read()  # time order and finite samples checked: an error names the file and line
+            gaps[cam.name] = list(imu.gaps)
+            if imu.gaps:
+                longest = max(g.before_s - g.after_s for g in imu.gaps)
+                warnings.warn(f"{imu.name}: {len(imu.gaps)} gaps in the IMU stream ({sum(g.missing for g in imu.gaps)}"
+                              f" samples missing, longest {longest:.3f} s); the attitude filter bridges each with "
+                              "one step", stacklevel=2)
             t_ref = float(rec.camera(cam.name).times_s[0])
             R_imu_cam = np.asarray(imu.T_cam_imu, dtype=float)[:3, :3].T
-            tracks[cam.name] = AttitudeTrack.from_imu(cam, data.times_s, data.gyro_rad_s, data.accel_m_s2,
-                                                      R_imu_cam, t_ref, params)
-        return cls(rec.cameras, stack, tracks, params.tolerance_px,
-                   ignore_masks=[rec.camera(n).ignore_mask for n in names])
+            try:
+                tracks[cam.name] = AttitudeTrack.from_imu(cam, data.times_s, data.gyro_rad_s, data.accel_m_s2,
+                                                          R_imu_cam, t_ref, params)
+            except ValueError as exc:
+                raise ValueError(f"imu {imu.name!r} of camera {cam.name!r}: {exc}") from None
+        out = cls(rec.cameras, stack, tracks, params.tolerance_px,
+                  ignore_masks=[rec.camera(n).ignore_mask for n in names])
+        out.imu_gaps = gaps
+        return out
 
     @property
     def lookup_attitudes(self) -> list[np.ndarray | None]:

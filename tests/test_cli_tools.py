@@ -104,7 +104,7 @@ def test_imu_attitude_scores_a_planefuse_csv_against_its_reference(tmp_path):
     mad = res["filters"][0]
     assert mad["n_reference_missing"] == 10 and mad["n_scored"] == int((t >= 3.0).sum())
     # independent reference: the filter run directly, the error computed over the same samples
-    R_est = attitude_from_imu(t, gyr, acc)
+    R_est = attitude_from_imu(t, gyr, acc, method="madgwick")
     sel = t >= 3.0
     e = np.degrees(inclination_error_rad(R_est[sel], R.as_matrix()[sel]))
     assert mad["rmse_deg"] == pytest.approx(np.sqrt(np.mean(e**2)), rel=1e-9) and mad["rmse_deg"] < 1.0

@@ -133,9 +133,10 @@ class CameraSensorConfig(_Model):
         description="With imu: a camera's plane lookup is rebuilt when its attitude moved an image point by more",
         unit="px", expected="> 0", library="system.camera_params.registration.tolerance_px",
     )
-    imu_filter: str = _field(
-        description="With imu: attitude filter (planefuse.geometry.attitude_from_imu method)",
-        expected="madgwick, mahony, ekf, complementary or ...",
+    imu_filter: Literal["imufusion", "madgwick", "mahony", "ekf"] = _field(
+        description="With imu: attitude filter (planefuse.geometry.attitude_from_imu method; imufusion with its "
+                    "selected settings by default, docs/results.md)",
+        expected="imufusion, madgwick, mahony or ekf",
         library="system.camera_params.registration.imu_filter",
     )
     sensor_model: Literal["cell", "generative"] = _field(

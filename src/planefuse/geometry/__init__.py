@@ -28,6 +28,7 @@ from ._homography import (
 from ._imu import (
     ATTITUDE_METHODS,
     DEFAULT_ATTITUDE_FILTER,
+    IMUFUSION_DEFAULTS,
     R_world_cam_from_attitude,
     attitude_from_imu,
     inclination_error_rad,
@@ -49,6 +50,7 @@ from ._transforms import (
 __all__ = [
     "ATTITUDE_METHODS",
     "DEFAULT_ATTITUDE_FILTER",
+    "IMUFUSION_DEFAULTS",
     "R_world_cam_from_attitude",
     "attitude_from_imu",
     "inclination_error_rad",

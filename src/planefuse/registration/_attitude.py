@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry import (
+    DEFAULT_ATTITUDE_FILTER,
     PinholeCamera,
     R_world_cam_from_attitude,
     attitude_from_imu,
@@ -80,7 +81,7 @@ class RegistrationParams:
     attitude_source_by_camera: Mapping[str, str] = field(default_factory=dict)
     tolerance_px: float = 1.0
     refine_mount: bool = True
-    imu_filter: str = "madgwick"
+    imu_filter: str = DEFAULT_ATTITUDE_FILTER
     imu_filter_params: Mapping[str, float] | None = None
     gyro_bias_rest_s: float = 1.0
 

@@ -226,9 +226,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
         # replayed through the instants a resumed run skips
         registration = CameraRegistration.from_recording(rec, stack, params.registration)
         lookups = registration.lookups_at(float(all_times[0]))
-        if start:
-            registration.advance(all_times[1:start])
-            lookups = registration.current_lookups()
+        # instants skipped without replay (replayed ones are stabilised as they come)
+        registration.advance(all_times[1:start - replay])
         # empty-scene calibration plates prime the background models (no ghosts of people already in view)
         backgrounds = [_background_or_none(rec.camera(n)) for n in names]
         instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,

@@ -11,14 +11,16 @@ Each camera takes its attitude from one of two sources (:class:`RegistrationPara
   mounting error on the camera and the accelerometer bias, ~0.1-0.5 deg for the simulator's IMU, i.e. a few
   pixels) is kept as a fixed correction in the camera frame (``refine_mount``), so the IMU gives the
   camera's motion since calibration, not a second, slightly different rest attitude. Before that moment
-  (the filter settling over the still start of the stream) the attitude is the one at it. The camera's
-  image -> plane lookup follows this attitude: it is rebuilt when the attitude has turned far enough from
-  the one it was built for to move some image point by more than ``tolerance_px`` pixels, so a still
-  camera costs nothing.
+  (the filter settling over the still start of the stream) the attitude is the one at it.
 
-The camera turns about its optical centre, so a change of attitude ``R_built -> R`` moves an undistorted
-pixel ``u`` to ``pi(K R^T R_built K^-1 u)`` (the infinite homography); the displacement is measured on a
-3 x 3 grid of image points (corners, edge midpoints, centre).
+The camera turns about its optical centre, so a change of attitude ``R0 -> R`` moves an undistorted pixel
+``u`` to ``pi(K R^T R0 K^-1 u)`` (the infinite homography, seed eq. H = K' R K^-1): the frames of a camera
+that turned are mapped back to its calibrated view (:meth:`CameraRegistration.stabilise`, lens distortion
+included), and the calibration's image -> plane lookup and the background model, learned in that view,
+stay valid. The map follows the attitude: it is rebuilt when the attitude has turned far enough from the
+one it was built for to move some image point by more than ``tolerance_px`` pixels (measured on a 3 x 3
+grid of image points: corners, edge midpoints, centre), so a still camera costs nothing and a moving one a
+``cv2.remap`` per frame.
 """
 
 from __future__ import annotations
@@ -33,8 +35,8 @@ from ..geometry import (
     DEFAULT_ATTITUDE_FILTER,
     PinholeCamera,
     R_world_cam_from_attitude,
+    distort_normalized,
     attitude_from_imu,
-    transform_from_rotation_translation,
     yaw_from_ground_points,
 )
 from ..grid import PlaneStack
@@ -252,7 +254,9 @@ def _ground_points_seen(camera: PinholeCamera, n: int = 5) -> tuple[np.ndarray, 
 
 
 class CameraRegistration:
-    """Every camera's image -> plane lookup over time, following the attitude where it comes from the IMU.
+    """Every camera's image -> plane lookup over time, following the attitude where it comes from the IMU:
+    the frames of a camera that turned are brought back to its calibrated view (:meth:`stabilise`), so that
+    its lookup and its background model stay those of the calibration.
 
     Parameters
     ----------
@@ -274,9 +278,10 @@ class CameraRegistration:
         the filter bridges each with one step over the gap (its gyroscope rate held), and they are reported
         (a warning per IMU, and the count in the run's metrics), never silently.
     n_rebuilds : list of int
-        Lookups rebuilt per camera after the first (the cost of following the attitude).
+        Stabilising maps rebuilt per camera (the cost of following the attitude besides one ``cv2.remap``
+        per frame of a camera away from its calibrated attitude).
     rebuild_times_s : list of list of float
-        Per camera, the instants [s] its lookup was rebuilt.
+        Per camera, the instants [s] its stabilising map was rebuilt.
     """
 
     def __init__(self, cameras: Sequence[PinholeCamera], stack: PlaneStack,
@@ -297,6 +302,8 @@ class CameraRegistration:
         self.n_rebuilds = [0] * len(self.cameras)
         self.rebuild_times_s: list[list[float]] = [[] for _ in self.cameras]
         self._built: list[np.ndarray | None] = [None] * len(self.cameras)
+        self._maps: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(self.cameras)
+        self._rays: list[np.ndarray | None] = [None] * len(self.cameras)
 
     @classmethod
     def from_recording(cls, rec, stack: PlaneStack, params: RegistrationParams = RegistrationParams()
@@ -340,7 +347,8 @@ class CameraRegistration:
 
     @property
     def lookup_attitudes(self) -> list[np.ndarray | None]:
-        """The attitude (3, 3) each camera's current lookup was built for (None before :meth:`lookups_at`)."""
+        """The attitude (3, 3) each camera's frames are currently stabilised from (the calibration's for a
+        camera that follows none; None before :meth:`lookups_at`)."""
         return list(self._built)
 
     def attitude_at(self, camera_index: int, time_s: float) -> np.ndarray:
@@ -349,50 +357,90 @@ class CameraRegistration:
         track = self.tracks.get(cam.name)
         return cam.R_world_cam if track is None else track.at(time_s)
 
-    def lookup_for(self, camera_index: int, R_world_cam) -> ImagePlaneLookup:
-        """The lookup of camera ``camera_index`` turned to attitude ``R_world_cam`` (lens distortion included)."""
-        cam = self.cameras[camera_index]
-        T = transform_from_rotation_translation(R_world_cam, cam.center_world)
-        lookup = ImagePlaneLookup.from_camera(PinholeCamera(cam.intrinsics, T, name=cam.name), self.stack)
+    def lookup_for(self, camera_index: int) -> ImagePlaneLookup:
+        """The lookup of camera ``camera_index`` at its calibrated attitude (lens distortion included)."""
+        lookup = ImagePlaneLookup.from_camera(self.cameras[camera_index], self.stack)
         mask = self.ignore_masks[camera_index]
         return lookup if mask is None else lookup.without_pixels(mask)
 
     def lookups_at(self, time_s: float) -> list[ImagePlaneLookup]:
-        """Every camera's lookup at ``time_s``; following lookups start from this attitude."""
+        """Every camera's lookup (the calibration's: :meth:`stabilise` brings the frames to it); the
+        attitudes followed start from those at ``time_s``."""
         self._built = [self.attitude_at(c, time_s) for c in range(len(self.cameras))]
+        self._maps = [None] * len(self.cameras)
+        for c in self._following():
+            self._maps[c] = self._stabilising_map(c, self._built[c])
         return self.current_lookups()
 
     def current_lookups(self) -> list[ImagePlaneLookup]:
-        """Every camera's lookup for the attitude it was last built for."""
+        """Every camera's lookup."""
         if any(R is None for R in self._built):
             raise ValueError("call lookups_at(first time) before current_lookups()")
-        return [self.lookup_for(c, R) for c, R in enumerate(self._built)]
+        return [self.lookup_for(c) for c in range(len(self.cameras))]
 
-    def updates(self, time_s: float) -> Iterator[tuple[int, ImagePlaneLookup]]:
-        """``(camera_index, lookup)`` for every following camera whose attitude at ``time_s`` moved an image
-        point by more than the tolerance since its lookup was built (call in time order, after
-        :meth:`lookups_at`)."""
-        for c in self._moved(time_s):
-            yield c, self.lookup_for(c, self._built[c])
+    def stabilise(self, images: Sequence[np.ndarray | None], time_s: float) -> list[np.ndarray | None]:
+        """The images of instant ``time_s`` (one per camera, None where missing) as each camera would have
+        seen them at its calibrated attitude (call in time order, after :meth:`lookups_at`).
+
+        A camera turning about its centre from its calibrated attitude ``R0`` to ``R`` sees the pixel of ray
+        ``x0`` (camera frame at ``R0``) at ray ``R^T R0 x0``: the map from each calibrated pixel to the
+        current image is rebuilt when the attitude has moved an image point by more than the tolerance since
+        it was last built, and applied by ``cv2.remap`` (bilinear; the few border pixels with no source
+        repeat the border). Frames and foreground alike stay in the calibration's pixels, so the
+        background models and the lookups stay valid; a camera at its calibrated attitude is passed through.
+        """
+        import cv2
+
+        self._moved(time_s)
+        out = list(images)
+        for c, m in enumerate(self._maps):
+            if m is None or out[c] is None:
+                continue
+            img = out[c]
+            if img.dtype == np.float64:
+                img = img.astype(np.float32)
+            out[c] = cv2.remap(img, m[0], m[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return out
 
     def advance(self, times_s: Iterable[float]) -> None:
-        """Follow the attitudes through ``times_s`` as :meth:`updates` would, without building the lookups (a
-        resumed run replays its skipped instants so that its lookups are those of the uninterrupted run)."""
+        """Follow the attitudes through ``times_s`` as :meth:`stabilise` would, without images (a resumed
+        run replays the instants it skips so that its maps are those of the uninterrupted run)."""
         for t in times_s:
             self._moved(float(t))
 
+    def _following(self) -> list[int]:
+        return [c for c, cam in enumerate(self.cameras) if cam.name in self.tracks]
+
+    def _stabilising_map(self, c: int, R_world_cam) -> tuple[np.ndarray, np.ndarray] | None:
+        """``cv2.remap`` tables (float32, (H, W) each): for every pixel of the calibrated view, where it is in
+        the image of camera ``c`` at attitude ``R_world_cam``; None at the calibrated attitude itself."""
+        cam = self.cameras[c]
+        intr = cam.intrinsics
+        if pixel_shift_px(cam.K, cam.R_world_cam, R_world_cam, intr.width_px, intr.height_px) == 0.0:
+            return None
+        if self._rays[c] is None:  # the calibrated view's rays, camera frame (H*W, 3)
+            u, v = np.meshgrid(np.arange(intr.width_px, dtype=float), np.arange(intr.height_px, dtype=float))
+            xy = intr.normalized_from_pixels(np.stack([u.ravel(), v.ravel()], axis=1))
+            self._rays[c] = np.c_[xy, np.ones(len(xy))]
+        x = self._rays[c] @ (np.asarray(R_world_cam).T @ cam.R_world_cam).T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = distort_normalized(x[:, :2] / x[:, 2:3], intr.dist) @ cam.K[:2, :2].T + cam.K[:2, 2]
+        uv[x[:, 2] <= 1e-6] = -1e4  # behind the camera: no source
+        shape = (intr.height_px, intr.width_px)
+        return uv[:, 0].reshape(shape).astype(np.float32), uv[:, 1].reshape(shape).astype(np.float32)
+
     def _moved(self, time_s: float) -> list[int]:
-        """Cameras whose attitude moved beyond the tolerance at ``time_s``; their built attitude is updated."""
+        """Cameras whose attitude moved beyond the tolerance at ``time_s``; their map is rebuilt."""
         out = []
-        for c, cam in enumerate(self.cameras):
-            if cam.name not in self.tracks:
-                continue
+        for c in self._following():
+            cam = self.cameras[c]
             R = self.attitude_at(c, time_s)
             built = self._built[c]
             if built is not None and pixel_shift_px(cam.K, built, R, cam.intrinsics.width_px,
                                                     cam.intrinsics.height_px) <= self.tolerance_px:
                 continue
             self._built[c] = R
+            self._maps[c] = self._stabilising_map(c, R)
             self.n_rebuilds[c] += 1
             self.rebuild_times_s[c].append(float(time_s))
             out.append(c)

@@ -65,9 +65,9 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
         "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
     }
     reg = getattr(report, "camera_registration", None)
-    if reg is not None and reg.tracks:  # cameras registered through their IMU: gaps bridged, lookups rebuilt
+    if reg is not None and reg.tracks:  # cameras registered through their IMU: gaps bridged, maps rebuilt
         m["n_imu_gaps"] = sum(len(g) for g in reg.imu_gaps.values())
-        m["n_lookup_rebuilds"] = sum(reg.n_rebuilds)
+        m["n_attitude_map_rebuilds"] = sum(reg.n_rebuilds)
     cams = [d for d in report.camera_detections if d.time_s >= warm]
     if cams:
         cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), match_distance_m)

@@ -19,8 +19,9 @@ that turned are mapped back to its calibrated view (:meth:`CameraRegistration.st
 included), and the calibration's image -> plane lookup and the background model, learned in that view,
 stay valid. The map follows the attitude: it is rebuilt when the attitude has turned far enough from the
 one it was built for to move some image point by more than ``tolerance_px`` pixels (measured on a 3 x 3
-grid of image points: corners, edge midpoints, centre), so a still camera costs nothing and a moving one a
-``cv2.remap`` per frame.
+grid of image points: corners, edge midpoints, centre) while the gyroscope sees the camera turn, and by
+more than ``still_tolerance_px`` while it is still (the filter's wander), so a still camera costs nothing
+and a moving one a ``cv2.remap`` per frame.
 """
 
 from __future__ import annotations
@@ -60,10 +61,19 @@ class RegistrationParams:
     attitude_source_by_camera : mapping of str -> str
         Per-camera exceptions (camera name -> source).
     tolerance_px : float
-        A following lookup is rebuilt when the attitude has moved some image point by more than this [px].
-        The default, 1 px, is above the jitter of the default filter on a still simulated camera (at most
-        0.5 px over 10 s, so a still camera is never rebuilt) and a fraction of a 0.1 m cell wherever a
-        360 x 288 px camera sees a 10 m room (a pixel spans at most ~6 cm of ground at 10 m).
+        While the camera turns, its stabilising map is rebuilt when the attitude has moved some image point
+        by more than this [px] since the map was built. 0.25 px: a 1 px lag on a swaying camera's textured
+        background already shows as foreground (docs/results.md, "Cameras that move").
+    still_tolerance_px : float
+        While the gyroscope says the camera is still (mean rate over ``still_window_s`` below
+        ``still_rate_rad_s``), the map is rebuilt only past this larger shift [px]: the filter's own wander
+        on a still simulated camera stays below 0.7 px, so a still camera is never rebuilt; a slow drift
+        still is, past 1 px. (A ``tolerance_px`` above it applies in both cases.)
+    still_rate_rad_s : float
+        Rate below which the camera counts as still [rad/s] (1 deg/s: ~20 x the noise of the 0.1 s mean of
+        the simulated gyroscope; a 1.5 deg sway of 3 s peaks at 3 deg/s).
+    still_window_s : float
+        Window of the mean rate [s].
     refine_mount : bool
         Keep the difference between the calibration and the IMU attitude at the calibration's moment as a
         fixed camera-frame correction (see the module docstring); False: the filter's roll and pitch as is.
@@ -81,7 +91,10 @@ class RegistrationParams:
 
     attitude_source: str = "calibration"
     attitude_source_by_camera: Mapping[str, str] = field(default_factory=dict)
-    tolerance_px: float = 1.0
+    tolerance_px: float = 0.25
+    still_tolerance_px: float = 1.0
+    still_rate_rad_s: float = float(np.radians(1.0))
+    still_window_s: float = 0.1
     refine_mount: bool = True
     imu_filter: str = DEFAULT_ATTITUDE_FILTER
     imu_filter_params: Mapping[str, float] | None = None
@@ -94,6 +107,8 @@ class RegistrationParams:
                 raise ValueError(f"{name} must be one of {ATTITUDE_SOURCES}, got {src!r}")
         if not self.tolerance_px > 0:
             raise ValueError(f"tolerance_px must be > 0, got {self.tolerance_px}")
+        if not self.still_tolerance_px > 0:
+            raise ValueError(f"still_tolerance_px must be > 0, got {self.still_tolerance_px}")
         if not self.gyro_bias_rest_s >= 0:
             raise ValueError(f"gyro_bias_rest_s must be >= 0, got {self.gyro_bias_rest_s}")
 
@@ -183,6 +198,8 @@ class AttitudeTrack:
         ``refine_mount``).
     reference_time_s : float
         When the attitude was anchored on the calibration; earlier samples hold the attitude there.
+    rate_rad_s : ndarray, shape (N,), optional
+        Mean bias-corrected gyroscope rate magnitude over the window ending at each sample [rad/s].
     """
 
     times_s: np.ndarray
@@ -191,6 +208,7 @@ class AttitudeTrack:
     gyro_bias_rad_s: np.ndarray
     R_mount: np.ndarray = field(default_factory=lambda: np.eye(3))
     reference_time_s: float = 0.0
+    rate_rad_s: np.ndarray | None = None
 
     @classmethod
     def from_imu(cls, camera: PinholeCamera, time_s, gyro_rad_s, accel_m_s2, R_imu_cam, reference_time_s: float,
@@ -228,12 +246,21 @@ class AttitudeTrack:
         R_mount = R_world_cam[k].T @ camera.R_world_cam if params.refine_mount else np.eye(3)
         R_world_cam = R_world_cam @ R_mount
         R_world_cam[:k] = R_world_cam[k]  # the filter settling over the still start: the camera has not moved
-        return cls(t, R_world_cam, yaw, bias, R_mount, float(t[k]))
+        rate = np.linalg.norm(np.asarray(gyro_rad_s, dtype=float) - bias, axis=1)
+        n = max(1, int(round(params.still_window_s / float(np.median(np.diff(t))))))
+        mean_rate = np.convolve(rate, np.ones(n) / n)[: len(rate)]  # trailing mean (shorter at the start)
+        return cls(t, R_world_cam, yaw, bias, R_mount, float(t[k]), mean_rate)
 
     def at(self, time_s: float) -> np.ndarray:
         """The attitude (3, 3) of the last IMU sample at or before ``time_s`` (the first before the stream)."""
-        k = int(np.searchsorted(self.times_s, time_s, side="right")) - 1
-        return self.R_world_cam[max(k, 0)]
+        return self.R_world_cam[self._index(time_s)]
+
+    def rate_at(self, time_s: float) -> float:
+        """The mean rate [rad/s] at the last IMU sample at or before ``time_s`` (0 without rates)."""
+        return 0.0 if self.rate_rad_s is None else float(self.rate_rad_s[self._index(time_s)])
+
+    def _index(self, time_s: float) -> int:
+        return max(int(np.searchsorted(self.times_s, time_s, side="right")) - 1, 0)
 
 
 def _ground_points_seen(camera: PinholeCamera, n: int = 5) -> tuple[np.ndarray, np.ndarray]:
@@ -266,7 +293,11 @@ class CameraRegistration:
     tracks : mapping of str -> AttitudeTrack
         The IMU attitude of every camera whose source is ``"imu"`` (by camera name).
     tolerance_px : float
-        Rebuild threshold (see the module docstring).
+        Rebuild threshold while a camera turns [px] (see the module docstring).
+    still_tolerance_px : float, optional
+        Rebuild threshold while its gyroscope says it is still [px] (at least ``tolerance_px``).
+    still_rate_rad_s : float
+        Mean rate below which a camera is still [rad/s].
     ignore_masks : sequence of (ndarray (height_px, width_px) bool or None), optional
         Per camera, pixels that are not scene evidence: every lookup leaves the cells they see unobserved
         (:meth:`ImagePlaneLookup.without_pixels`).
@@ -285,8 +316,9 @@ class CameraRegistration:
     """
 
     def __init__(self, cameras: Sequence[PinholeCamera], stack: PlaneStack,
-                 tracks: Mapping[str, AttitudeTrack] | None = None, tolerance_px: float = 1.0,
-                 ignore_masks: Sequence[np.ndarray | None] | None = None) -> None:
+                 tracks: Mapping[str, AttitudeTrack] | None = None, tolerance_px: float = 0.25,
+                 ignore_masks: Sequence[np.ndarray | None] | None = None, still_tolerance_px: float | None = None,
+                 still_rate_rad_s: float = float(np.radians(1.0))) -> None:
         self.cameras = list(cameras)
         if ignore_masks is not None and len(ignore_masks) != len(self.cameras):
             raise ValueError(f"ignore_masks: expected {len(self.cameras)} entries (None where absent), "
@@ -299,6 +331,8 @@ class CameraRegistration:
         if unknown:
             raise ValueError(f"attitude tracks for unknown cameras {sorted(unknown)}")
         self.tolerance_px = float(tolerance_px)
+        self.still_tolerance_px = max(self.tolerance_px, float(still_tolerance_px or 0.0))
+        self.still_rate_rad_s = float(still_rate_rad_s)
         self.n_rebuilds = [0] * len(self.cameras)
         self.rebuild_times_s: list[list[float]] = [[] for _ in self.cameras]
         self._built: list[np.ndarray | None] = [None] * len(self.cameras)
@@ -341,7 +375,8 @@ class CameraRegistration:
             except ValueError as exc:
                 raise ValueError(f"imu {imu.name!r} of camera {cam.name!r}: {exc}") from None
         out = cls(rec.cameras, stack, tracks, params.tolerance_px,
-                  ignore_masks=[rec.camera(n).ignore_mask for n in names])
+                  ignore_masks=[rec.camera(n).ignore_mask for n in names],
+                  still_tolerance_px=params.still_tolerance_px, still_rate_rad_s=params.still_rate_rad_s)
         out.imu_gaps = gaps
         return out
 
@@ -436,8 +471,10 @@ class CameraRegistration:
             cam = self.cameras[c]
             R = self.attitude_at(c, time_s)
             built = self._built[c]
+            turning = self.tracks[cam.name].rate_at(time_s) >= self.still_rate_rad_s
+            tol = self.tolerance_px if turning else self.still_tolerance_px
             if built is not None and pixel_shift_px(cam.K, built, R, cam.intrinsics.width_px,
-                                                    cam.intrinsics.height_px) <= self.tolerance_px:
+                                                    cam.intrinsics.height_px) <= tol:
                 continue
             self._built[c] = R
             self._maps[c] = self._stabilising_map(c, R)

@@ -257,3 +257,31 @@ def test_imu_gaps_are_counted_and_reported():
         reg = _imu_route(rec)
     assert [g.missing for g in reg.imu_gaps[rec.cameras[0].name]] == [40, 5]
     assert all(not v for k, v in reg.imu_gaps.items() if k != rec.cameras[0].name)
+
+
+def test_stabilising_map_points_to_where_the_turned_camera_sees_each_point():
+    """OpenCV projection as the reference: a ground point's pixel in the calibrated view maps to its pixel
+    in the image of the turned camera (lens distortion included)."""
+    import cv2
+
+    _, rec = scene(1.0, seed=18)
+    stack = stack_for_recording(rec, SystemParams())
+    reg = CameraRegistration.from_recording(rec, stack, RegistrationParams(attitude_source="imu"))
+    reg.lookups_at(0.0)
+    cam = rec.cameras[1]
+    R = Rotation.from_rotvec([0.01, -0.03, 0.02]).as_matrix() @ cam.R_world_cam
+    map_u, map_v = reg._stabilising_map(1, R)
+    rng = np.random.default_rng(0)
+    p = np.c_[rng.uniform(1, 9, (200, 2)), np.zeros(200)]
+    dist = cam.intrinsics.dist
+    u0 = cv2.projectPoints(p, cv2.Rodrigues(cam.R_world_cam.T)[0], -cam.R_world_cam.T @ cam.center_world,
+                           cam.K, dist)[0][:, 0]
+    u1 = cv2.projectPoints(p, cv2.Rodrigues(R.T)[0], -R.T @ cam.center_world, cam.K, dist)[0][:, 0]
+    inside = (u0[:, 0] > 1) & (u0[:, 0] < 358) & (u0[:, 1] > 1) & (u0[:, 1] < 286)
+    assert inside.sum() > 50
+    got = np.c_[cv2.remap(map_u, u0[inside, :1].astype(np.float32), u0[inside, 1:].astype(np.float32),
+                          cv2.INTER_LINEAR).ravel(),
+                cv2.remap(map_v, u0[inside, :1].astype(np.float32), u0[inside, 1:].astype(np.float32),
+                          cv2.INTER_LINEAR).ravel()]
+    np.testing.assert_allclose(got, u1[inside], atol=0.02)
+    assert reg._stabilising_map(1, cam.R_world_cam) is None  # at the calibrated attitude: nothing to do

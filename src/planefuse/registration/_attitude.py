@@ -451,18 +451,24 @@ class CameraRegistration:
         the image of camera ``c`` at attitude ``R_world_cam``; None at the calibrated attitude itself."""
         cam = self.cameras[c]
         intr = cam.intrinsics
-        if pixel_shift_px(cam.K, cam.R_world_cam, R_world_cam, intr.width_px, intr.height_px) == 0.0:
+        if pixel_shift_px(cam.K, cam.R_world_cam, R_world_cam, intr.width_px, intr.height_px) < 1e-6:
             return None
-        if self._rays[c] is None:  # the calibrated view's rays, camera frame (H*W, 3)
+        shape = (intr.height_px, intr.width_px)
+        if self._rays[c] is None:  # the calibrated view's rays, camera frame: (x, y) per pixel, z = 1; float32
             u, v = np.meshgrid(np.arange(intr.width_px, dtype=float), np.arange(intr.height_px, dtype=float))
             xy = intr.normalized_from_pixels(np.stack([u.ravel(), v.ravel()], axis=1))
-            self._rays[c] = np.c_[xy, np.ones(len(xy))]
-        x = self._rays[c] @ (np.asarray(R_world_cam).T @ cam.R_world_cam).T
+            self._rays[c] = xy.T.reshape(2, *shape).astype(np.float32)
+        rx, ry = self._rays[c]
+        M = (np.asarray(R_world_cam).T @ cam.R_world_cam).astype(np.float32)  # calibrated ray -> current camera
+        x, y, z = (M[i, 0] * rx + M[i, 1] * ry + M[i, 2] for i in range(3))
         with np.errstate(divide="ignore", invalid="ignore"):
-            uv = distort_normalized(x[:, :2] / x[:, 2:3], intr.dist) @ cam.K[:2, :2].T + cam.K[:2, 2]
-        uv[x[:, 2] <= 1e-6] = -1e4  # behind the camera: no source
-        shape = (intr.height_px, intr.width_px)
-        return uv[:, 0].reshape(shape).astype(np.float32), uv[:, 1].reshape(shape).astype(np.float32)
+            d = distort_normalized(np.stack([x / z, y / z], axis=-1), intr.dist.astype(np.float32))
+        K = cam.K.astype(np.float32)
+        map_u = K[0, 0] * d[..., 0] + K[0, 1] * d[..., 1] + K[0, 2]
+        map_v = K[1, 1] * d[..., 1] + K[1, 2]
+        behind = z <= 1e-6  # no source
+        map_u[behind] = map_v[behind] = -1e4
+        return map_u, map_v
 
     def _moved(self, time_s: float) -> list[int]:
         """Cameras whose attitude moved beyond the tolerance at ``time_s``; their map is rebuilt."""

@@ -64,6 +64,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--duration-s", type=float, default=6.0, help="scene duration [s]")
     ap.add_argument("--modalities", default="all", choices=sorted(MODALITIES))
     ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--sources", default="calibration,imu", help="attitude sources to run")
     args = ap.parse_args(argv)
     base = SystemParams(**MODALITIES[args.modalities])
     print("| scene | seed | attitude from | MODA | MOTA | IDF1 | camera-only MODA | map rebuilds | run time [s] |")
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> None:
     for scene in args.scenes.split(","):
         for seed in (int(s) for s in args.seeds.split(",")):
             rec = scene_recording(scene, seed, args.duration_s)
-            for source in ("calibration", "imu"):
+            for source in args.sources.split(","):
                 t0 = time.perf_counter()
                 res = run_system(rec, with_source(base, source))
                 el = time.perf_counter() - t0

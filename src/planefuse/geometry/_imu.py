@@ -152,7 +152,11 @@ def _run_imufusion(dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, params: dic
     gains = _schedule(params, gyr, acc, settings.gain)
     ahrs = imufusion.Ahrs()
     ahrs.set_settings(settings)
-    ahrs.set_quaternion(acc2q(acc[0]))  # start level with the first sample's gravity, as the ahrs filters do
+    # start level with the first sample's gravity, as the ahrs filters do, and skip imufusion's start-up
+    # ramp: while it lasts (3 s), update_no_magnetometer pins the heading to 0, so a camera that pans then
+    # is not followed
+    ahrs.set_quaternion(acc2q(acc[0]))
+    ahrs.skip_startup()
     gyr_deg_s = np.degrees(gyr)
     if params["gyro_bias"]:  # imufusion's own gyroscope offset tracking while still
         bias = imufusion.Bias()

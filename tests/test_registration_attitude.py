@@ -285,3 +285,19 @@ def test_stabilising_map_points_to_where_the_turned_camera_sees_each_point():
                           cv2.INTER_LINEAR).ravel()]
     np.testing.assert_allclose(got, u1[inside], atol=0.02)
     assert reg._stabilising_map(1, cam.R_world_cam) is None  # at the calibrated attitude: nothing to do
+
+
+def test_imu_route_follows_a_pan():
+    """A +-10 deg pan about the vertical from t = 1 s: only the gyroscope sees it (the heading); the IMU
+    attitude stays within 1.5 px of the truth throughout, against ~60 px off without the fix (imufusion's start-up, which pins the heading
+    without a magnetometer, is skipped)."""
+    pan = CameraMotionSpec(kind="pan", amplitude_deg=10.0, period_s=3.0, start_s=1.0)
+    _, rec = scene(4.0, seed=19, motions=[pan])
+    stack = stack_for_recording(rec, SystemParams())
+    reg = CameraRegistration.from_recording(rec, stack, RegistrationParams(attitude_source="imu"))
+    cam = rec.cameras[0]
+    from planefuse.registration import pixel_shift_px
+    ts = np.arange(0.0, 4.0, 0.1)
+    R_true = R_world_cam_at(cam.R_world_cam, [pan], ts)
+    err = [pixel_shift_px(cam.K, reg.attitude_at(0, t), R, 360, 288) for t, R in zip(ts, R_true)]
+    assert max(err) < 1.5

@@ -20,9 +20,11 @@ from planefuse.eval import score_attitude
 from planefuse.geometry import ATTITUDE_METHODS, attitude_from_imu
 from planefuse.io import read_imu_log
 
-# imufusion.Ahrs with its own default settings (no gyro range, no acceleration rejection); the test
+# imufusion.Ahrs with its own default settings (no gyro range, no acceleration rejection, no offset tracking, no
+# gain schedule); the test
 # test_xio_inclination_agrees_with_imufusion drives imufusion directly and checks the same numbers.
-IMUFUSION_DEFAULTS = dict(gyroscope_range_deg_s=0.0, acceleration_rejection_deg=0.0, rejection_timeout_s=0.0)
+IMUFUSION_OWN_DEFAULTS = dict(gyroscope_range_deg_s=0.0, acceleration_rejection_deg=0.0, rejection_timeout_s=0.0,
+                              gyro_bias=False, rest_gain=0.0)
 
 
 def imu_logs(paths: list[Path]) -> list[Path]:
@@ -40,7 +42,7 @@ def rows_for(path: Path) -> tuple[str, list[str]]:
     log = read_imu_log(path)
     with_reference = log.R_ref_gravity_imu is not None
     R_ref = None if with_reference else attitude_from_imu(log.time_s, log.gyro_rad_s, log.accel_m_s2,
-                                                          method="imufusion", params=IMUFUSION_DEFAULTS)
+                                                          method="imufusion", params=IMUFUSION_OWN_DEFAULTS)
     rows = []
     for method in ATTITUDE_METHODS:
         t0 = time.perf_counter()

@@ -163,7 +163,7 @@ def test_attitude_bad_inputs_raise():
     with pytest.raises(ValueError, match="method must be one of"):
         attitude_from_imu(t, gyr, acc, method="kalman")
     with pytest.raises(ValueError, match=r"params \['beta'\] unknown for method 'madgwick'"):
-        attitude_from_imu(t, gyr, acc, params={"beta": 0.1})
+        attitude_from_imu(t, gyr, acc, method="madgwick", params={"beta": 0.1})
     with pytest.raises(ValueError, match="R_imu_cam"):
         attitude_from_imu(t, gyr, acc, R_imu_cam=2 * np.eye(3))
 
@@ -208,8 +208,8 @@ def test_broad_inclination_rmse(trial, record_property):
     record_property(f"broad_{trial}_inclination_rmse_deg", rmse_deg)
     record_property(f"broad_{trial}_nan_gt_rows", n_nan_total)
     assert scored.sum() > 0.9 * movement.sum()
-    if trial == "02":
-        assert rmse_deg <= 1.5
+    if trial == "02":  # the goal for the default filter (chosen on simulated seeds and this trial's first half)
+        assert rmse_deg <= 1.0
 
 
 # --- real data: x-io Fusion example (no ground truth: agreement with imufusion) -----

@@ -23,8 +23,8 @@ def attitude(
                                 "opt_quat, movement), an x-io Fusion CSV (Time (s), Gyroscope [deg/s], "
                                 "Accelerometer [g]), or a planefuse CSV (time_s, gyro_*_rad_s, accel_*_m_s2 "
                                 "[, ref_qw, ref_qx, ref_qy, ref_qz [, scored]])."),
-    filters: list[str] = typer.Option(["madgwick"], "--filter", help="Attitude filter: madgwick, mahony, ekf "
-                                      "(ahrs) or imufusion (x-io Fusion); repeat it, or 'all'."),
+    filters: list[str] = typer.Option(["imufusion"], "--filter", help="Attitude filter: imufusion (x-io Fusion, "
+                                      "the default) or madgwick, mahony, ekf (ahrs); repeat it, or 'all'."),
     settle_s: float = typer.Option(5.0, help="Samples in the first settle_s seconds are not scored [s]."),
     json_out: Path = typer.Option(None, help="Write the scores (one entry per filter) as JSON here."),
     attitude_csv: Path = typer.Option(None, help="Write the first filter's attitude here: time_s, qw, qx, qy, qz "

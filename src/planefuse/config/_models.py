@@ -130,12 +130,14 @@ class CameraSensorConfig(_Model):
         expected="calibration or imu", library="system.camera_params.registration.attitude_source",
     )
     attitude_tolerance_px: float = _field(
-        description="With imu: a camera's plane lookup is rebuilt when its attitude moved an image point by more",
+        description="With imu: the map that brings a turned camera's frames back to its calibrated view is rebuilt "
+                    "when its attitude moved an image point by more",
         unit="px", expected="> 0", library="system.camera_params.registration.tolerance_px",
     )
-    imu_filter: str = _field(
-        description="With imu: attitude filter (planefuse.geometry.attitude_from_imu method)",
-        expected="madgwick, mahony, ekf, complementary or ...",
+    imu_filter: Literal["imufusion", "madgwick", "mahony", "ekf"] = _field(
+        description="With imu: attitude filter (planefuse.geometry.attitude_from_imu method; imufusion with its "
+                    "selected settings by default, docs/results.md)",
+        expected="imufusion, madgwick, mahony or ekf",
         library="system.camera_params.registration.imu_filter",
     )
     sensor_model: Literal["cell", "generative"] = _field(

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..geometry import attitude_from_imu, inclination_error_rad
+from ..geometry import DEFAULT_ATTITUDE_FILTER, attitude_from_imu, inclination_error_rad
 from ..io import ImuLog
 
 __all__ = ["AttitudeScores", "score_attitude", "rest_mask"]
@@ -75,7 +75,7 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else float("nan")
 
 
-def score_attitude(log: ImuLog, method: str = "madgwick", params: dict | None = None, *, settle_s: float = 5.0,
+def score_attitude(log: ImuLog, method: str = DEFAULT_ATTITUDE_FILTER, params: dict | None = None, *, settle_s: float = 5.0,
                    R_reference=None, reference_name: str | None = None,
                    R_gravity_imu=None) -> AttitudeScores:
     """Run ``method`` (:func:`planefuse.geometry.attitude_from_imu`) on ``log`` and score its inclination.

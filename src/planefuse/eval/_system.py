@@ -66,6 +66,10 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
         "n_missing_camera_frames": report.n_missing_camera_frames,
         "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
     }
+    reg = getattr(report, "camera_registration", None)
+    if reg is not None and reg.tracks:  # cameras registered through their IMU: gaps bridged, maps rebuilt
+        m["n_imu_gaps"] = sum(len(g) for g in reg.imu_gaps.values())
+        m["n_attitude_map_rebuilds"] = sum(reg.n_rebuilds)
     cams = [d for d in report.camera_detections if d.time_s >= warm]
     if cams:
         cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), match_distance_m)

@@ -27,9 +27,12 @@ from ._homography import (
 )
 from ._imu import (
     ATTITUDE_METHODS,
+    DEFAULT_ATTITUDE_FILTER,
+    IMUFUSION_DEFAULTS,
     R_world_cam_from_attitude,
     attitude_from_imu,
     inclination_error_rad,
+    still_samples,
     yaw_from_ground_points,
 )
 from ._rig import T_world_cam_look_at, default_camera_ring
@@ -46,9 +49,12 @@ from ._transforms import (
 
 __all__ = [
     "ATTITUDE_METHODS",
+    "DEFAULT_ATTITUDE_FILTER",
+    "IMUFUSION_DEFAULTS",
     "R_world_cam_from_attitude",
     "attitude_from_imu",
     "inclination_error_rad",
+    "still_samples",
     "yaw_from_ground_points",
     "T_world_cam_look_at",
     "default_camera_ring",

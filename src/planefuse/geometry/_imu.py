@@ -25,27 +25,62 @@ from ._checks import check_finite, check_intrinsics_matrix, check_points, check_
 
 __all__ = [
     "ATTITUDE_METHODS",
+    "DEFAULT_ATTITUDE_FILTER",
+    "IMUFUSION_DEFAULTS",
     "attitude_from_imu",
     "inclination_error_rad",
+    "still_samples",
     "R_world_cam_from_attitude",
     "yaw_from_ground_points",
 ]
 
-#: Filters accepted by :func:`attitude_from_imu`; the first is the default. Mahony
-#: scores best on the slow BROAD trial (0.46 vs 0.61 deg) but its integral term
-#: winds up during fast rotation and stays ~20 deg off at rest afterwards on the
-#: x-io log, where Madgwick and imufusion agree; see docs/results.md.
-ATTITUDE_METHODS = ("madgwick", "mahony", "ekf", "imufusion")
+#: Filters accepted by :func:`attitude_from_imu`; the first is the default. imufusion (x-io Fusion, C) with a
+#: gain schedule (gain 0.5 while moving, 5 while still), its gyroscope offset tracking and its acceleration
+#: rejection: it has the lowest mean inclination RMSE over the tuning sets of scripts/imu_filter_selection.py
+#: (simulated fast rotations up to 10 and 25 rad/s, seeds 1-3; BROAD trial 02's first half) and holds on the
+#: held-out ones (seeds 4-8: 0.70 and 1.47 deg; BROAD 02's second half: 0.46 deg); Madgwick, the former
+#: default, 0.81 / 1.64 / 0.66 deg. Mahony's integral term winds up in fast rotation (x-io log: ~20 deg off at
+#: rest afterwards). See docs/results.md.
+ATTITUDE_METHODS = ("imufusion", "madgwick", "mahony", "ekf")
+#: The default filter (method of :func:`attitude_from_imu`); its parameters' defaults are the selected ones.
+DEFAULT_ATTITUDE_FILTER = ATTITUDE_METHODS[0]
+#: Defaults of the imufusion parameters (see :func:`attitude_from_imu`).
+IMUFUSION_DEFAULTS = {"gain": 0.5, "gyroscope_range_deg_s": 2000.0, "acceleration_rejection_deg": 10.0,
+                      "rejection_timeout_s": 5.0, "gyro_bias": True, "rest_gain": 5.0}
 
 _G_M_S2 = 9.80665
 
 # Filter parameters each method accepts (ahrs' constructors swallow unknown keywords silently).
+# "rest_gain" (with "rest_rate_rad_s", "rest_accel_tolerance") is planefuse's gain schedule around the library's
+# filter: the gain while the IMU is still (:func:`still_samples`), the method's own gain while it moves.
+_SCHEDULE = {"rest_gain", "rest_rate_rad_s", "rest_accel_tolerance"}
 _PARAMS = {
-    "madgwick": {"gain"},
+    "madgwick": {"gain"} | _SCHEDULE,
     "mahony": {"k_P", "k_I"},
     "ekf": {"noises", "var_acc", "var_gyr", "P"},
-    "imufusion": {"gain", "gyroscope_range_deg_s", "acceleration_rejection_deg", "rejection_timeout_s"},
+    "imufusion": {"gain", "gyroscope_range_deg_s", "acceleration_rejection_deg", "rejection_timeout_s",
+                  "gyro_bias"} | _SCHEDULE,
 }
+
+
+def still_samples(gyro_rad_s: np.ndarray, accel_m_s2: np.ndarray, rate_rad_s: float = 0.1,
+                  accel_tolerance: float = 0.05) -> np.ndarray:
+    """Samples (N,) bool where the IMU is still: ``|gyro| < rate_rad_s`` [rad/s] and ``|acc|`` within
+    ``accel_tolerance`` (fraction) of 1 g, so that the accelerometer reads gravity alone."""
+    return (np.linalg.norm(gyro_rad_s, axis=1) < rate_rad_s) \
+        & (np.abs(np.linalg.norm(accel_m_s2, axis=1) / _G_M_S2 - 1.0) < accel_tolerance)
+
+
+def _schedule(params: dict, gyr: np.ndarray, acc: np.ndarray, gain: float,
+              rest_gain: float | None = None) -> np.ndarray | None:
+    """Per-sample gain of the schedule (None without ``rest_gain``, or with 0); removes the schedule's keys
+    from ``params``. ``rest_gain`` is the method's default."""
+    rest_gain = params.pop("rest_gain", rest_gain)
+    rate = float(params.pop("rest_rate_rad_s", 0.1))
+    tol = float(params.pop("rest_accel_tolerance", 0.05))
+    if not rest_gain:
+        return None
+    return np.where(still_samples(gyr, acc, rate, tol), float(rest_gain), gain)
 
 
 def _check_imu_streams(time_s, gyro_rad_s, accel_m_s2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -75,6 +110,7 @@ def _run_ahrs(method: str, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, par
     from ahrs.filters import EKF, Madgwick, Mahony
 
     fs_hz = 1.0 / float(np.median(dt))
+    gains = _schedule(params, gyr, acc, float(params.get("gain", 0.033))) if method == "madgwick" else None
     if method == "mahony":
         flt = Mahony(frequency=fs_hz, **params)
         step = flt.updateIMU
@@ -94,6 +130,8 @@ def _run_ahrs(method: str, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, par
     Q[0] = acc2q(acc[0])
     # The filters are recursive: one update per sample is the algorithm (ahrs' own batch mode loops the same way).
     for k in range(1, gyr.shape[0]):
+        if gains is not None:
+            flt.gain = gains[k]
         Q[k] = step(Q[k - 1], gyr[k], acc[k], dt=dt[k - 1])
     return Q
 
@@ -101,21 +139,38 @@ def _run_ahrs(method: str, dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, par
 def _run_imufusion(dt: np.ndarray, gyr: np.ndarray, acc: np.ndarray, params: dict) -> np.ndarray:
     """Run ``imufusion.Ahrs`` (NWU, z up) without magnetometer; quaternions [w, x, y, z] (N, 4)."""
     import imufusion
+    from ahrs.common.orientation import acc2q
 
     settings = imufusion.AhrsSettings()
     settings.convention = imufusion.CONVENTION_NWU
     settings.sample_rate = 1.0 / float(np.median(dt))
-    settings.gain = float(params.get("gain", 0.5))
-    settings.gyroscope_range = float(params.get("gyroscope_range_deg_s", 2000.0))
-    settings.acceleration_rejection = float(params.get("acceleration_rejection_deg", 10.0))
-    settings.rejection_timeout = float(params.get("rejection_timeout_s", 5.0))
+    params = {**IMUFUSION_DEFAULTS, **params}
+    settings.gain = float(params["gain"])
+    settings.gyroscope_range = float(params["gyroscope_range_deg_s"])
+    settings.acceleration_rejection = float(params["acceleration_rejection_deg"])
+    settings.rejection_timeout = float(params["rejection_timeout_s"])
+    gains = _schedule(params, gyr, acc, settings.gain)
     ahrs = imufusion.Ahrs()
     ahrs.set_settings(settings)
+    # start level with the first sample's gravity, as the ahrs filters do, and skip imufusion's start-up
+    # ramp: while it lasts (3 s), update_no_magnetometer pins the heading to 0, so a camera that pans then
+    # is not followed
+    ahrs.set_quaternion(acc2q(acc[0]))
+    ahrs.skip_startup()
     gyr_deg_s = np.degrees(gyr)
+    if params["gyro_bias"]:  # imufusion's own gyroscope offset tracking while still
+        bias = imufusion.Bias()
+        bias_settings = imufusion.BiasSettings()
+        bias_settings.sample_rate = settings.sample_rate
+        bias.set_settings(bias_settings)
+        gyr_deg_s = np.array([bias.update(g) for g in gyr_deg_s])
     acc_g = acc / _G_M_S2
     dts = np.concatenate([[np.median(dt)], dt])
     Q = np.empty((gyr.shape[0], 4))
     for k in range(gyr.shape[0]):
+        if gains is not None and (k == 0 or gains[k] != gains[k - 1]):
+            settings.gain = float(gains[k])
+            ahrs.set_settings(settings)
         ahrs.set_sample_period(float(dts[k]))
         ahrs.update_no_magnetometer(gyr_deg_s[k], acc_g[k])
         Q[k] = ahrs.get_quaternion()
@@ -127,7 +182,7 @@ def attitude_from_imu(
     gyro_rad_s,
     accel_m_s2,
     *,
-    method: str = "madgwick",
+    method: str = DEFAULT_ATTITUDE_FILTER,
     R_imu_cam=None,
     params: dict | None = None,
 ) -> np.ndarray:
@@ -142,7 +197,7 @@ def attitude_from_imu(
     accel_m_s2 : array_like, shape (N, 3)
         Specific force in the IMU frame [m/s^2]; reads about +9.81 along the
         up axis at rest.
-    method : {"madgwick", "mahony", "ekf", "imufusion"}
+    method : {"imufusion", "madgwick", "mahony", "ekf"}
         Filter: ``ahrs.filters.Mahony`` / ``Madgwick`` / ``EKF``, or
         ``imufusion.Ahrs`` (gyro in deg/s and accel in g are converted here).
     R_imu_cam : array_like, shape (3, 3), optional
@@ -151,17 +206,23 @@ def attitude_from_imu(
     params : dict, optional
         Filter parameters passed to the ``ahrs`` constructor (``gain`` for
         Madgwick; ``k_P``, ``k_I`` for Mahony; ``noises``, ``var_acc``,
-        ``var_gyr``, ``P`` for the EKF); for ``imufusion``: ``gain``,
-        ``gyroscope_range_deg_s`` (default 2000), ``acceleration_rejection_deg``
-        (default 10), ``rejection_timeout_s`` (default 5); 0 disables the last three.
+        ``var_gyr``, ``P`` for the EKF); for ``imufusion`` (defaults
+        :data:`IMUFUSION_DEFAULTS`): ``gain`` (0.5), ``gyroscope_range_deg_s``
+        (2000), ``acceleration_rejection_deg`` (10), ``rejection_timeout_s``
+        (5), 0 disables these three; ``gyro_bias`` (True): imufusion's
+        gyroscope offset tracking while still. Madgwick and imufusion take a
+        gain schedule: ``rest_gain`` (imufusion 5, Madgwick none; 0 = none),
+        the gain while the IMU is still (:func:`still_samples` with
+        ``rest_rate_rad_s``, default 0.1, and ``rest_accel_tolerance``,
+        default 0.05), the method's gain otherwise.
 
     Returns
     -------
     ndarray, shape (N, 3, 3)
         ``R_gravity_cam[k] = R_gravity_imu[k] @ R_imu_cam``: camera axes in the
         gravity frame {G} (z up; heading arbitrary, see the module docstring).
-        The ``ahrs`` filters initialise the first sample from the accelerometer
-        alone; ``imufusion`` converges over its own start-up period (~3 s).
+        Every filter starts from the inclination of the first accelerometer
+        sample (the heading of {G} is the first sample's).
 
     Raises
     ------

@@ -316,6 +316,16 @@ class ImuData:
         return len(self.times_s)
 
 
+def _check_imu_finite(d: ImuData, source: str, where) -> None:
+    """Raise naming ``source`` and ``where(i)`` for the first sample whose gyroscope or accelerometer is not
+    finite (an attitude filter would carry a NaN through every later sample)."""
+    for name, a in (("gyro_rad_s", d.gyro_rad_s), ("accel_m_s2", d.accel_m_s2)):
+        bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+        if bad.size:
+            raise ValueError(f"{source}: {where(int(bad[0]))}: {name} is not finite ({a[bad[0]].tolist()}); "
+                             f"{bad.size} such samples in this chunk")
+
+
 @dataclass
 class ImuStream:
     """An IMU attached to a camera. ``T_cam_imu`` (4, 4) maps IMU coordinates into the camera frame.
@@ -336,25 +346,36 @@ class ImuStream:
     gaps: list[Gap] = field(default_factory=list)
 
     def chunks(self, max_rows: int = 100_000) -> Iterator[ImuData]:
-        """Consecutive pieces of at most ``max_rows`` samples, timestamps checked."""
+        """Consecutive pieces of at most ``max_rows`` samples: time stamps checked (finite, increasing; gaps
+        longer than 1.5 periods recorded in :attr:`gaps`), gyroscope and accelerometer finite."""
         if self.data is not None:
-            for a in range(0, len(self.data), max_rows):
-                d = self.data
-                yield ImuData(d.times_s[a : a + max_rows], d.gyro_rad_s[a : a + max_rows], d.accel_m_s2[a : a + max_rows])
+            d = self.data
+            checker = TimeChecker(f"imu {self.name!r}", self.rate_hz)
+            for a in range(0, len(d), max_rows):
+                piece = ImuData(d.times_s[a : a + max_rows], d.gyro_rad_s[a : a + max_rows],
+                                d.accel_m_s2[a : a + max_rows])
+                checker.check(piece.times_s)
+                _check_imu_finite(piece, f"imu {self.name!r}", lambda i, a=a: f"sample {a + i}")
+                yield piece
+            self.gaps = checker.gaps
             return
         checker = TimeChecker(str(self.path), self.rate_hz)
         n = 0
         for rows, line in read_csv_chunks(self.path, IMU_COLUMNS, max_rows):
             checker.check(rows[:, 0], line)
+            piece = ImuData(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+            _check_imu_finite(piece, str(self.path), lambda i, line=line: f"line {line + i}")
             n += len(rows)
-            yield ImuData(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+            yield piece
         self.gaps = checker.gaps
         if n != self.n_samples:
             raise ValueError(f"{self.path}: manifest says n_samples = {self.n_samples}, file has {n} rows (truncated?)")
 
     def read(self) -> ImuData:
-        """All samples at once."""
+        """All samples at once (checked as :meth:`chunks` checks them)."""
         if self.data is not None:
+            for _ in self.chunks():
+                pass
             return self.data
         parts = list(self.chunks())
         if not parts:

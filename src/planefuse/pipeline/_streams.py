@@ -45,7 +45,7 @@ class ModalityReport:
     sound_saliency: list[np.ndarray] = field(default_factory=list)
     sound_azimuth_grid_rad: np.ndarray | None = None
     T_world_head: np.ndarray | None = None
-    #: The cameras' registration (attitude sources, lookup rebuilds per camera); rebuilt, not checkpointed,
+    #: The cameras' registration (attitude sources, stabilising map rebuilds per camera); rebuilt, not checkpointed,
     #: by a resumed run (which replays the attitudes of the instants it skips).
     camera_registration: "CameraRegistration | None" = None
 
@@ -222,13 +222,12 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     times = all_times[start:]
 
     def messages() -> Iterator[Evidence]:
-        # lookups that follow the attitude of cameras registered through their IMU (the calibration's otherwise),
+        # cameras registered through their IMU: frames brought back to the calibrated view as they turn,
         # replayed through the instants a resumed run skips
         registration = CameraRegistration.from_recording(rec, stack, params.registration)
         lookups = registration.lookups_at(float(all_times[0]))
-        if start:
-            registration.advance(all_times[1:start])
-            lookups = registration.current_lookups()
+        # instants skipped without replay (replayed ones are stabilised as they come)
+        registration.advance(all_times[1:start - replay])
         # empty-scene calibration plates prime the background models (no ghosts of people already in view)
         backgrounds = [_background_or_none(rec.camera(n)) for n in names]
         instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,

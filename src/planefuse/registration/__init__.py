@@ -5,6 +5,7 @@ from ._attitude import (
     AttitudeTrack,
     CameraRegistration,
     RegistrationParams,
+    ground_reprojection_error_m,
     gyro_bias_at_rest,
     pixel_shift_px,
     rest_at_start_s,
@@ -12,4 +13,4 @@ from ._attitude import (
 from ._lookup import ImagePlaneLookup
 
 __all__ = ["ATTITUDE_SOURCES", "AttitudeTrack", "CameraRegistration", "ImagePlaneLookup", "RegistrationParams",
-           "gyro_bias_at_rest", "pixel_shift_px", "rest_at_start_s"]
+           "ground_reprojection_error_m", "gyro_bias_at_rest", "pixel_shift_px", "rest_at_start_s"]

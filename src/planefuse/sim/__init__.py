@@ -27,7 +27,7 @@ from ._config import (
     default_scene_config,
     load_scene_config,
 )
-from ._imu import R_cam_imu, T_cam_imu, simulate_imu, simulate_static_imu
+from ._imu import R_cam_imu, T_cam_imu, simulate_imu, simulate_rotating_imu, simulate_static_imu
 from ._motion import CameraMotionSpec, R_world_cam_at, max_motion_deg, omega_cam_rad_s_at
 from ._render import CameraRenderer, body_surface_points, occluder_distance_image, render_background
 from ._scenarios import SCENARIOS, scenario_config, scenario_description
@@ -56,6 +56,7 @@ __all__ = [
     "R_cam_imu",
     "T_cam_imu",
     "simulate_imu",
+    "simulate_rotating_imu",
     "simulate_static_imu",
     "CameraMotionSpec",
     "R_world_cam_at",

@@ -174,8 +174,9 @@ def camera_detections(
         yielded or reported for them. A run resumed after ``replay`` instants gets the exact background
         models (OpenCV cannot save them) and so the exact outputs of an uninterrupted run.
     registration : CameraRegistration, optional
-        Lookups that follow the cameras' attitudes: at every registered instant, the lookups of cameras
-        that moved beyond its tolerance are replaced (``lookups`` must be its lookups at the first one).
+        Cameras that follow their attitude: at every instant (replayed ones included) their images are
+        brought back to the calibrated view (:meth:`CameraRegistration.stabilise`) before anything else
+        (``lookups`` must be its lookups).
     cameras : sequence of PinholeCamera, optional
         The calibrated cameras (same order as ``lookups``); needed by ``params.sensor_model == "generative"``
         (taken from ``registration`` when given).
@@ -233,19 +234,13 @@ def camera_detections(
                 if img is not None:
                     dead[c] = frame_is_dead(img, previous[c])
                     previous[c] = img
+        if registration is not None:  # cameras that turned: their images back in the calibrated view
+            images = registration.stabilise(images, time_s)
         if i < replay:
             for sub, img, d in zip(subtractors or (), images, dead):
                 if img is not None and not d:
                     sub.update(img)
             continue
-        if registration is not None:
-            for c, lookup in registration.updates(time_s):
-                fusion.set_lookup(c, lookup)
-                if generative is not None:
-                    cam = registration.cameras[c]
-                    T = np.eye(4)
-                    T[:3, :3], T[:3, 3] = registration.lookup_attitudes[c], cam.center_world
-                    generative.set_camera(c, PinholeCamera(cam.intrinsics, T, name=cam.name))
         fgs: list[np.ndarray | None] = []
         for c, img in enumerate(images):
             if img is None or dead[c]:

@@ -217,4 +217,4 @@ class CameraFusion:
 
     def evidence(self, foregrounds: Sequence[np.ndarray | None], time_s: float, sensor: str = "cameras") -> Evidence:
         """:meth:`log_odds` wrapped in the :class:`~planefuse.grid.Evidence` contract."""
-        return Evidence(float(time_s), sensor, self.log_odds(foregrounds))
+        return Evidence(float(time_s), sensor, self.log_odds(foregrounds), copy=False)  # a new grid per call

@@ -37,7 +37,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from ..grid import GroundDetections, PlaneStack
 from .._params import check_fields
@@ -164,7 +163,10 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
     """
     score, top = person_score_map(log_odds, views, stack, max_log_ratio, params)
     r_cells = params.nms_radius_m / stack.cell_size_m
-    peak = ndimage.maximum_filter(score, footprint=_disc(r_cells), mode="constant", cval=-np.inf)
+    # ndimage.maximum_filter(score, footprint=disc, mode="constant", cval=-inf), in OpenCV (a dilation's
+    # border never wins the maximum)
+    peak = cv2.dilate(score, _disc(r_cells).astype(np.uint8), borderType=cv2.BORDER_CONSTANT,
+                      borderValue=-np.inf)
     iy, ix = np.nonzero((score >= peak) & (score >= params.min_agreement))
     s = score[iy, ix]
     order = np.argsort(-s, kind="stable")

@@ -6,6 +6,7 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator, Literal, Sequence
 
+import cv2
 import numpy as np
 
 from ..geometry import H_plane_image_calibrated, PinholeCamera
@@ -25,7 +26,9 @@ DEAD_FRAME_MAX_MEAN = 8.0
 def frame_is_dead(image: np.ndarray, previous: np.ndarray | None) -> bool:
     """True for a frame a failed camera delivers: black (mean level <= ``DEAD_FRAME_MAX_MEAN``) or frozen
     (bit-identical to the camera's previous frame, which sensor noise makes impossible for a live camera)."""
-    if float(np.mean(image)) <= DEAD_FRAME_MAX_MEAN:
+    # the exact integer sum of the levels (OpenCV, per channel) against the mean's bound: np.mean's decision
+    # without its float64 copy of the frame
+    if sum(cv2.sumElems(image)) <= DEAD_FRAME_MAX_MEAN * image.size:
         return True
     return previous is not None and previous.shape == image.shape and np.array_equal(image, previous)
 

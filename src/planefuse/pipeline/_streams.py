@@ -202,13 +202,15 @@ def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 
 def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
-                  start: int = 0) -> EvidenceSource:
+                  start: int = 0, client=None) -> EvidenceSource:
     """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
     the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
 
     With ``start > 0`` the first ``start`` instants are not computed, but their frames still update the
     background models (:func:`planefuse.vision.camera_detections` ``replay``), so that what follows is
-    exactly what an uninterrupted run computes.
+    exactly what an uninterrupted run computes. With a dask ``client``, each camera's front end (decoding,
+    dead frames, background subtraction) runs as a stream on the cluster's workers
+    (:func:`planefuse.batch.remote_foregrounds`); the evidence is the same.
     """
     from ..registration import CameraRegistration
     from ..vision import CameraReport, camera_detections, camera_instants, recording_frames
@@ -229,11 +231,19 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
         if start:
             registration.advance(all_times[1:start])
             lookups = registration.current_lookups()
-        # empty-scene calibration plates prime the background models (no ghosts of people already in view)
-        backgrounds = [_background_or_none(rec.camera(n)) for n in names]
-        instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
-                                     names=names, report=report.camera, backgrounds=backgrounds, replay=replay,
-                                     registration=registration)
+        if client is not None:
+            from ..batch import remote_foregrounds
+
+            fgs = remote_foregrounds(client, rec.root, names, params.foreground, times, start,
+                                     quantise=params.sensor_model == "cell")
+            instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
+                                         registration=registration, foregrounds=fgs)
+        else:
+            # empty-scene calibration plates prime the background models (no ghosts of people already in view)
+            backgrounds = [_background_or_none(rec.camera(n)) for n in names]
+            instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
+                                         names=names, report=report.camera, backgrounds=backgrounds,
+                                         replay=replay, registration=registration)
         report.camera_registration = registration
         for ev, det in instants:
             report.camera_detections.append(det)

@@ -16,8 +16,10 @@ interleaved (before, after, before, after...) and the minimum is reported. The t
 (detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared.
 
 Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 1dc1878] [--repeats 2]
-[--image-format png] [--profile]``; ``--recording DIR`` times an existing recording instead (e.g. the EPFL
-terrace as ``scripts/terrace.py --keep`` writes it).
+[--image-format png] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras c0 and c1,
+360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, written as a recording by
+``scripts/terrace.py``'s ``write_recording``; default configuration, cameras only); ``--recording DIR`` times
+any recording folder.
 """
 
 from __future__ import annotations
@@ -94,6 +96,21 @@ def digest(out: Path) -> str:
     return h.hexdigest()[:16]
 
 
+def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path:
+    """The EPFL terrace's c0 and c1 over frames ``first..last-1`` as a recording folder (scripts/terrace.py)."""
+    import numpy as np
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from terrace import terrace_truth, write_recording
+
+    data = ROOT.parent / "shared" / "data"
+    if not (data / "epfl_video" / "terrace1-c0.mp4").is_file():
+        raise SystemExit(f"{data / 'epfl_video'}: the EPFL terrace videos are absent")
+    frames = np.arange(first, last)
+    truth = terrace_truth(data / "epfl_pom" / "EPFL-Terrace", frames)
+    return write_recording(folder, data / "epfl_video", truth, frames, 1)
+
+
 def run_tree(src: Path, rec: Path, out: Path, profile: bool) -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out)] + (["--profile"] if profile else []),
@@ -111,6 +128,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--image-format", default="png", choices=("png", "jpg"))
     ap.add_argument("--recording", type=Path, help="time this recording instead of a simulated one")
+    ap.add_argument("--terrace", action="store_true", help="time the EPFL terrace video (frames 1500-1999)")
     ap.add_argument("--before", default=BEFORE, help="commit of the 'before' tree ('' to skip it)")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--profile", action="store_true", help="print the 'after' run's profile (slower)")
@@ -121,7 +139,9 @@ def main() -> None:
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
     rec = args.recording
-    if rec is None:
+    if args.terrace:
+        rec = terrace_recording(tmp / "terrace")
+    elif rec is None:
         from planefuse.sim import default_scene_config, simulate
 
         rec = tmp / "rec"

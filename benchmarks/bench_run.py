@@ -19,7 +19,9 @@ Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--befo
 [--image-format png] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras c0 and c1,
 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, written as a recording by
 ``scripts/terrace.py``'s ``write_recording``; default configuration, cameras only); ``--recording DIR`` times
-any recording folder.
+any recording folder. ``--streams`` also times, in this process (all cores), the run in one process against the
+run with each camera's front end on a LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time
+(the cluster started beforehand), and the two results compared.
 """
 
 from __future__ import annotations
@@ -132,6 +134,7 @@ def main() -> None:
     ap.add_argument("--before", default=BEFORE, help="commit of the 'before' tree ('' to skip it)")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--profile", action="store_true", help="print the 'after' run's profile (slower)")
+    ap.add_argument("--streams", action="store_true", help="also: serial vs per-camera streams on 2 workers")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -172,6 +175,33 @@ def main() -> None:
     if "before" in runs:
         b, a = (min(x["cpu_s"] for x in runs[k]) for k in ("before", "after"))
         print(f"speed-up {b / a:.2f}x; identical results: {len(digests) == 1}")
+    if args.streams:
+        streams(rec, tmp)
+
+
+def streams(rec_dir: Path, tmp: Path) -> None:
+    """Wall-clock time of the run in one process against the run with per-camera streams on 2 workers."""
+    import time
+
+    from planefuse.batch import batch_client
+    from planefuse.io import read_recording
+    from planefuse.outputs import OutputSettings
+    from planefuse.pipeline import RunPlan, SystemParams, run_plan
+
+    settings = OutputSettings(figures=False, animation="none", report=False)
+    rec = read_recording(rec_dir)
+    wall = {}
+    with batch_client(n_workers=2) as client:
+        client.run(lambda: __import__("planefuse.vision"))
+        for name in ("one process", "streams on 2 workers", "one process ", "streams on 2 workers "):
+            t0 = time.perf_counter()
+            run_plan(rec, RunPlan(SystemParams(), tmp / f"streams-{name.strip()}-{len(wall)}", settings),
+                     progress_mode="quiet", client=client if name.startswith("streams") else None)
+            wall.setdefault(name.strip(), []).append(time.perf_counter() - t0)
+    same = digest(tmp / "streams-one process-0") == digest(tmp / "streams-streams on 2 workers-1")
+    a, b = min(wall["one process"]), min(wall["streams on 2 workers"])
+    print(f"\nwall-clock, all cores (min of 2): one process {a:.1f} s, per-camera streams on 2 workers {b:.1f} s, "
+          f"speed-up {a / b:.2f}x; identical results: {same}; load average {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

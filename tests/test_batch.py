@@ -140,8 +140,8 @@ def test_cli_batch_writes_what_planefuse_run_writes(tmp_path, workers_see_checko
 
 
 def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_see_checkout):
-    """``planefuse run --workers 2``: each camera's front end on a worker gives the serial run's tables, occupancy
-    and metrics byte for byte, with missing and black frames."""
+    """``planefuse run --workers 2``: each camera's front end on a worker gives the serial single-threaded run's
+    (``--threads 1``) tables, occupancy and metrics byte for byte, with missing and black frames."""
     import json
 
     import numpy as np
@@ -149,6 +149,7 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     from typer.testing import CliRunner
 
     from planefuse.cli import app
+    from planefuse.cli._run import set_threads
     from planefuse.config import example_yaml
     from planefuse.sim import scenario_config, simulate
 
@@ -159,8 +160,9 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     for name in ("serial", "workers"):
         (tmp_path / f"{name}.yaml").write_text(text.replace("out_dir: planefuse-out", f"out_dir: out-{name}"))
     runner = CliRunner()
-    r = runner.invoke(app, ["run", str(tmp_path / "serial.yaml"), "--quiet"], terminal_width=200)
+    r = runner.invoke(app, ["run", str(tmp_path / "serial.yaml"), "--quiet", "--threads", "1"], terminal_width=200)
     assert r.exit_code == 0, r.output
+    set_threads(os.cpu_count() or 1)  # back to the default: the run below is multi-threaded
     r = runner.invoke(app, ["run", str(tmp_path / "workers.yaml"), "--quiet", "--workers", "2"], terminal_width=200)
     assert r.exit_code == 0, r.output
     a, b = tmp_path / "out-serial", tmp_path / "out-workers"

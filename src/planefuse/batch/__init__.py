@@ -14,5 +14,7 @@ See ``docs/batch.md``.
 
 from ._cluster import batch_client, run_batch
 from ._jobs import TABLES_ONLY, BatchJob, JobResult, SceneSpec, run_job
+from ._streams import CameraStream, remote_foregrounds
 
-__all__ = ["TABLES_ONLY", "BatchJob", "JobResult", "SceneSpec", "batch_client", "run_batch", "run_job"]
+__all__ = ["TABLES_ONLY", "BatchJob", "CameraStream", "JobResult", "SceneSpec", "batch_client", "remote_foregrounds",
+           "run_batch", "run_job"]

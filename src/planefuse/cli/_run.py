@@ -21,6 +21,14 @@ def run(
                                "results of another run there."),
     force: bool = typer.Option(False, "--force", help="Write into an outputs.out_dir holding another run's "
                                "results (replaced) or files planefuse did not write (kept)."),
+    workers: int = typer.Option(None, "--workers", min=1, help="Run each camera's front end (decoding, background "
+                                "subtraction) as a stream on a local dask cluster of this many worker processes; "
+                                "same results as without."),
+    scheduler: str = typer.Option(None, "--scheduler", help="The same on a running dask scheduler, e.g. "
+                                  "tcp://10.0.0.5:8786 (its workers must read the recording under the same path)."),
+    threads: int = typer.Option(None, "--threads", min=1, help="Threads of OpenCV (decoding, background "
+                                "subtraction) and numba in this process (default: one per core); --threads 1 "
+                                "runs on one core. Same results with any number."),
 ) -> None:
     """Register every modality of the configured recording on the planes, filter, track, evaluate (when the
     recording has ground truth) and write occupancy, detections, tracks, metrics, figures and report.html.
@@ -54,8 +62,18 @@ def run(
             import rerun as _  # noqa: F401
         except ImportError:
             exit_with_error("--rerun / outputs.rerun needs rerun-sdk: pip install 'planefuse[viz]'", 2)
+    if threads is not None:
+        set_threads(threads)
+    if workers is not None and scheduler is not None:
+        exit_with_error("--workers starts a local cluster; a --scheduler's workers are started with it", 2)
     try:
-        _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json))
+        if workers is None and scheduler is None:
+            _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json))
+        else:
+            from ..batch import batch_client
+
+            with batch_client(scheduler, workers) as client:
+                _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json), client=client)
     except KeyboardInterrupt:
         console.print(f"interrupted: outputs so far are in {escape(str(plan.out_dir))}; re-run to resume")
         raise typer.Exit(130) from None
@@ -63,3 +81,12 @@ def run(
         exit_with_error(str(exc), 1)
     if metrics and not quiet:
         print_summary(metrics, plan.out_dir, f"planefuse run {config}")
+
+
+def set_threads(n: int) -> None:
+    """Use at most ``n`` threads in OpenCV and numba (numba: at most the threads it was started with)."""
+    import cv2
+    import numba
+
+    cv2.setNumThreads(int(n))
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))

@@ -10,7 +10,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 
 import numpy as np
 
@@ -50,22 +50,36 @@ class Evidence:
         Sensor name (e.g. ``"cam0"``, ``"laser"``, ``"binaural"``).
     log_odds : ndarray, shape (L, ny, nx), float32
         ``log P(Z|occ) - log P(Z|free)`` per cell; 0 where the sensor is
-        uninformative (cells it does not see).
+        uninformative (cells it does not see), clipped to ``+-LOG_ODDS_CLIP``.
+    copy : bool (init only)
+        True (default): the evidence keeps its own copy of ``log_odds`` (the producer may reuse its array).
+        False: the producer hands over a float32 array it will not touch again; it is kept as it is (made
+        read-only) unless it must be clipped, which saves a copy of the grid per message.
     """
 
     time_s: float
     sensor: str
     log_odds: np.ndarray
+    copy: InitVar[bool] = True
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, copy: bool) -> None:
         if not np.isfinite(self.time_s):
             raise ValueError(f"Evidence from {self.sensor!r}: time_s must be finite, got {self.time_s}")
         a = np.asarray(self.log_odds, dtype=np.float32)
         if a.ndim != 3:
             raise ValueError(f"Evidence from {self.sensor!r}: log_odds must have shape (L, ny, nx), got {a.shape}")
-        if not np.isfinite(a).all():
+        # min and max are NaN where any cell is NaN, infinite where any is: one pass each, no temporary grid
+        lo, hi = (float(a.min()), float(a.max())) if a.size else (0.0, 0.0)
+        if not (np.isfinite(lo) and np.isfinite(hi)):
             raise ValueError(f"Evidence from {self.sensor!r}: log_odds has NaN/inf (use 0 for unknown cells)")
-        object.__setattr__(self, "log_odds", np.clip(a, -LOG_ODDS_CLIP, LOG_ODDS_CLIP))
+        fresh = a is not self.log_odds  # a converted copy already
+        if lo < -LOG_ODDS_CLIP or hi > LOG_ODDS_CLIP:
+            a = np.clip(a, -LOG_ODDS_CLIP, LOG_ODDS_CLIP, out=a if fresh else None)
+        elif copy and not fresh:
+            a = a.copy()
+        elif not copy:
+            a.flags.writeable = False
+        object.__setattr__(self, "log_odds", a)
 
 
 @dataclass(frozen=True)

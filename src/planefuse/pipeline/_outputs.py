@@ -80,15 +80,15 @@ def _log_modalities(logger, rec: Recording, report: ModalityReport, step_times: 
                 logger.log_sound_wedge(name, rep.T_world_head[:3, 3], a - half, a + half)
 
 
-def _start(rec: Recording, params: SystemParams, stack, out: OutputWriter) -> SystemRun:
+def _start(rec: Recording, params: SystemParams, stack, out: OutputWriter, client=None) -> SystemRun:
     """The run to continue: from the writer's checkpoint when it resumes, else from the start (a resumed
     folder without a usable checkpoint is recomputed from the start; its finished chunks are not rewritten)."""
     if not out.resumed:
-        return SystemRun(rec, params, stack)
+        return SystemRun(rec, params, stack, client=client)
     try:
         state = out.load_checkpoint()
         if state is not None:
-            run = SystemRun(rec, params, stack, checkpoint=state)
+            run = SystemRun(rec, params, stack, checkpoint=state, client=client)
             if run.n_outputs == out.resume_step:
                 return run
             why = f"it is at step {run.n_outputs}, the finished chunks end at step {out.resume_step}"
@@ -98,7 +98,7 @@ def _start(rec: Recording, params: SystemParams, stack, out: OutputWriter) -> Sy
         why = str(exc)
     warnings.warn(f"{out.out_dir / 'checkpoint.npz'}: cannot resume from the checkpoint ({why}); recomputing "
                   f"from the start, the first {out.resume_step} finished steps are kept", stacklevel=3)
-    return SystemRun(rec, params, stack)
+    return SystemRun(rec, params, stack, client=client)
 
 
 def _steps_from_tables(out: OutputWriter):
@@ -115,9 +115,11 @@ def _warn_no_evaluation(rec: Recording) -> None:
                   "evaluation: no metrics computed", stacklevel=3)
 
 
-def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> tuple[SystemResult, dict]:
+def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
+             client=None) -> tuple[SystemResult, dict]:
     """Run ``plan`` on ``rec``: into ``plan.out_dir`` (:func:`run_to_folder`), or in memory when it is None
-    (the metrics of :func:`evaluate_system` where the recording has ground truth).
+    (the metrics of :func:`evaluate_system` where the recording has ground truth). With a dask ``client``
+    the cameras' front ends run as per-camera streams on its workers (:class:`SystemRun`; same results).
 
     Returns
     -------
@@ -125,8 +127,8 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> t
         The result and the metrics (empty without ground truth).
     """
     if plan.out_dir is not None:
-        return run_to_folder(rec, plan, progress_mode=progress_mode)
-    result = run_system(rec, plan.params)
+        return run_to_folder(rec, plan, progress_mode=progress_mode, client=client)
+    result = run_system(rec, plan.params, client=client)
     has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
     if has_truth and not can_evaluate(rec, [o.time_s for o in result.outputs]):
         _warn_no_evaluation(rec)
@@ -186,7 +188,8 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
     return written
 
 
-def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich") -> tuple[SystemResult, dict]:
+def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
+                  client=None) -> tuple[SystemResult, dict]:
     """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
     (CSV + MOTChallenge), ``metrics.json``, figures, animation, ``report.html`` (and a rerun recording) into
     ``plan.out_dir``, as ``plan.outputs`` asks.
@@ -198,6 +201,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
     follow (the cameras' background models replay the frames already seen, which is all of the past it
     repeats), and its outputs are identical to an uninterrupted run's (``plan.resume=False`` starts afresh
     instead). Metrics and figures are computed from the folder's outputs, so they cover the whole run.
+    With a dask ``client`` the cameras' front ends run as per-camera streams on its workers (same outputs).
 
     Returns
     -------
@@ -220,7 +224,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich")
             from ..viz import RerunLogger
 
             out.attach_rerun(RerunLogger(plan.out_dir / "planefuse.rrd", stack))
-        run = _start(rec, params, stack, out)
+        run = _start(rec, params, stack, out, client)
         if run.resumed_at_step:
             progress.message(f"resuming {out.out_dir} at step {run.resumed_at_step} from its checkpoint (the "
                              "finished chunks are kept, not recomputed)")

@@ -10,6 +10,7 @@ given: a resumed run starts every source there (``start``) instead of recomputin
 from __future__ import annotations
 
 import heapq
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import partial
@@ -202,13 +203,15 @@ def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 
 def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
-                  start: int = 0) -> EvidenceSource:
+                  start: int = 0, client=None) -> EvidenceSource:
     """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
     the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
 
     With ``start > 0`` the first ``start`` instants are not computed, but their frames still update the
     background models (:func:`planefuse.vision.camera_detections` ``replay``), so that what follows is
-    exactly what an uninterrupted run computes.
+    exactly what an uninterrupted run computes. With a dask ``client``, each camera's front end (decoding,
+    dead frames, background subtraction) runs as a stream on the cluster's workers
+    (:func:`planefuse.batch.remote_foregrounds`); the evidence is the same.
     """
     from ..registration import CameraRegistration
     from ..vision import CameraReport, camera_detections, camera_instants, recording_frames
@@ -228,11 +231,24 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
         lookups = registration.lookups_at(float(all_times[0]))
         # instants skipped without replay (replayed ones are stabilised as they come)
         registration.advance(all_times[1:start - replay])
-        # empty-scene calibration plates prime the background models (no ghosts of people already in view)
-        backgrounds = [_background_or_none(rec.camera(n)) for n in names]
-        instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
-                                     names=names, report=report.camera, backgrounds=backgrounds, replay=replay,
-                                     registration=registration)
+        if client is not None and registration.tracks:
+            # stabilising a turning camera's frames needs its attitude track, which stays in this process
+            warnings.warn(f"cameras {sorted(registration.tracks)} follow their IMU: their front ends run in this "
+                          "process, not on the dask workers", stacklevel=2)
+            client = None
+        if client is not None:
+            from ..batch import remote_foregrounds
+
+            fgs = remote_foregrounds(client, rec.root, names, params.foreground, times, start,
+                                     quantise=params.sensor_model == "cell")
+            instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
+                                         registration=registration, foregrounds=fgs)
+        else:
+            # empty-scene calibration plates prime the background models (no ghosts of people already in view)
+            backgrounds = [_background_or_none(rec.camera(n)) for n in names]
+            instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
+                                         names=names, report=report.camera, backgrounds=backgrounds,
+                                         replay=replay, registration=registration)
         report.camera_registration = registration
         for ev, det in instants:
             report.camera_detections.append(det)

@@ -272,6 +272,10 @@ class SystemRun:
         Default: :func:`stack_for_recording`.
     checkpoint : mapping, optional
         A :meth:`state_dict` of a run with the same recording, parameters and stack.
+    client : distributed.Client, optional
+        Run each camera's front end (decoding, background subtraction) as a stream on this dask cluster's
+        workers (:func:`planefuse.batch.remote_foregrounds`; the recording must be a folder they can read).
+        The outputs are identical to the run's in one process.
 
     Attributes
     ----------
@@ -282,8 +286,8 @@ class SystemRun:
     """
 
     def __init__(self, rec: Recording, params: SystemParams = SystemParams(), stack: PlaneStack | None = None,
-                 checkpoint: Mapping[str, np.ndarray] | None = None) -> None:
-        self.rec, self.params = rec, params
+                 checkpoint: Mapping[str, np.ndarray] | None = None, client=None) -> None:
+        self.rec, self.params, self.client = rec, params, client
         self.stack = stack if stack is not None else stack_for_recording(rec, params)
         self.report = ModalityReport()
         consumed: dict[str, int] = {}
@@ -314,7 +318,7 @@ class SystemRun:
         out = []
         if params.cameras and rec.camera_streams:
             out.append(camera_source(rec, stack, params.camera_params, report,
-                                     start=consumed.get("cameras", 0)))
+                                     start=consumed.get("cameras", 0), client=self.client))
         if params.laser and rec.lasers:
             out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:
@@ -351,6 +355,7 @@ def run_system(
     params: SystemParams = SystemParams(),
     stack: PlaneStack | None = None,
     on_output: Callable[[TrackerOutput], None] | None = None,
+    client=None,
 ) -> SystemResult:
     """Register every enabled modality on the planes, filter with one BOF per plane and track people.
 
@@ -363,12 +368,14 @@ def run_system(
         Default: :func:`stack_for_recording`.
     on_output : callable, optional
         Called with every :class:`TrackerOutput` (progress, writers).
+    client : distributed.Client, optional
+        The cameras' front ends as streams on this dask cluster (:class:`SystemRun`); same outputs.
 
     See Also
     --------
     SystemRun : the same run step by step, with checkpoints (what ``run_to_folder`` resumes from).
     """
-    run = SystemRun(rec, params, stack)
+    run = SystemRun(rec, params, stack, client=client)
     t0 = time.perf_counter()
     outputs = []
     for out in run.outputs():

@@ -22,15 +22,19 @@ from ._foreground import (
     foreground_from_mask,
     read_mot_detections,
 )
-from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio
+from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
-from ._pipeline import CameraParams, CameraReport, camera_detections, frame_is_dead, lookups_from_cameras
+from ._pipeline import (CameraFrontEnd, CameraParams, CameraReport, camera_detections, camera_foregrounds,
+                        frame_is_dead, lookups_from_cameras)
 
 __all__ = [
     "BackgroundSubtractor",
     "CameraFusion",
+    "CameraFrontEnd",
     "CameraParams",
+    "camera_foregrounds",
+    "quantise_foreground",
     "CameraReport",
     "EpflSequence",
     "ForegroundParams",

@@ -374,9 +374,18 @@ def recording_frames(recording, *, masks: bool = False,
     for t in camera_instants(recording)[int(start):]:
         imgs: list[np.ndarray | None] = []
         for s in streams:
-            j = int(np.argmin(np.abs(s.times_s - t))) if len(s) else -1
-            if j >= 0 and abs(s.times_s[j] - t) <= 0.5 / s.rate_hz:
-                imgs.append(np.where(s.mask(j) > 0, np.uint8(255), np.uint8(0)) if masks else s.frame(j))
-            else:
+            j = frame_at(s, t)
+            if j is None:
                 imgs.append(None)
+            else:
+                imgs.append(np.where(s.mask(j) > 0, np.uint8(255), np.uint8(0)) if masks else s.frame(j))
         yield float(t), imgs
+
+
+def frame_at(stream, time_s: float) -> int | None:
+    """Index of ``stream``'s frame at the camera instant ``time_s`` [s]: its nearest frame when within half of
+    its frame period, else None (a missing frame)."""
+    if not len(stream):
+        return None
+    j = int(np.argmin(np.abs(stream.times_s - time_s)))
+    return j if abs(stream.times_s[j] - time_s) <= 0.5 / stream.rate_hz else None

@@ -235,7 +235,9 @@ class BackgroundSubtractor:
         relearning = self._relearn_left > 0
         mask = self._learn(img, self._rate)
         p = self.params
-        if p.relearn_fraction is not None and not relearning and np.count_nonzero(mask == _CV_FOREGROUND) > \
+        # OpenCV's per-pixel operations, each the numpy expression it replaces (speed only, same values)
+        hard = cv2.compare(mask, _CV_FOREGROUND, cv2.CMP_EQ)  # np.where(mask == 255, 255, 0)
+        if p.relearn_fraction is not None and not relearning and cv2.countNonZero(hard) > \
                 p.relearn_fraction * mask.size:
             self._relearn_left = p.relearn_frames
             # a cold model (OpenCV's KNN) calls its first few frames all foreground: not a change of the scene
@@ -244,14 +246,14 @@ class BackgroundSubtractor:
         if relearning:  # the model is being rebuilt: no evidence either way
             return np.full(mask.shape, 0.5, dtype=np.float32)
         # Clean the hard decision (foreground only) before softening it.
-        hard = np.where(mask == _CV_FOREGROUND, np.uint8(255), np.uint8(0))
         if self._open is not None:
             hard = cv2.morphologyEx(hard, cv2.MORPH_OPEN, self._open)
         if self._close is not None:
             hard = cv2.morphologyEx(hard, cv2.MORPH_CLOSE, self._close)
-        cleaned = np.where(hard == 255, np.uint8(_CV_FOREGROUND), np.where(mask == _CV_SHADOW, _CV_SHADOW, 0))
-        like = self._lut[cleaned.astype(np.uint8)]
-        return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling)
+        # 255 where the cleaned decision is foreground, else 127 where OpenCV saw a shadow, else 0
+        shadow = cv2.bitwise_and(cv2.compare(mask, _CV_SHADOW, cv2.CMP_EQ), _CV_SHADOW)
+        like = cv2.LUT(cv2.max(hard, shadow), self._lut)
+        return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling, own=True)
 
 
 class GainCompensator:
@@ -342,9 +344,14 @@ def _kernel(side_px: int):
     return None if side_px <= 1 else cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side_px, side_px))
 
 
-def _soften(like: np.ndarray, blur_px: int, floor: float, ceiling: float) -> np.ndarray:
+def _soften(like: np.ndarray, blur_px: int, floor: float, ceiling: float, *, own: bool = False) -> np.ndarray:
+    """``floor + (ceiling - floor) * like`` (float32) after a box blur; computed in place in ``like`` where it is
+    a float32 array of this call's own (``own``, or a blurred copy)."""
     if blur_px > 1:
-        like = cv2.blur(like, (blur_px, blur_px), borderType=cv2.BORDER_REPLICATE)
+        like, own = cv2.blur(like, (blur_px, blur_px), borderType=cv2.BORDER_REPLICATE), True
+    if own and like.dtype == np.float32:
+        np.multiply(like, np.float32(ceiling - floor), out=like)
+        return np.add(like, np.float32(floor), out=like)
     return (floor + (ceiling - floor) * like).astype(np.float32)
 
 

@@ -32,7 +32,7 @@ from ..grid import Evidence, PlaneStack
 from ..registration import ImagePlaneLookup
 from .._params import check_fields, require
 
-__all__ = ["CameraFusion", "FusionParams", "log_odds_table", "max_log_ratio"]
+__all__ = ["CameraFusion", "FusionParams", "log_odds_table", "max_log_ratio", "quantise_foreground"]
 
 _LEVELS = 256
 
@@ -76,6 +76,11 @@ def log_odds_table(params: FusionParams) -> np.ndarray:
     f = np.arange(_LEVELS) / (_LEVELS - 1.0)
     pd, pfa = params.p_detect, params.p_false_alarm
     return (np.log(f * pd + (1 - f) * (1 - pd)) - np.log(f * pfa + (1 - f) * (1 - pfa))).astype(np.float32)
+
+
+def quantise_foreground(fg: np.ndarray) -> np.ndarray:
+    """A foreground likelihood in [0, 1] (float) as the fusion's 256 levels, uint8 ``round(255 f)``."""
+    return cv2.convertScaleAbs(np.asarray(fg, dtype=np.float32), alpha=_LEVELS - 1.0)
 
 
 @njit(cache=True, boundscheck=False)
@@ -205,7 +210,7 @@ class CameraFusion:
             if img.dtype == np.uint8:
                 dst[:] = img.reshape(-1)
             else:
-                dst[:] = cv2.convertScaleAbs(np.asarray(img, dtype=np.float32), alpha=_LEVELS - 1.0).reshape(-1)
+                dst[:] = quantise_foreground(img).reshape(-1)
             active[c] = True
         if out is None:
             out = np.empty(self.stack.shape, dtype=np.float32)
@@ -217,4 +222,4 @@ class CameraFusion:
 
     def evidence(self, foregrounds: Sequence[np.ndarray | None], time_s: float, sensor: str = "cameras") -> Evidence:
         """:meth:`log_odds` wrapped in the :class:`~planefuse.grid.Evidence` contract."""
-        return Evidence(float(time_s), sensor, self.log_odds(foregrounds))
+        return Evidence(float(time_s), sensor, self.log_odds(foregrounds), copy=False)  # a new grid per call

@@ -34,10 +34,10 @@ by at least ``min_cameras`` cameras are the feet positions, with confidence A.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from ..grid import GroundDetections, PlaneStack
 from .._params import check_fields
@@ -82,10 +82,22 @@ class PersonParams:
 _PLATEAU = 0.02
 
 
+@lru_cache(maxsize=16)
 def _disc(radius_cells: float) -> np.ndarray:
+    """Cells within ``radius_cells`` of the centre, (2r+1, 2r+1) bool (read-only, cached)."""
     r = max(int(np.floor(radius_cells)), 0)
     y, x = np.mgrid[-r:r + 1, -r:r + 1]
-    return (x * x + y * y) <= radius_cells * radius_cells + 1e-9
+    disc = (x * x + y * y) <= radius_cells * radius_cells + 1e-9
+    disc.flags.writeable = False
+    return disc
+
+
+@lru_cache(maxsize=16)
+def _disc_u8(radius_cells: float) -> np.ndarray:
+    """:func:`_disc` as an OpenCV structuring element (uint8, read-only, cached)."""
+    disc = _disc(radius_cells).astype(np.uint8)
+    disc.flags.writeable = False
+    return disc
 
 
 def person_score_map(log_odds, views, stack: PlaneStack, max_log_ratio: float,
@@ -122,12 +134,21 @@ def person_score_map(log_odds, views, stack: PlaneStack, max_log_ratio: float,
     disc = _disc(params.radius_m / stack.cell_size_m)
     # A person fills only part of its footprint on a plane (two legs low down): per plane, the best
     # cell within the footprint speaks for the column.
-    pooled = np.stack([cv2.dilate(L[l], disc.astype(np.uint8), borderType=cv2.BORDER_CONSTANT,
-                                  borderValue=0.0) for l in range(len(L))])
-    cum = np.cumsum(pooled, axis=0)[k_min:]
-    top = np.argmax(cum, axis=0)
-    col = np.take_along_axis(cum, top[None], axis=0)[0]
-    n_col = np.take_along_axis(np.cumsum(N, axis=0)[k_min:], top[None], axis=0)[0]
+    disc_u8 = _disc_u8(params.radius_m / stack.cell_size_m)
+    # Column sums S_k up the planes and the best k >= k_min per cell, with the views behind it: the values of
+    # np.cumsum (the same float32 additions in the same order) and of argmax (the first maximum) with
+    # take_along_axis, in one pass over the planes.
+    top = np.zeros(L.shape[1:], dtype=np.int64)
+    col = n_col = s_k = n_k = None
+    for k in range(len(L)):
+        pooled = cv2.dilate(L[k], disc_u8, borderType=cv2.BORDER_CONSTANT, borderValue=0.0)
+        s_k, n_k = (pooled, N[k]) if k == 0 else (s_k + pooled, n_k + N[k])
+        if k == k_min:
+            col, n_col = s_k, n_k
+        elif k > k_min:
+            better = s_k > col
+            top[better] = k - k_min
+            col, n_col = np.where(better, s_k, col), np.where(better, n_k, n_col)
     with np.errstate(invalid="ignore", divide="ignore"):
         a = np.where(n_col > 0, col / (n_col * max_log_ratio), 0.0).astype(np.float32)
     # Smooth over the footprint so that the pooled plateau peaks at the person's centre.
@@ -164,7 +185,9 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
     """
     score, top = person_score_map(log_odds, views, stack, max_log_ratio, params)
     r_cells = params.nms_radius_m / stack.cell_size_m
-    peak = ndimage.maximum_filter(score, footprint=_disc(r_cells), mode="constant", cval=-np.inf)
+    # ndimage.maximum_filter(score, footprint=disc, mode="constant", cval=-inf), in OpenCV (a dilation's
+    # border never wins the maximum)
+    peak = cv2.dilate(score, _disc_u8(r_cells), borderType=cv2.BORDER_CONSTANT, borderValue=-np.inf)
     iy, ix = np.nonzero((score >= peak) & (score >= params.min_agreement))
     s = score[iy, ix]
     order = np.argsort(-s, kind="stable")

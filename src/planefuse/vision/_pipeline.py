@@ -6,17 +6,19 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator, Literal, Sequence
 
+import cv2
 import numpy as np
 
 from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
 from ._foreground import BackgroundSubtractor, ForegroundParams
-from ._fusion import CameraFusion, FusionParams, max_log_ratio
+from ._fusion import CameraFusion, FusionParams, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds
 
-__all__ = ["CameraParams", "CameraReport", "camera_detections", "frame_is_dead", "lookups_from_cameras"]
+__all__ = ["CameraFrontEnd", "CameraParams", "CameraReport", "camera_detections", "camera_foregrounds",
+           "frame_is_dead", "lookups_from_cameras"]
 
 #: A frame whose mean grey level is at most this is black (a camera that lost its signal).
 DEAD_FRAME_MAX_MEAN = 8.0
@@ -25,7 +27,9 @@ DEAD_FRAME_MAX_MEAN = 8.0
 def frame_is_dead(image: np.ndarray, previous: np.ndarray | None) -> bool:
     """True for a frame a failed camera delivers: black (mean level <= ``DEAD_FRAME_MAX_MEAN``) or frozen
     (bit-identical to the camera's previous frame, which sensor noise makes impossible for a live camera)."""
-    if float(np.mean(image)) <= DEAD_FRAME_MAX_MEAN:
+    # the exact integer sum of the levels (OpenCV, per channel) against the mean's bound: np.mean's decision
+    # without its float64 copy of the frame
+    if sum(cv2.sumElems(image)) <= DEAD_FRAME_MAX_MEAN * image.size:
         return True
     return previous is not None and previous.shape == image.shape and np.array_equal(image, previous)
 
@@ -133,6 +137,102 @@ class CameraReport:
         return sum(len(v) for v in self.missing_frames.values())
 
 
+#: Per camera and instant, what the front end made of the frame: a foreground likelihood, no frame, or a frame
+#: a failed camera delivered (black or frozen).
+OK, NO_FRAME, DEAD_FRAME = "ok", "no frame", "a black or frozen frame"
+
+
+class CameraFrontEnd:
+    """One camera's front end, frame after frame: dead-frame check and background subtraction.
+
+    Stateful (the previous frame, the background model): feed it every frame of one camera in time order. It
+    runs wherever the frames are (this process, or a dask worker per camera: ``planefuse run --workers``) and
+    gives the same foregrounds anywhere (the background model's random draws are seeded per frame).
+
+    Parameters
+    ----------
+    width_px, height_px : int
+        The camera's image size.
+    foreground : ForegroundParams or None
+        Background subtraction; None when the frames already are foreground likelihoods (then passed through).
+    name : str
+    background : ndarray, optional
+        Empty-scene image priming the background model.
+    quantise : bool
+        Give foregrounds as uint8 ``0..255`` (what :class:`CameraFusion` quantises them to; a quarter of the
+        bytes to send from a worker) instead of float32.
+    """
+
+    def __init__(self, width_px: int, height_px: int, foreground: ForegroundParams | None, name: str,
+                 background: np.ndarray | None = None, quantise: bool = False) -> None:
+        self.name, self.quantise = name, bool(quantise)
+        self.subtractor = None if foreground is None else BackgroundSubtractor(width_px, height_px, foreground, name)
+        if self.subtractor is not None and background is not None:
+            self.subtractor.prime(background)
+        self._previous: np.ndarray | None = None
+
+    def check(self, img: np.ndarray | None) -> str:
+        """The frame's status (:data:`OK`, :data:`NO_FRAME` or :data:`DEAD_FRAME`); call once per frame, in time
+        order (a frozen frame is one bit-identical to the previous one)."""
+        if img is None:
+            return NO_FRAME
+        if self.subtractor is None:
+            return OK
+        dead = frame_is_dead(img, self._previous)
+        self._previous = img
+        return DEAD_FRAME if dead else OK
+
+    def learn(self, img: np.ndarray) -> None:
+        """Update the background model with a checked frame only (an instant a resumed run skips)."""
+        if self.subtractor is not None:
+            self.subtractor.update(img)
+
+    def foreground(self, img: np.ndarray) -> np.ndarray:
+        """The foreground likelihood of a checked frame (float32 in [0, 1], or uint8 when quantising)."""
+        fg = img if self.subtractor is None else self.subtractor.apply(img)
+        if self.quantise and fg.dtype != np.uint8:
+            fg = quantise_foreground(fg)
+        return fg
+
+    def replay(self, img: np.ndarray | None) -> None:
+        """Check ``img`` and, if it is a live frame, only learn from it (an instant a resumed run skips)."""
+        if self.check(img) == OK:
+            self.learn(img)
+
+    def process(self, img: np.ndarray | None) -> tuple[np.ndarray | None, str]:
+        """``(foreground, status)``: status :data:`OK` with :meth:`foreground`, else :data:`NO_FRAME` /
+        :data:`DEAD_FRAME` with None."""
+        status = self.check(img)
+        return (self.foreground(img) if status == OK else None), status
+
+
+def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]]],
+                       front_ends: Sequence[CameraFrontEnd], replay: int = 0,
+                       registration: CameraRegistration | None = None,
+                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
+    """The front ends of all cameras, in this process: ``(time_s, foregrounds, statuses)`` per instant of
+    ``frames`` after the first ``replay`` (which only update the background models).
+
+    With ``registration``, every live frame (replayed ones included) is first brought back to its camera's
+    calibrated view (:meth:`CameraRegistration.stabilise`); black or frozen frames are told from the raw frames.
+    """
+    n = len(front_ends)
+    for i, (time_s, images) in enumerate(frames):
+        images = list(images)
+        if len(images) != n:
+            raise ValueError(f"instant t={time_s}: expected {n} images (None for missing), got {len(images)}")
+        status = [fe.check(img) for fe, img in zip(front_ends, images)]
+        if registration is not None:  # cameras that turned: their images back in the calibrated view
+            images = registration.stabilise([img if s == OK else None for img, s in zip(images, status)], time_s)
+        if i < replay:
+            for fe, img, s in zip(front_ends, images, status):
+                if s == OK:
+                    fe.learn(img)
+            continue
+        yield time_s, [fe.foreground(img) if s == OK else None
+                       for fe, img, s in zip(front_ends, images, status)], status
+
+
 def camera_detections(
     frames: Iterable[tuple[float, Sequence[np.ndarray | None]]],
     lookups: Sequence[ImagePlaneLookup],
@@ -146,6 +246,7 @@ def camera_detections(
     registration: CameraRegistration | None = None,
     cameras: Sequence[PinholeCamera] | None = None,
     ignore_masks: Sequence[np.ndarray | None] | None = None,
+    foregrounds: Iterable[tuple[float, Sequence[np.ndarray | None], Sequence[str]]] | None = None,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -183,6 +284,10 @@ def camera_detections(
     ignore_masks : sequence of (bool ndarray or None), optional
         Per camera, pixels that are not scene evidence, for the generative model (taken from ``registration``
         when given; the per-cell model has them in its lookups).
+    foregrounds : iterable of (time_s, foregrounds, statuses), optional
+        The cameras' front ends computed elsewhere (per-camera streams on dask workers: ``planefuse.batch.
+        remote_foregrounds``): per instant, each camera's :meth:`CameraFrontEnd.process`. ``frames``,
+        ``backgrounds`` and ``replay`` are then not used.
 
     Yields
     ------
@@ -210,48 +315,21 @@ def camera_detections(
         generative = GenerativeCameraSensor(cameras, stack, params.generative, ignore_masks, fusion.names)
     if report is not None:
         report.blind_cameras = list(fusion.blind_cameras)
-    subtractors = None
-    if params.foreground is not None:
-        subtractors = [BackgroundSubtractor(lk.width_px, lk.height_px, params.foreground, name)
-                       for lk, name in zip(lookups, fusion.names)]
-        if backgrounds is not None:
-            if len(backgrounds) != len(subtractors):
-                raise ValueError(f"backgrounds: expected {len(subtractors)} images (None where absent), "
-                                 f"got {len(backgrounds)}")
-            for sub, bg in zip(subtractors, backgrounds):
-                if bg is not None:
-                    sub.prime(bg)
-    previous: list[np.ndarray | None] = [None] * fusion.n_cameras
-    for i, (time_s, images) in enumerate(frames):
-        images = list(images)
-        if len(images) != fusion.n_cameras:
-            raise ValueError(f"instant t={time_s}: expected {fusion.n_cameras} images (None for missing), "
-                             f"got {len(images)}")
-        dead = [False] * fusion.n_cameras
-        if subtractors is not None:
-            # black or frozen frames are missing frames: they must neither be fused nor teach the background
-            for c, img in enumerate(images):
-                if img is not None:
-                    dead[c] = frame_is_dead(img, previous[c])
-                    previous[c] = img
-        if registration is not None:  # cameras that turned: their images back in the calibrated view
-            images = registration.stabilise(images, time_s)
-        if i < replay:
-            for sub, img, d in zip(subtractors or (), images, dead):
-                if img is not None and not d:
-                    sub.update(img)
-            continue
-        fgs: list[np.ndarray | None] = []
-        for c, img in enumerate(images):
-            if img is None or dead[c]:
-                what = "no frame" if img is None else "a black or frozen frame"
+    if foregrounds is None:
+        if backgrounds is not None and params.foreground is not None and len(backgrounds) != fusion.n_cameras:
+            raise ValueError(f"backgrounds: expected {fusion.n_cameras} images (None where absent), "
+                             f"got {len(backgrounds)}")
+        bgs = backgrounds if backgrounds is not None and params.foreground is not None else [None] * fusion.n_cameras
+        front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg)
+                      for lk, name, bg in zip(lookups, fusion.names, bgs)]
+        foregrounds = camera_foregrounds(frames, front_ends, replay, registration)
+    for time_s, fgs, status in foregrounds:
+        for c, what in enumerate(status):
+            if what != OK:
                 warnings.warn(f"{fusion.names[c]}: {what} at t={time_s} s; fusing the other cameras",
                               stacklevel=2)
                 if report is not None:
                     report.missing_frames.setdefault(fusion.names[c], []).append(float(time_s))
-                fgs.append(None)
-            else:
-                fgs.append(img if subtractors is None else subtractors[c].apply(img))
         if generative is None:
             evidence = fusion.evidence(fgs, time_s)
             detections = ground_detections_from_log_odds(evidence.log_odds, fusion.cameras_seeing(fusion.active),

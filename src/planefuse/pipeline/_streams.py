@@ -231,15 +231,16 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
         lookups = registration.lookups_at(float(all_times[0]))
         # instants skipped without replay (replayed ones are stabilised as they come)
         registration.advance(all_times[1:start - replay])
-        if client is not None and registration.tracks:
+        remote = client
+        if remote is not None and registration.tracks:
             # stabilising a turning camera's frames needs its attitude track, which stays in this process
             warnings.warn(f"cameras {sorted(registration.tracks)} follow their IMU: their front ends run in this "
                           "process, not on the dask workers", stacklevel=2)
-            client = None
-        if client is not None:
+            remote = None
+        if remote is not None:
             from ..batch import remote_foregrounds
 
-            fgs = remote_foregrounds(client, rec.root, names, params.foreground, times, start,
+            fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start,
                                      quantise=params.sensor_model == "cell")
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
                                          registration=registration, foregrounds=fgs)

@@ -61,7 +61,9 @@ AREA_X_M, AREA_Y_M = (-0.5, 7.0), (-1.5, 9.5)
 PLANES_M = (0.1, 0.5, 1.0, 1.5)
 
 #: The rows of the table: (key, front end, configuration changes). "tuned" = terrace.yaml's front end.
-_KNN_DEFAULTS = {"gain_compensation": False, "shadow_likelihood": 0.1}
+_KNN_DEFAULTS = {"gain_compensation": False, "shadow_likelihood": 0.1, "var_threshold": None, "close_px": 5}
+#: The front end before this tuning round: gain compensation and shadows 0.5, OpenCV's KNN threshold, 5 px closing.
+_GAIN_ONLY = {"var_threshold": None, "close_px": 5}
 _CELL = {"sensor_model": "cell"}
 _GROUND = {"planes": {"heights_m": [0.0]}}
 _NOFILTER = {"models": {"filter": {"enabled": False}}}
@@ -76,9 +78,11 @@ ROWS = {
     "cell-nofilter": ("tuned", {"sensors": {"cameras": _CELL}} | _CELL_THRESHOLD | _NOFILTER),
     "cell-ground": ("tuned", {"sensors": {"cameras": _CELL}} | _CELL_THRESHOLD | _GROUND),
     "knn": ("KNN defaults", {"sensors": {"cameras": _CELL | _KNN_DEFAULTS}} | _CELL_THRESHOLD),
+    "gen-gain": ("KNN + gain compensation", {"sensors": {"cameras": _GAIN_ONLY}}),
     "gen-knn": ("KNN defaults", {"sensors": {"cameras": _KNN_DEFAULTS}}),
 }
 TABLE_ROWS = ("generative", "pom")
+TUNED_NAME = "tuned (terrace.yaml)"
 
 
 def load_base_config(path: Path = CONFIG) -> dict:
@@ -205,8 +209,8 @@ def run_row(rec, config: dict, truth: TerraceTruth, frames) -> tuple[dict, dict]
     cams = {_frame_of(d.time_s): d for d in res.report.camera_detections}
     frc = [f for f in frames if f in cams]
     raw = score(truth, frc, [cams[f].xy_m for f in frc])
-    n_cam_frames = res.report.n_camera_frames
-    filt.update(cpu_s=cpu_s, frames_per_cpu_s=n_cam_frames / cpu_s, camera_frames=n_cam_frames,
+    n_instants = res.report.n_camera_frames
+    filt.update(cpu_s=cpu_s, frames_per_cpu_s=n_instants * len(rec.cameras) / cpu_s, camera_instants=n_instants,
                 missing_camera_frames=res.report.n_missing_camera_frames, unscored_steps=len(frames) - len(fr))
     return filt, raw
 
@@ -333,7 +337,7 @@ def main(argv=None) -> int:
             planes = "/".join(f"{h:g}" for h in heights) + (" (ground alone)" if heights == [0.0] else "")
             model = "generative" if cams.get("sensor_model") == "generative" else "per cell"
             use_filter = cfg.get("models", {}).get("filter", {}).get("enabled", True)
-            front_name = "KNN + gain compensation" if front == "tuned" else front
+            front_name = TUNED_NAME if front == "tuned" else front
             results.append(dict(row=key, front_end=front_name, planes=planes,
                                 filter="BOF" if use_filter else "off", sensor_model=model, scores=filt))
             if use_filter:
@@ -354,7 +358,7 @@ def main(argv=None) -> int:
             np.savez_compressed(out / "masks.npz", frames=frames, c0=masks[0], c1=masks[1])
             gen, q = generative_row(rec, masks, truth, frames)
             gen["mask_cpu_s"] = mask_cpu_s
-            results.append(dict(row="generative", front_end="KNN + gain compensation",
+            results.append(dict(row="generative", front_end=TUNED_NAME,
                                 planes="ground locations (25 cm)", filter="none (per frame)",
                                 sensor_model="generative (mean field)", scores=gen))
             print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
@@ -364,7 +368,7 @@ def main(argv=None) -> int:
 
                 pom = pom_row(rec, masks, frames, lambda d: score(truth, frames, d), out)
                 if pom is not None:
-                    results.append(dict(row="pom", front_end="KNN + gain compensation",
+                    results.append(dict(row="pom", front_end=TUNED_NAME,
                                         planes="ground locations (25 cm)", filter="none (per frame)",
                                         sensor_model="POM (reference program)", scores=pom))
                     print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)

@@ -159,7 +159,9 @@ def import_terrace(folder: Path, data: Path, frames: np.ndarray) -> Path:
     planefuse_cli(["cameras", "epfl-tsai", str(folder / "tsai")])
     times = folder / "times.csv"
     times.write_text("time_s,frame_index\n" + "".join(f"{float(f) / FPS!r},{int(f)}\n" for f in frames))
-    planefuse_cli(import_command(folder / "terrace", data, folder / "tsai", times))
+    args = import_command(folder / "terrace", data, folder / "tsai", times)
+    print("planefuse " + " ".join(args), flush=True)
+    planefuse_cli(args)
     return folder / "terrace"
 
 

@@ -85,3 +85,25 @@ def test_import_then_run_on_terrace_frames(tmp_path):
         assert in_memory[k] == pytest.approx(metrics[k], nan_ok=True), k
     # per frame, the camera detector (cold background model) already finds people: measured 2026-12-02
     assert metrics["camera_only_moda"] > 0.0
+
+
+def test_system_metrics_leave_out_absent_people():
+    """Imported box ground truth marks a person absent (out of every view) with NaN: not a miss, not an error."""
+    from types import SimpleNamespace
+
+    from planefuse.eval import system_metrics
+    from planefuse.io import GroundTruth, PeopleTruth
+    from planefuse.pipeline import ModalityReport
+
+    times = np.arange(0.0, 3.0, 0.2)
+    xy = np.zeros((len(times), 2, 2))
+    xy[:, 0] = [1.0, 2.0]
+    xy[:, 1] = np.nan  # person 8 never in view
+    nan = np.full((len(times), 2), np.nan)
+    people = PeopleTruth(times, np.array([7, 8]), xy, nan, nan, np.full(2, np.nan))
+    rec = SimpleNamespace(groundtruth=GroundTruth(people=people))
+    dets = [np.array([[1.1, 2.0]]) for _ in times]
+    tracks = [(t, np.array([1]), d) for t, d in zip(times, dets)]
+    m = system_metrics(rec, times, dets, tracks, ModalityReport(), 1.0)
+    assert m["moda"] == pytest.approx(1.0) and m["recall"] == pytest.approx(1.0)
+    assert m["mota"] == pytest.approx(1.0)

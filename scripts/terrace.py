@@ -60,6 +60,15 @@ WATERMARK_PX = (130, 230, 356, 285)
 AREA_X_M, AREA_Y_M = (-0.5, 7.0), (-1.5, 9.5)
 PLANES_M = (0.1, 0.5, 1.0, 1.5)
 
+
+def merged(base: dict, changes: dict) -> dict:
+    """``base`` with the nested mapping ``changes`` written over it (a copy)."""
+    out = copy.deepcopy(base)
+    for k, v in changes.items():
+        out[k] = merged(out.get(k) or {}, v) if isinstance(v, dict) else v
+    return out
+
+
 #: The rows of the table: (key, front end, configuration changes). "tuned" = terrace.yaml's front end.
 _KNN_DEFAULTS = {"gain_compensation": False, "shadow_likelihood": 0.1, "var_threshold": None, "close_px": 5}
 #: The front end before this tuning round: gain compensation and shadows 0.5, OpenCV's KNN threshold, 5 px closing.
@@ -67,17 +76,27 @@ _GAIN_ONLY = {"var_threshold": None, "close_px": 5}
 _CELL = {"sensor_model": "cell"}
 _GROUND = {"planes": {"heights_m": [0.0]}}
 _NOFILTER = {"models": {"filter": {"enabled": False}}}
-#: BOF column log-odds of a person with the per-cell model: the system's default (terrace.yaml's 3.0 is the
+#: BOF column log-odds of a person with the per-cell model: the system's default (terrace.yaml's 2.0 is the
 #: generative model's, chosen on frames 0-1499).
 _CELL_THRESHOLD = {"models": {"detection": {"column_threshold": 1.5}}}
+
+def _changes(*parts: dict) -> dict:
+    """The nested configuration changes ``parts`` applied one after the other."""
+    out: dict = {}
+    for p in parts:
+        out = merged(out, p)
+    return out
+
+
+_CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
 ROWS = {
     "gen": ("tuned", {}),
     "gen-nofilter": ("tuned", _NOFILTER),
     "gen-ground": ("tuned", _GROUND),
-    "cell": ("tuned", {"sensors": {"cameras": _CELL}} | _CELL_THRESHOLD),
-    "cell-nofilter": ("tuned", {"sensors": {"cameras": _CELL}} | _CELL_THRESHOLD | _NOFILTER),
-    "cell-ground": ("tuned", {"sensors": {"cameras": _CELL}} | _CELL_THRESHOLD | _GROUND),
-    "knn": ("KNN defaults", {"sensors": {"cameras": _CELL | _KNN_DEFAULTS}} | _CELL_THRESHOLD),
+    "cell": ("tuned", _CELL_ROW),
+    "cell-nofilter": ("tuned", _changes(_CELL_ROW, _NOFILTER)),
+    "cell-ground": ("tuned", _changes(_CELL_ROW, _GROUND)),
+    "knn": ("KNN defaults", _changes(_CELL_ROW, {"sensors": {"cameras": _KNN_DEFAULTS}})),
     "gen-gain": ("KNN + gain compensation", {"sensors": {"cameras": _GAIN_ONLY}}),
     "gen-knn": ("KNN defaults", {"sensors": {"cameras": _KNN_DEFAULTS}}),
 }
@@ -88,14 +107,6 @@ TUNED_NAME = "tuned (terrace.yaml)"
 def load_base_config(path: Path = CONFIG) -> dict:
     """The run configuration as a mapping (``recording`` and ``outputs.out_dir`` to be set by the caller)."""
     return yaml.safe_load(path.read_text(encoding="utf-8"))
-
-
-def merged(base: dict, changes: dict) -> dict:
-    """``base`` with the nested mapping ``changes`` written over it (a copy)."""
-    out = copy.deepcopy(base)
-    for k, v in changes.items():
-        out[k] = merged(out.get(k) or {}, v) if isinstance(v, dict) else v
-    return out
 
 
 def tuned_front_end(config: dict | None = None) -> ForegroundParams:

@@ -2,37 +2,35 @@
 
 What it does, for frames ``--first`` to ``--last`` (every ``--step``-th):
 
-1. writes a planefuse recording (format 2) in a temporary folder: the two videos as ``video_file`` streams with a
-   ``times_file`` listing the chosen frames, the Tsai cameras converted to ``PinholeCamera``
-   (:func:`planefuse.calib.pinhole_from_tsai`, so that planes above the ground are registered), the burned-in
-   watermark as an ignore rectangle, and the ground truth: every person placed at the median of the feet of their
-   boxes in all four cameras back-projected to the ground through the Tsai models; a person seen by neither c0
-   nor c1 is "ignore" (kept aside, neither a miss nor a false alarm);
-2. runs :func:`planefuse.pipeline.run_system` on it -- what ``planefuse run`` runs -- with background
-   subtraction learnt from the video itself (no empty plate exists), the plane stack, the BOF and the tracker,
-   for each configuration of the table (front end, planes, filter, sensor model);
-3. runs the generative sensor model (:mod:`planefuse.occupancy`, mean-field marginals over ground locations with
-   silhouettes projected from the same cameras) on the same foreground masks, frame by frame;
-4. optionally (``--pom``) POM, the reference program, on the same masks and silhouettes
-   (``benchmarks/bench_terrace_pom.py``);
-5. scores every row with the same scorer: MODA, MODP, precision, recall at 0.5 m and 1.0 m
+1. ``planefuse import`` (the command users run) of the two videos with a times file listing the chosen frames,
+   the terrace's **Tsai** calibration (``planefuse cameras epfl-tsai``; planes above the ground registered, not
+   only the ground), the burned-in watermark as an ignore rectangle, and the ground truth from all four cameras'
+   boxes (EPFL/Vatic ``gt.txt``, feet back-projected through the Tsai models, median over the cameras);
+2. for each row of the table, the run configuration ``scripts/terrace.yaml`` (chosen on frames 0-1499) with the
+   row's changes (front end, planes, filter, sensor model) run by :func:`planefuse.pipeline.run_plan`, what
+   ``planefuse run`` runs; with ``--run-dir`` the main row is also run into a folder exactly as ``planefuse run
+   terrace.yaml`` does (``metrics.json``, tables, figures);
+3. the mean-field solver on 25 cm ground locations on the same foreground masks, frame by frame, and optionally
+   (``--pom``) POM, the reference program, on the same masks and silhouettes (``benchmarks/bench_terrace_pom.py``);
+4. scores every row with the same scorer: MODA, MODP, precision, recall at 0.5 m and 1.0 m
    (:func:`planefuse.eval.detection_scores`), MOTA, IDF1 and identity switches of the tracks
-   (:func:`planefuse.eval.tracking_metrics`), and writes ``terrace.json`` and a Markdown table.
+   (:func:`planefuse.eval.tracking_metrics`); a person seen by neither c0 nor c1 is "ignore" (neither missed nor
+   false), the only difference with ``planefuse run``'s own ``metrics.json`` (which also skips the first second);
+   writes ``terrace.json`` and a Markdown table.
 
 Hold-out: every parameter was chosen on frames 0-1499; report on 1500-2999. Example::
 
     PYTHONPATH=src python3 scripts/terrace.py --data ../shared/data --first 1500 --last 3000 --step 5 --out /tmp/terrace
-
-Outside ``planefuse run``: the recording is written by this script (``planefuse import`` does it for users), the
-ignore people of the ground truth are the script's (the recording format has no "ignore" people), and the
-generative rows run the library's solver directly until the run configuration selects it.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import json
+import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -43,28 +41,78 @@ import numpy as np
 import yaml
 
 from planefuse.calib import EPFL_TERRACE_TSAI, pinhole_from_tsai
+from planefuse.config import config_from_dict
 from planefuse.eval import detection_scores, match_detections, tracking_metrics
 from planefuse.grid import PlaneStack
 from planefuse.io import read_recording
 from planefuse.occupancy import GenerativeParams
-from planefuse.pipeline import SystemParams, run_system
-from planefuse.vision import (BackgroundSubtractor, CameraParams, ForegroundParams, GenerativeSensorParams,
-                              epfl_ground_truth_from_cameras, load_epfl_sequence, recording_frames)
+from planefuse.pipeline import run_plan
+from planefuse.vision import (BackgroundSubtractor, ForegroundParams, epfl_ground_truth_from_cameras,
+                              load_epfl_sequence, recording_frames)
 
+REPO = Path(__file__).resolve().parents[1]
+#: The run configuration of the experiment (chosen on frames 0-1499).
+CONFIG = Path(__file__).resolve().with_name("terrace.yaml")
 FPS = 25.0
 #: The converter's watermark, (u_min, v_min, u_max, v_max) px, max exclusive (../shared/data/epfl_video/SOURCE.md).
 WATERMARK_PX = (130, 230, 356, 285)
 #: The monitored area [m, Tsai world]: POM's terrace grid, 7.5 m x 11 m from (-0.5, -1.5).
 AREA_X_M, AREA_Y_M = (-0.5, 7.0), (-1.5, 9.5)
 PLANES_M = (0.1, 0.5, 1.0, 1.5)
-CELL_M = 0.1
-ROWS = ("knn", "gain", "ground", "nofilter", "gen", "gen-ground", "gen-nofilter", "generative")
 
-#: Front ends compared (parameters chosen on frames 0-1499, docs/results.md).
-FRONT_ENDS = {
-    "KNN defaults": ForegroundParams(),
-    "KNN + gain compensation": ForegroundParams(gain_compensation=True, shadow_likelihood=0.5),
+
+def merged(base: dict, changes: dict) -> dict:
+    """``base`` with the nested mapping ``changes`` written over it (a copy)."""
+    out = copy.deepcopy(base)
+    for k, v in changes.items():
+        out[k] = merged(out.get(k) or {}, v) if isinstance(v, dict) else v
+    return out
+
+
+#: The rows of the table: (key, front end, configuration changes). "tuned" = terrace.yaml's front end.
+_KNN_DEFAULTS = {"gain_compensation": False, "shadow_likelihood": 0.1, "var_threshold": None, "close_px": 5}
+#: The front end before this tuning round: gain compensation and shadows 0.5, OpenCV's KNN threshold, 5 px closing.
+_GAIN_ONLY = {"var_threshold": None, "close_px": 5}
+_CELL = {"sensor_model": "cell"}
+_GROUND = {"planes": {"heights_m": [0.0]}}
+_NOFILTER = {"models": {"filter": {"enabled": False}}}
+#: BOF column log-odds of a person with the per-cell model: the system's default (terrace.yaml's 2.0 is the
+#: generative model's, chosen on frames 0-1499).
+_CELL_THRESHOLD = {"models": {"detection": {"column_threshold": 1.5}}}
+
+def _changes(*parts: dict) -> dict:
+    """The nested configuration changes ``parts`` applied one after the other."""
+    out: dict = {}
+    for p in parts:
+        out = merged(out, p)
+    return out
+
+
+_CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
+ROWS = {
+    "gen": ("tuned", {}),
+    "gen-nofilter": ("tuned", _NOFILTER),
+    "gen-ground": ("tuned", _GROUND),
+    "cell": ("tuned", _CELL_ROW),
+    "cell-nofilter": ("tuned", _changes(_CELL_ROW, _NOFILTER)),
+    "cell-ground": ("tuned", _changes(_CELL_ROW, _GROUND)),
+    "knn": ("KNN defaults", _changes(_CELL_ROW, {"sensors": {"cameras": _KNN_DEFAULTS}})),
+    "gen-gain": ("KNN + gain compensation", {"sensors": {"cameras": _GAIN_ONLY}}),
+    "gen-knn": ("KNN defaults", {"sensors": {"cameras": _KNN_DEFAULTS}}),
 }
+TABLE_ROWS = ("generative", "pom")
+TUNED_NAME = "tuned (terrace.yaml)"
+
+
+def load_base_config(path: Path = CONFIG) -> dict:
+    """The run configuration as a mapping (``recording`` and ``outputs.out_dir`` to be set by the caller)."""
+    return yaml.safe_load(path.read_text(encoding="utf-8"))
+
+
+def tuned_front_end(config: dict | None = None) -> ForegroundParams:
+    """The front end of the run configuration (``scripts/terrace.yaml`` by default)."""
+    cfg = config_from_dict(merged(config or load_base_config(), {"recording": "."}))
+    return cfg.system_params().camera_params.foreground
 
 
 def terrace_cameras(indices=(0, 1)) -> list:
@@ -92,34 +140,40 @@ def terrace_truth(pom_root: Path, frames) -> TerraceTruth:
                         {f: v[2] for f, v in gt.items()})
 
 
-def write_recording(folder: Path, video_root: Path, truth: TerraceTruth, frames: np.ndarray, step: int) -> Path:
-    """A format-2 recording of c0 + c1 over ``frames`` (video files copied in: paths must stay inside it)."""
+def import_command(out: Path, data: Path, tsai_dir: Path, times_file: Path) -> list[str]:
+    """The ``planefuse import`` arguments of terrace1 c0 + c1 (videos, Tsai cameras, watermark, ground truth)."""
+    video, pom = data / "epfl_video", data / "epfl_pom" / "EPFL-Terrace"
+    wm = ",".join(str(v) for v in WATERMARK_PX)
+    args = ["import", str(out), "--calib-format", "tsai", "--units", "mm", "--gt-format", "vatic",
+            "--planes", ",".join(f"{h:g}" for h in PLANES_M),
+            "--room", ",".join(f"{v:g}" for v in (*AREA_X_M, *AREA_Y_M)), "--overwrite"]
+    for c in (0, 1):
+        args += ["--camera", f"c{c}={video / f'terrace1-c{c}.mp4'}", "--times", f"c{c}={times_file}",
+                 "--ignore-rect", f"c{c}={wm}"]
+    for c in (0, 1, 2, 3):
+        args += ["--calib", f"c{c}={tsai_dir / f'c{c}.xml'}", "--gt-boxes", f"c{c}={pom / f'terrace1-c{c}' / 'gt' / 'gt.txt'}"]
+    return args + ["--image-size", "c2=360x288", "--image-size", "c3=360x288"]
+
+
+def planefuse_cli(args: list[str]) -> str:
+    """Run ``python -m planefuse ARGS`` with this checkout's source first; its output (raises on failure)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")]))
+    res = subprocess.run([sys.executable, "-m", "planefuse", *args], env=env, capture_output=True, text=True)
+    if res.returncode not in (0,):
+        raise RuntimeError(f"planefuse {args[0]} failed ({res.returncode}): {res.stdout}{res.stderr}")
+    return res.stdout
+
+
+def import_terrace(folder: Path, data: Path, frames: np.ndarray) -> Path:
+    """``planefuse import`` of terrace1 c0 + c1 over video frames ``frames`` into ``folder/terrace``."""
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "cameras").mkdir(exist_ok=True)
-    (folder / "groundtruth").mkdir(exist_ok=True)
-    sensors = []
-    for cam in terrace_cameras((0, 1)):
-        video = f"cameras/terrace1-{cam.name}.mp4"
-        shutil.copyfile(video_root / f"terrace1-{cam.name}.mp4", folder / video)
-        times = f"cameras/{cam.name}_times.csv"
-        (folder / times).write_text("time_s,frame_index\n" + "".join(f"{float(f) / FPS!r},{int(f)}\n" for f in frames))
-        sensors.append(dict(type="camera", name=cam.name, width_px=cam.intrinsics.width_px,
-                            height_px=cam.intrinsics.height_px, K=cam.K.tolist(), dist=cam.intrinsics.dist.tolist(),
-                            T_world_cam=cam.T_world_cam.tolist(), rate_hz=FPS / step, n_frames=len(frames),
-                            times_file=times, video_file=video, ignore_rects_px=[list(WATERMARK_PX)]))
-    lines = ["time_s,person_id,x_m,y_m,heading_rad,speed_m_s,height_m"]
-    for f in frames:
-        for pid, (x, y) in zip(truth.ids[int(f)], truth.xy_m[int(f)]):
-            lines.append(f"{float(f) / FPS!r},{pid},{float(x)!r},{float(y)!r},nan,nan,nan")
-    (folder / "groundtruth" / "people.csv").write_text("\n".join(lines) + "\n")
-    m = 0.2  # stack_for_recording's wall margin
-    manifest = dict(format="planefuse-recording", format_version=2, duration_s=float((frames[-1] - frames[0]) / FPS),
-                    planes_heights_m=list(PLANES_M),
-                    room_xy_m=[AREA_X_M[0] - m, AREA_X_M[1] + m, AREA_Y_M[0] - m, AREA_Y_M[1] + m],
-                    sensors=sensors, groundtruth=dict(people_file="groundtruth/people.csv"),
-                    source="EPFL terrace1 c0+c1 (scripts/terrace.py)")
-    (folder / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
-    return folder
+    planefuse_cli(["cameras", "epfl-tsai", str(folder / "tsai")])
+    times = folder / "times.csv"
+    times.write_text("time_s,frame_index\n" + "".join(f"{float(f) / FPS!r},{int(f)}\n" for f in frames))
+    args = import_command(folder / "terrace", data, folder / "tsai", times)
+    print("planefuse " + " ".join(args), flush=True)
+    planefuse_cli(args)
+    return folder / "terrace"
 
 
 def _frame_of(time_s: float) -> int:
@@ -154,10 +208,12 @@ def score(truth: TerraceTruth, frames, detections, tracks=None) -> dict:
     return out
 
 
-def run_row(rec, params: SystemParams, truth: TerraceTruth, frames) -> tuple[dict, dict]:
-    """One ``run_system`` run: scores of the filtered detections and tracks, and of the per-frame camera detector."""
+def run_row(rec, config: dict, truth: TerraceTruth, frames) -> tuple[dict, dict]:
+    """One run of the configuration mapping ``config`` on ``rec`` (:func:`planefuse.pipeline.run_plan`, in
+    memory): scores of the filtered detections and tracks, and of the per-frame camera detector."""
+    plan = replace(config_from_dict(merged(config, {"recording": str(rec.root)})).plan(), out_dir=None)
     t0 = time.process_time()
-    res = run_system(rec, params)
+    res, _ = run_plan(rec, plan, progress_mode="quiet")
     cpu_s = time.process_time() - t0
     by_frame = {_frame_of(o.time_s): o for o in res.outputs}
     fr = [f for f in frames if f in by_frame]
@@ -166,7 +222,9 @@ def run_row(rec, params: SystemParams, truth: TerraceTruth, frames) -> tuple[dic
     cams = {_frame_of(d.time_s): d for d in res.report.camera_detections}
     frc = [f for f in frames if f in cams]
     raw = score(truth, frc, [cams[f].xy_m for f in frc])
-    filt.update(cpu_s=cpu_s, frames_per_cpu_s=2 * len(frames) / cpu_s, unscored_steps=len(frames) - len(fr))
+    n_instants = res.report.n_camera_frames
+    filt.update(cpu_s=cpu_s, frames_per_cpu_s=n_instants * len(rec.cameras) / cpu_s, camera_instants=n_instants,
+                missing_camera_frames=res.report.n_missing_camera_frames, unscored_steps=len(frames) - len(fr))
     return filt, raw
 
 
@@ -220,15 +278,9 @@ def ignore_mask(cam) -> np.ndarray:
     return m
 
 
-#: The mean-field solver on 25 cm ground locations (chosen on frames 0-1499: sigma 0.005, prior 0.003).
+#: The mean-field solver on 25 cm ground locations (chosen on frames 0-1499: sigma 0.005, prior 0.003 = the
+#: configuration's 0.05 people/m^2 on 25 cm locations).
 GENERATIVE = GenerativeParams(sigma=0.005, prior=0.003)
-#: The generative sensor of the run (planefuse.vision): same sigma; its prior density, 0.05 people/m^2, is
-#: 0.003 per 25 cm location, the prior chosen on frames 0-1499.
-GENERATIVE_SENSOR = GenerativeSensorParams(sigma=0.005, people_per_m2=0.05,
-                                           evidence_prior=0.5)
-#: BOF column log-odds of a person, per sensor model (generative: chosen on frames 0-1499 every 10th, 3 vs 1.5;
-#: per cell: the system's default).
-COLUMN_THRESHOLDS = {"cell": 1.5, "generative": 3.0}
 
 
 def markdown(rows: list[dict]) -> str:
@@ -246,18 +298,21 @@ def markdown(rows: list[dict]) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data",
+    ap.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data",
                     help="folder holding epfl_video/ and epfl_pom/")
     ap.add_argument("--first", type=int, default=1500, help="first frame (0-based)")
     ap.add_argument("--last", type=int, default=3000, help="end frame (exclusive)")
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
+    ap.add_argument("--config", type=Path, default=CONFIG, help="run configuration (default scripts/terrace.yaml)")
     ap.add_argument("--out", type=Path, default=None, help="folder for terrace.json, table.md and masks")
-    ap.add_argument("--rows", default="all", help="comma-separated subset of " + ",".join(ROWS))
-    ap.add_argument("--cell", type=float, default=CELL_M, help="grid cell side of the plane stack [m]")
-    ap.add_argument("--column-threshold", type=float, default=None,
-                    help="BOF column log-odds of a person (models.detection.column_threshold); default per sensor "
-                         "model: " + str(COLUMN_THRESHOLDS))
+    ap.add_argument("--rows", default="all",
+                    help="comma-separated subset of " + ",".join((*ROWS, *TABLE_ROWS)) + " (or all)")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=YAML",
+                    help="change a configuration field for every row, e.g. models.detection.column_threshold=2 "
+                         "(tuning; repeatable)")
     ap.add_argument("--pom", action="store_true", help="also run POM on the same masks (needs g++, make, libpng)")
+    ap.add_argument("--run-dir", type=Path, default=None,
+                    help="also run the main row into this folder exactly as `planefuse run` does")
     args = ap.parse_args(argv)
     video_root, pom_root = args.data / "epfl_video", args.data / "epfl_pom" / "EPFL-Terrace"
     for p in (video_root / "terrace1-c0.mp4", pom_root / "terrace1-c0" / "gt" / "gt.txt"):
@@ -268,57 +323,72 @@ def main(argv=None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="terrace-"))
     out.mkdir(parents=True, exist_ok=True)
     truth = terrace_truth(pom_root, frames)
+    base = load_base_config(args.config)
+    for item in args.set:
+        field, _, value = item.partition("=")
+        change: dict = {}
+        node = change
+        *heads, last = field.split(".")
+        for h in heads:
+            node = node.setdefault(h, {})
+        node[last] = yaml.safe_load(value)
+        base = merged(base, change)
+    rows = _rows(args.rows)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-rec-"))
+    results = []
     try:
-        rec = read_recording(write_recording(tmp / "rec", video_root, truth, frames, args.step))
-        rows = _rows(args.rows)
-        results = []
-        tuned = FRONT_ENDS["KNN + gain compensation"]
-        gain = "KNN + gain compensation"
-        for key, front, heights, use_filter, model in [
-                ("knn", "KNN defaults", PLANES_M, True, "cell"), ("gain", gain, PLANES_M, True, "cell"),
-                ("ground", gain, (0.0,), True, "cell"), ("nofilter", gain, PLANES_M, False, "cell"),
-                ("gen", gain, PLANES_M, True, "generative"), ("gen-ground", gain, (0.0,), True, "generative"),
-                ("gen-nofilter", gain, PLANES_M, False, "generative")]:
+        t0 = time.perf_counter()
+        rec = read_recording(import_terrace(tmp, args.data, frames))
+        print(f"planefuse import: {time.perf_counter() - t0:.1f} s wall", flush=True)
+        for key, (front, changes) in ROWS.items():
             if key not in rows:
                 continue
-            cp = CameraParams(foreground=FRONT_ENDS[front], sensor_model=model, generative=GENERATIVE_SENSOR)
-            params = SystemParams(heights_m=heights, cell_size_m=args.cell, laser=False, sound=False,
-                                  use_filter=use_filter, camera_params=cp)
-            threshold = args.column_threshold or COLUMN_THRESHOLDS[model]
-            params = replace(params, tracking=replace(params.tracking, cluster=replace(
-                params.tracking.cluster, threshold=threshold)))
-            filt, raw = run_row(rec, params, truth, frames)
-            planes = "/".join(f"{h:g}" for h in heights)
-            name = "per cell" if model == "cell" else "generative"
-            results.append(dict(front_end=front, planes=planes, filter="BOF" if use_filter else "off",
-                                sensor_model=name, scores=filt))
+            cfg = merged(base, changes)
+            filt, raw = run_row(rec, cfg, truth, frames)
+            cams = cfg["sensors"]["cameras"]
+            heights = cfg["planes"]["heights_m"]
+            planes = "/".join(f"{h:g}" for h in heights) + (" (ground alone)" if heights == [0.0] else "")
+            model = "generative" if cams.get("sensor_model") == "generative" else "per cell"
+            use_filter = cfg.get("models", {}).get("filter", {}).get("enabled", True)
+            front_name = TUNED_NAME if front == "tuned" else front
+            results.append(dict(row=key, front_end=front_name, planes=planes,
+                                filter="BOF" if use_filter else "off", sensor_model=model, scores=filt))
             if use_filter:
-                results.append(dict(front_end=front, planes=planes, filter="none (per frame)",
-                                    sensor_model=name, scores=raw))
+                results.append(dict(row=key + "-perframe", front_end=front_name, planes=planes,
+                                    filter="none (per frame)", sensor_model=model, scores=raw))
             print(markdown(results[-2:] if use_filter else results[-1:]).split("\n", 2)[-1], flush=True)
-        if "generative" in rows or args.pom:
-            masks, mask_cpu_s = foreground_masks(rec, tuned)
+        if args.run_dir is not None:
+            run_cfg = merged(base, {"recording": str(rec.root), "outputs": {"out_dir": str(args.run_dir.resolve())}})
+            cfg_file = tmp / "terrace.yaml"
+            cfg_file.write_text(yaml.safe_dump(run_cfg, sort_keys=False))
+            t0 = time.process_time()
+            planefuse_cli(["run", str(cfg_file), "--quiet", "--fresh"])
+            metrics = json.loads((args.run_dir / "metrics.json").read_text())
+            print(f"planefuse run into {args.run_dir}: MODA {metrics['moda']:.3f}, MOTA {metrics['mota']:.3f}, "
+                  f"IDF1 {metrics['idf1']:.3f} (all people, first second skipped)", flush=True)
+        if {"generative", "pom"} & rows:
+            masks, mask_cpu_s = foreground_masks(rec, tuned_front_end(base))
             np.savez_compressed(out / "masks.npz", frames=frames, c0=masks[0], c1=masks[1])
             gen, q = generative_row(rec, masks, truth, frames)
             gen["mask_cpu_s"] = mask_cpu_s
-            results.append(dict(front_end="KNN + gain compensation", planes="ground locations (25 cm)",
-                                filter="none (per frame)", sensor_model="generative (mean field)", scores=gen))
+            results.append(dict(row="generative", front_end=TUNED_NAME,
+                                planes="ground locations (25 cm)", filter="none (per frame)",
+                                sensor_model="generative (mean field)", scores=gen))
             print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
-            if args.pom:
-                sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+            if "pom" in rows or args.pom:
+                sys.path.insert(0, str(REPO / "benchmarks"))
                 from bench_terrace_pom import pom_row
 
                 pom = pom_row(rec, masks, frames, lambda d: score(truth, frames, d), out)
                 if pom is not None:
-                    results.append(dict(front_end="KNN + gain compensation", planes="ground locations (25 cm)",
-                                        filter="none (per frame)", sensor_model="POM (reference program)",
-                                        scores=pom))
+                    results.append(dict(row="pom", front_end=TUNED_NAME,
+                                        planes="ground locations (25 cm)", filter="none (per frame)",
+                                        sensor_model="POM (reference program)", scores=pom))
                     print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    meta = dict(first=args.first, last=args.last, step=args.step, n_frames=len(frames), planes_m=PLANES_M,
-                cell_m=CELL_M, front_ends={k: repr(v) for k, v in FRONT_ENDS.items()}, generative=repr(GENERATIVE))
+    meta = dict(first=args.first, last=args.last, step=args.step, n_frames=len(frames), config=base,
+                generative_25cm=repr(GENERATIVE))
     (out / "terrace.json").write_text(json.dumps(dict(meta=meta, rows=results), indent=1, default=float))
     (out / "table.md").write_text(markdown(results) + "\n")
     print(markdown(results))
@@ -327,7 +397,7 @@ def main(argv=None) -> int:
 
 
 def _rows(spec: str) -> set[str]:
-    allowed = set(ROWS)
+    allowed = set(ROWS) | set(TABLE_ROWS)
     rows = allowed if spec == "all" else set(spec.split(","))
     if rows - allowed:
         raise SystemExit(f"--rows: unknown {sorted(rows - allowed)}; choose from {sorted(allowed)}")

@@ -27,10 +27,11 @@ import numpy as np  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from terrace import (AREA_X_M, AREA_Y_M, FPS, FRONT_ENDS, GENERATIVE_SENSOR, WATERMARK_PX, ignore_mask,  # noqa: E402
-                     terrace_cameras)
+from terrace import (AREA_X_M, AREA_Y_M, FPS, WATERMARK_PX, ignore_mask, load_base_config,  # noqa: E402
+                     merged, terrace_cameras)
 
 from planefuse.calib import load_epfl_boxes  # noqa: E402
+from planefuse.config import config_from_dict  # noqa: E402
 from planefuse.grid import PlaneStack  # noqa: E402
 from planefuse.occupancy import silhouettes_from_cameras  # noqa: E402
 from planefuse.vision import (  # noqa: E402
@@ -42,9 +43,14 @@ from planefuse.vision import (  # noqa: E402
 )
 
 
+def _camera_params():
+    """The camera parameters of scripts/terrace.yaml (front end, generative sensor model)."""
+    return config_from_dict(merged(load_base_config(), {"recording": "."})).system_params().camera_params
+
+
 def _frames_and_masks(video_root: Path, first: int, frame: int, step: int):
     cams = terrace_cameras((0, 1))
-    fg = FRONT_ENDS["KNN + gain compensation"]
+    fg = _camera_params().foreground
     subs = [BackgroundSubtractor(360, 288, fg, c.name) for c in cams]
     images, masks = [], []
     for c, sub in enumerate(subs):
@@ -80,7 +86,7 @@ def main(argv=None) -> int:
         args.frame]
     # detections of the generative model at this frame (per frame, no filter)
     stack = PlaneStack.from_extent((0.1, 0.5, 1.0, 1.5), AREA_X_M, AREA_Y_M, 0.1)
-    sensor = GenerativeCameraSensor(cams, stack, GENERATIVE_SENSOR, ignore, ["c0", "c1"])
+    sensor = GenerativeCameraSensor(cams, stack, _camera_params().generative, ignore, ["c0", "c1"])
     det = sensor.detections(sensor.marginals(masks), args.frame / FPS, 0.45)
     sil = silhouettes_from_cameras(cams, det.xy_m, sensor.person) if len(det.xy_m) else None
     args.out.mkdir(parents=True, exist_ok=True)

@@ -41,7 +41,8 @@ FRAMES = np.arange(1500, 2000, 5)
 def terrace_cameras(indices):
     return [pinhole_from_tsai(EPFL_TERRACE_TSAI[f"c{i}"], metres_per_unit=1e-3, width_px=360, height_px=288)[0]
             for i in indices]
-#: scripts/terrace.py's front end (chosen on frames 0-1499).
+#: The gain-compensated front end chosen first on frames 0-1499 (scripts/terrace.yaml now adds a KNN threshold
+#: of 900 and a 9 px closing; docs/results.md).
 TUNED = ForegroundParams(gain_compensation=True, shadow_likelihood=0.5)
 
 

@@ -145,6 +145,97 @@ class CameraSensorConfig(_Model):
                     "on the grid explain each whole foreground image, Fleuret et al. 2008; docs/cameras.md)",
         expected="cell or generative", library="system.camera_params.sensor_model",
     )
+    # --- foreground front end on real video (issue 14): illumination, shadows, relearning, clean-up ---
+    learning_rate: float = _field(
+        description="Background model's learning rate per frame; -1 = automatic (1 / frames seen, then 1 / "
+        "history_frames)", expected="-1 or in [0, 1]", library="system.camera_params.foreground.learning_rate",
+    )
+    shadow_likelihood: float = _field(
+        description="Foreground likelihood of a shadow-labelled pixel (detect_shadows): low = background lit "
+        "differently; 0.5 = unknown (dark clothes on a light floor are labelled shadow)", expected="in [0, 1]",
+        library="system.camera_params.foreground.shadow_likelihood",
+    )
+    gain_compensation: bool = _field(
+        description="Divide each frame by its per-channel gain against a learnt reference background before "
+        "subtraction (automatic exposure, white balance, clouds)",
+        library="system.camera_params.foreground.gain_compensation",
+    )
+    gain_blocks: tuple[int, int] = _field(
+        description="With gain_compensation: (rows, cols) of blocks of the gain field; (1, 1) = one gain per "
+        "channel", expected="two integers >= 1", library="system.camera_params.foreground.gain_blocks",
+    )
+    gain_rate: float = _field(
+        description="With gain_compensation: running-average rate of the reference background", unit="1/frame",
+        expected="in (0, 1]", library="system.camera_params.foreground.gain_rate",
+    )
+    relearn_fraction: float | None = _field(
+        description="A frame with more than this share of its pixels foreground is a sudden global change: no "
+        "evidence, fast relearning; null = off", expected="null or in (0, 1)",
+        library="system.camera_params.foreground.relearn_fraction",
+    )
+    relearn_frames: int = _field(
+        description="Frames of fast relearning after a sudden change", unit="frames", expected="an integer >= 1",
+        library="system.camera_params.foreground.relearn_frames",
+    )
+    relearn_rate: float = _field(
+        description="Learning rate while relearning", unit="1/frame", expected="in (0, 1]",
+        library="system.camera_params.foreground.relearn_rate",
+    )
+    open_px: int = _field(
+        description="Side of the morphological opening removing speckle from the foreground; 0 = none", unit="px",
+        expected="an integer >= 0", library="system.camera_params.foreground.open_px",
+    )
+    close_px: int = _field(
+        description="Side of the morphological closing filling holes in the foreground; 0 = none", unit="px",
+        expected="an integer >= 0", library="system.camera_params.foreground.close_px",
+    )
+    blur_px: int = _field(
+        description="Side of the box filter softening the foreground into a likelihood; 0 = none", unit="px",
+        expected="an integer >= 0", library="system.camera_params.foreground.blur_px",
+    )
+    foreground_floor: float = _field(
+        description="Foreground likelihood of a background pixel (no pixel is certain)", expected="in [0, 1], "
+        "below foreground_ceiling", library="system.camera_params.foreground.floor",
+    )
+    foreground_ceiling: float = _field(
+        description="Foreground likelihood of a foreground pixel", expected="in [0, 1]",
+        library="system.camera_params.foreground.ceiling",
+    )
+    # --- generative sensor model (sensor_model: generative; planefuse.vision.GenerativeSensorParams) ---
+    generative_people_per_m2: float = _field(
+        description="Generative model: prior density of people", unit="1/m^2", expected="> 0",
+        library="system.camera_params.generative.people_per_m2",
+    )
+    generative_sigma: float = _field(
+        description="Generative model: scale of the image pseudo-distance (larger = images trusted less)",
+        expected="> 0", library="system.camera_params.generative.sigma",
+    )
+    generative_radius_m: float = _field(
+        description="Generative model: radius of a person's cylinder", unit="m", expected="> 0",
+        library="system.camera_params.generative.radius_m",
+    )
+    generative_height_range_m: tuple[float, float] | None = _field(
+        description="Generative model: bottom and top of a person's cylinder; null = the stack's height bands",
+        unit="m", expected="null or (bottom, top)", library="system.camera_params.generative.height_range_m",
+    )
+    generative_max_log_odds: float = _field(
+        description="Generative model: bound on one instant's evidence per cell", expected="> 0",
+        library="system.camera_params.generative.max_log_odds",
+    )
+    generative_detection_mass: float = _field(
+        description="Generative model (per frame): a person is reported where the expected number of people "
+        "within radius reaches this", expected="> 0", library="system.camera_params.generative.detection_mass",
+    )
+    generative_foreground_threshold: float | None = _field(
+        description="Generative model: likelihoods at or above this are foreground, the rest background; null = "
+        "keep the likelihoods", expected="null or in [0, 1]",
+        library="system.camera_params.generative.foreground_threshold",
+    )
+    generative_evidence_prior: float | None = _field(
+        description="Generative model: the filter's evidence is the marginal's log-odds against this probability; "
+        "null = against the model's prior", expected="null or in (0, 1)",
+        library="system.camera_params.generative.evidence_prior",
+    )
 
     @field_validator("foreground_method", mode="before")
     @classmethod

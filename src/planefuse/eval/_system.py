@@ -20,6 +20,12 @@ def _lateral(azimuth_rad: float) -> float:
     return float(np.arcsin(np.clip(np.sin(azimuth_rad), -1.0, 1.0)))
 
 
+def _present(time_s: float, ids: np.ndarray, xy_m: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """The people of one ground-truth sample who are there (NaN positions: absent, e.g. out of every view)."""
+    there = np.isfinite(xy_m).all(axis=1)
+    return time_s, ids[there], xy_m[there]
+
+
 def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarray],
                    tracks: Sequence[tuple[float, np.ndarray, np.ndarray]], report,
                    elapsed_s: float, match_distance_m: float = 0.5) -> dict:
@@ -54,7 +60,7 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
     gt = rec.groundtruth.people
     warm = gt.times_s[0] + EVAL_WARMUP_S  # the background model and the filter are still learning
     keep = np.flatnonzero((times_s >= warm) & (times_s <= gt.times_s[-1] + 1e-9))
-    gt_frames = [(float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]) for t in times_s[keep]]
+    gt_frames = [_present(float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]) for t in times_s[keep]]
     det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), match_distance_m)
     mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], match_distance_m=match_distance_m)
     m = {
@@ -72,7 +78,8 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
         m["n_attitude_map_rebuilds"] = sum(reg.n_rebuilds)
     cams = [d for d in report.camera_detections if d.time_s >= warm]
     if cams:
-        cd = detection_scores(((gt.xy_m[gt.index_at(d.time_s)], d.xy_m) for d in cams), match_distance_m)
+        cd = detection_scores(((_present(d.time_s, gt.person_ids, gt.xy_m[gt.index_at(d.time_s)])[2], d.xy_m)
+                               for d in cams), match_distance_m)
         m.update(camera_only_moda=cd.moda, camera_only_modp=cd.modp)
     snd = rec.groundtruth.sound
     rep = report

@@ -4,6 +4,7 @@ from ../shared/reference/pom in a temporary folder (skipped where it cannot be b
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -14,7 +15,15 @@ import pytest
 from typer.testing import CliRunner
 
 from planefuse.cli import app
-from planefuse.occupancy import GenerativeParams, Silhouettes, read_pom, read_pom_masks, run_pom, write_pom
+from planefuse.occupancy import (
+    GenerativeParams,
+    MeanFieldSolver,
+    Silhouettes,
+    read_pom,
+    read_pom_masks,
+    run_pom,
+    write_pom,
+)
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
@@ -90,6 +99,22 @@ def test_missing_room_and_missing_mask(tmp_path):
     cv2.imwrite(str(tmp_path / "masks" / "f7-c1.png"), np.zeros((10, 10), np.uint8))
     with pytest.raises(ValueError, match=r"cfg\.pom:8: .*f7-c1\.png is 10x10, camera 1 is 40x30"):
         read_pom_masks(cfg, 7)
+
+
+def test_proba_ignored_keeps_locations_at_the_prior(tmp_path):
+    """Regression: PROBA_IGNORED 0.99 became ignored_below 0.010000000000000009 (1 - 0.99 in binary), which left
+    every location still at PRIOR 0.01 out of the first synthetic image; POM keeps them (its first iterate)."""
+    text = GOOD.replace("PRIOR 0.05", "PRIOR 0.01")
+    cfg = read_pom(_write(tmp_path, text))
+    assert cfg.params.ignored_below == 0.01
+    _masks(tmp_path, cfg, [7], people=(0,))
+    masks = read_pom_masks(cfg, 7)
+    one = dataclasses.replace(cfg.params, max_iterations=1, tolerance=0.0)
+    first = MeanFieldSolver(cfg.silhouettes, one).solve(masks).marginals
+    none_left_out = MeanFieldSolver(cfg.silhouettes, dataclasses.replace(one, ignored_below=0.0)).solve(masks)
+    assert np.array_equal(first, none_left_out.marginals)
+    write_pom(tmp_path / "back.pom", cfg.silhouettes, cfg.params)
+    assert "PROBA_IGNORED 0.99\n" in (tmp_path / "back.pom").read_text()
 
 
 def test_write_read_round_trip(tmp_path, rng):

@@ -206,7 +206,9 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         prior=float(scalars.get("PRIOR", defaults.prior)),
         sigma=float(scalars.get("SIGMA_IMAGE_DENSITY", defaults.sigma)),
         max_iterations=int(scalars.get("MAX_NB_SOLVER_ITERATIONS", defaults.max_iterations)),
-        ignored_below=1.0 - float(scalars.get("PROBA_IGNORED", 1.0)),
+        # rounded: 1 - 0.99 is 0.010000000000000009 in binary, which would leave out every location still at
+        # PRIOR 0.01 on the first iteration; POM keeps them (its first iterate, docs/results.md)
+        ignored_below=round(1.0 - float(scalars.get("PROBA_IGNORED", 1.0)), 12),
         damping=defaults.damping, tolerance=defaults.tolerance,
     )
     return PomConfig(path, tuple(ids), Silhouettes(boxes, sizes), params, formats, tuple(process), format_lines)
@@ -290,7 +292,7 @@ def write_pom(path: str | os.PathLike, silhouettes: Silhouettes, params: Generat
     lines += [f"CAMERA {cid} {w} {h}" for cid, (h, w) in zip(ids, silhouettes.image_sizes)]
     lines += [f"PRIOR {params.prior!r}", f"SIGMA_IMAGE_DENSITY {params.sigma!r}",
               f"MAX_NB_SOLVER_ITERATIONS {int(params.max_iterations)}",
-              f"PROBA_IGNORED {1.0 - params.ignored_below!r}"]
+              f"PROBA_IGNORED {round(1.0 - params.ignored_below, 12)!r}"]
     if input_view_format:
         lines.append(f"INPUT_VIEW_FORMAT {input_view_format}")
     if result_format:

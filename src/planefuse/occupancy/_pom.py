@@ -248,7 +248,7 @@ def write_pom_result(path: str | os.PathLike, marginals: np.ndarray) -> None:
 
 
 def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = True,
-            params: GenerativeParams | None = None) -> Iterator[tuple[int, MeanFieldResult]]:
+            params: GenerativeParams | None = None, threads: int = 1) -> Iterator[tuple[int, MeanFieldResult]]:
     """Run planefuse's mean-field solver on a POM configuration's masks, frame by frame.
 
     Parameters
@@ -260,12 +260,14 @@ def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = T
         Write ``RESULT_FORMAT`` files (``proba-f<frame>.dat``) where the configuration has that line.
     params : GenerativeParams, optional
         Overrides the configuration's solver parameters.
+    threads : int
+        Threads of the solver (:class:`MeanFieldSolver`; the same marginals on any number).
 
     Yields
     ------
     (frame, MeanFieldResult)
     """
-    solver = MeanFieldSolver(cfg.silhouettes, params or cfg.params)
+    solver = MeanFieldSolver(cfg.silhouettes, params or cfg.params, threads=threads)
     for frame in (cfg.frames if frames is None else frames):
         result = solver.solve(read_pom_masks(cfg, frame))
         if write and "RESULT_FORMAT" in cfg.formats:

@@ -417,10 +417,10 @@ def _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB):  
 
 
 @njit(cache=True, boundscheck=False)
-def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, skip, cut, D, I2, prev, RW, RB, SB,
+def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
                   inv_sigma, acc):  # pragma: no cover - compiled
     # acc[k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated this
-    # iteration. Reads q and skip; writes only camera c's storage (D, I2 at its offsets, prev, acc): cameras
+    # iteration. Reads q, t_remove and skip; writes only camera c's storage (D, I2 at its offsets, prev, acc): cameras
     # run in parallel.
     K = boxes.shape[1]
     h, w = hw[c, 0], hw[c, 1]
@@ -477,7 +477,7 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, skip, cut, D, I2, prev,
         rA = I2[i11] - I2[i01] - I2[i10] + I2[i00]
         rBA = I2[i11 + 1] - I2[i01 + 1] - I2[i10 + 1] + I2[i00 + 1]
         rW, rB = RW[c, k], RB[c, k]
-        t = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
+        t = t_remove[k]
         in0 = rW - (rW - rA) * t
         if in0 < 0.0:
             in0 = 0.0
@@ -490,9 +490,10 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, skip, cut, D, I2, prev,
         ba1 = SBA - rBA + rB
         a0 = SA - rA + in0
         ba0 = SBA - rBA + inb0
-        psi1 = (sb + a1 - 2.0 * ba1) / max(a1, 1.0)
-        psi0 = (sb + a0 - 2.0 * ba0) / max(a0, 1.0)
-        acc[c, k] = (psi1 - psi0) * inv_sigma
+        # psi1 - psi0 = n1 / d1 - n0 / d0, over one division
+        d1 = max(a1, 1.0)
+        d0 = max(a0, 1.0)
+        acc[c, k] = ((sb + a1 - 2.0 * ba1) * d0 - (sb + a0 - 2.0 * ba0) * d1) * inv_sigma / (d1 * d0)
 
 
 def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
@@ -510,6 +511,7 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
     # a location whose last target marginal was below 1e-8 is dormant: damped towards 0 without evaluation,
     # evaluated again on every REFRESH-th iteration (and before convergence is declared)
     skip = np.zeros(K, dtype=np.bool_)
+    t_remove = np.ones(K)
     cut = max(ignored_below, Q_NEGLIGIBLE * prior)
     converged = False
     full = True
@@ -520,8 +522,11 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
             full = True
         if full:
             skip[:] = False
+        # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it)
+        for k in range(K):
+            t_remove[k] = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
         for c in prange(n_cam):
-            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, skip, cut, D, I2, prev, RW, RB, SB,
+            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
                           inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)

@@ -177,13 +177,7 @@ def test_agrees_with_pom_on_its_test_data_held_out_frames(tmp_path):
         exe = ref.build_pom(tmp_path)
     except RuntimeError as exc:
         pytest.skip(f"POM cannot be built here: {exc}")
-    src = (data / "test.pom").read_text().replace("ROOM 160 120 2 1332",
-                                                  "ROOM -1 -1 2 1332\nCAMERA 0 160 120\nCAMERA 1 160 120")
-    lines = [ln for ln in src.splitlines() if not ln.startswith(("RESULT_VIEW_FORMAT", "RESULT_FORMAT", "PROCESS"))]
-    pom_file = _write(tmp_path, "\n".join(lines + ["RESULT_FORMAT out/proba-f%f.dat", "PROCESS 175 15"]) + "\n",
-                      "held_out.pom")
-    (tmp_path / "images").symlink_to(data / "images")
-    (tmp_path / "out").mkdir()
+    pom_file = ref.demo_pom_file(tmp_path, frames=(175, 15), data=data)
     frames = list(range(175, 190))
     pom, _ = ref.run_pom_program(exe, pom_file, 1332, frames, tmp_path / "out")
     ours = np.array([r.marginals for _, r in run_pom(read_pom(pom_file), frames, write=False)])

@@ -10,7 +10,8 @@ B. The simulator's default scene seen by only 2 of its 4 cameras (cam0 and cam1,
    The per-cell model runs on its default 5 cm multi-plane stack; the generative model and POM on the same ground
    locations (cells of ``--cell-size-m``) with the same silhouettes (``.pom`` written by ``write_pom``).
 
-Run: ``python scripts/generative_results.py [--seeds 4 5] [--duration-s 12] [--every 10] [--no-pom]``.
+Run: ``python scripts/generative_results.py [--seeds 4 5] [--duration-s 12] [--every 10] [--no-pom] [--skip-a]
+[--skip-b]``.
 """
 
 from __future__ import annotations
@@ -142,6 +143,7 @@ def main() -> None:
     ap.add_argument("--cell-size-m", type=float, default=0.1)
     ap.add_argument("--no-pom", action="store_true")
     ap.add_argument("--skip-a", action="store_true")
+    ap.add_argument("--skip-b", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="generative-results-") as tmp:
         tmp = Path(tmp)
@@ -154,8 +156,9 @@ def main() -> None:
         if not args.skip_a:
             (tmp / "a").mkdir()
             part_a(exe, tmp / "a")
-        (tmp / "b").mkdir()
-        part_b(exe, tmp / "b", args.seeds, args.duration_s, args.every, args.cell_size_m)
+        if not args.skip_b:
+            (tmp / "b").mkdir()
+            part_b(exe, tmp / "b", args.seeds, args.duration_s, args.every, args.cell_size_m)
 
 
 if __name__ == "__main__":

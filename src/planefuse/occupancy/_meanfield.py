@@ -450,7 +450,7 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D,
         y0, x1, y1 = boxes[c, k, 1] - Y0, boxes[c, k, 2] - X0, boxes[c, k, 3] - Y0
         x0 -= X0
         f = 1.0 - q[k]
-        g = 1.0 / f
+        g = t_remove[k]  # 1 / f
         D[o + y0 * wl1 + x0] *= f
         D[o + y0 * wl1 + x1 + 1] *= g
         D[o + (y1 + 1) * wl1 + x0] *= g

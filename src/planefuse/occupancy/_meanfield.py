@@ -419,9 +419,9 @@ def _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB):  
 @njit(cache=True, boundscheck=False)
 def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
                   inv_sigma, acc):  # pragma: no cover - compiled
-    # acc[k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated this
-    # iteration. Reads q, t_remove and skip; writes only camera c's storage (D, I2 at its offsets, prev, acc): cameras
-    # run in parallel.
+    # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated
+    # this iteration. Reads q, t_remove and skip; writes only camera c's storage (D and I2 at its offsets,
+    # prev[c], acc[c]): the cameras can run in parallel.
     K = boxes.shape[1]
     h, w = hw[c, 0], hw[c, 1]
     o, po = ii_off[c], px_off[c]

@@ -69,6 +69,24 @@ def run_pom_program(exe: Path, pom_file: Path, n_locations: int, frames, result_
     return out, seconds
 
 
+def demo_pom_file(work: Path, frames=(160, 30), extra: tuple[str, ...] = (), data: Path = POM_TEST_DATA,
+                  images: Path | None = None) -> Path:
+    """POM's own ``test.pom`` (from ``data``) in ``work``, made runnable: sizes through CAMERA lines (this mirror
+    refuses a fixed ROOM size, its SOURCE.md), results to ``work/out/proba-f%f.dat``, ``PROCESS`` from ``frames``
+    (first, count), ``extra`` keyword lines added, masks from ``images`` (default ``data/images``), linked as
+    ``work/images``."""
+    src = (data / "test.pom").read_text().replace(
+        "ROOM 160 120 2 1332", "ROOM -1 -1 2 1332\nCAMERA 0 160 120\nCAMERA 1 160 120")
+    lines = [ln for ln in src.splitlines() if not ln.startswith(("RESULT_VIEW_FORMAT", "RESULT_FORMAT", "PROCESS"))]
+    if not (work / "images").exists():
+        (work / "images").symlink_to(images or (data / "images"))
+    (work / "out").mkdir(exist_ok=True)
+    pom_file = work / "demo.pom"
+    pom_file.write_text("\n".join(lines + ["RESULT_FORMAT out/proba-f%f.dat", *extra,
+                                           f"PROCESS {frames[0]} {frames[1]}"]) + "\n")
+    return pom_file
+
+
 def agreement(ours: np.ndarray, pom: np.ndarray, grid_shape: tuple[int, int], threshold: float = 0.5) -> dict:
     """Agreement of two sets of marginals (F, K) on a location grid ``(rows, cols)`` (K = rows * cols).
 

@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _pom_reference import POM_TEST_DATA, agreement, build_pom, run_pom_program  # noqa: E402
+from _pom_reference import agreement, build_pom, demo_pom_file, run_pom_program  # noqa: E402
 
 from planefuse.geometry import default_camera_ring  # noqa: E402
 from planefuse.grid import PlaneStack  # noqa: E402
@@ -63,15 +63,7 @@ def _row(name, t_pom, t_ours, its, agree) -> None:
 
 
 def case_demo(exe: Path, work: Path) -> None:
-    src = (POM_TEST_DATA / "test.pom").read_text()
-    # this POM mirror refuses a fixed-size ROOM line (its SOURCE.md); sizes through CAMERA lines instead
-    src = src.replace("ROOM 160 120 2 1332", "ROOM -1 -1 2 1332\nCAMERA 0 160 120\nCAMERA 1 160 120")
-    lines = [ln for ln in src.splitlines() if not ln.startswith(("RESULT_VIEW_FORMAT", "RESULT_FORMAT"))]
-    lines.insert(len(lines) - 1, "RESULT_FORMAT out/proba-f%f.dat")
-    (work / "images").symlink_to(POM_TEST_DATA / "images")
-    (work / "out").mkdir()
-    pom_file = work / "demo.pom"
-    pom_file.write_text("\n".join(lines) + "\n")
+    pom_file = demo_pom_file(work)
     frames = list(range(160, 190))
     pom, t_pom = run_pom_program(exe, pom_file, 1332, frames, work / "out")
     ours, t_ours, its = _ours(pom_file, frames)

@@ -10,7 +10,8 @@ B. The simulator's default scene seen by only 2 of its 4 cameras (cam0 and cam1,
    The per-cell model runs on its default 5 cm multi-plane stack; the generative model and POM on the same ground
    locations (cells of ``--cell-size-m``) with the same silhouettes (``.pom`` written by ``write_pom``).
 
-Run: ``python scripts/generative_results.py [--seeds 4 5] [--duration-s 12] [--every 10] [--no-pom]``.
+Run: ``python scripts/generative_results.py [--seeds 4 5] [--duration-s 12] [--every 10] [--no-pom] [--skip-a]
+[--skip-b]``.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from _pom_reference import POM_TEST_DATA, agreement, build_pom, run_pom_program  # noqa: E402
+from _pom_reference import agreement, build_pom, demo_pom_file, run_pom_program  # noqa: E402
 
 from planefuse.eval import detection_scores  # noqa: E402
 from planefuse.grid import PlaneStack  # noqa: E402
@@ -48,13 +49,7 @@ def part_a(exe: Path | None, work: Path) -> None:
     if exe is None:
         print("POM could not be built: skipped")
         return
-    src = (POM_TEST_DATA / "test.pom").read_text().replace(
-        "ROOM 160 120 2 1332", "ROOM -1 -1 2 1332\nCAMERA 0 160 120\nCAMERA 1 160 120")
-    lines = [ln for ln in src.splitlines() if not ln.startswith(("RESULT_VIEW_FORMAT", "RESULT_FORMAT", "PROCESS"))]
-    pom_file = work / "demo.pom"
-    pom_file.write_text("\n".join(lines + ["RESULT_FORMAT out/proba-f%f.dat", "PROCESS 160 30"]) + "\n")
-    (work / "images").symlink_to(POM_TEST_DATA / "images")
-    (work / "out").mkdir()
+    pom_file = demo_pom_file(work)
     frames = list(range(160, 190))
     pom, _ = run_pom_program(exe, pom_file, 1332, frames, work / "out")
     ours = np.array([r.marginals for _, r in run_pom(read_pom(pom_file), frames, write=False)])
@@ -148,6 +143,7 @@ def main() -> None:
     ap.add_argument("--cell-size-m", type=float, default=0.1)
     ap.add_argument("--no-pom", action="store_true")
     ap.add_argument("--skip-a", action="store_true")
+    ap.add_argument("--skip-b", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="generative-results-") as tmp:
         tmp = Path(tmp)
@@ -160,8 +156,9 @@ def main() -> None:
         if not args.skip_a:
             (tmp / "a").mkdir()
             part_a(exe, tmp / "a")
-        (tmp / "b").mkdir()
-        part_b(exe, tmp / "b", args.seeds, args.duration_s, args.every, args.cell_size_m)
+        if not args.skip_b:
+            (tmp / "b").mkdir()
+            part_b(exe, tmp / "b", args.seeds, args.duration_s, args.every, args.cell_size_m)
 
 
 if __name__ == "__main__":

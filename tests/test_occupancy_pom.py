@@ -4,6 +4,7 @@ from ../shared/reference/pom in a temporary folder (skipped where it cannot be b
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -14,7 +15,15 @@ import pytest
 from typer.testing import CliRunner
 
 from planefuse.cli import app
-from planefuse.occupancy import GenerativeParams, Silhouettes, read_pom, read_pom_masks, run_pom, write_pom
+from planefuse.occupancy import (
+    GenerativeParams,
+    MeanFieldSolver,
+    Silhouettes,
+    read_pom,
+    read_pom_masks,
+    run_pom,
+    write_pom,
+)
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
 
@@ -92,6 +101,22 @@ def test_missing_room_and_missing_mask(tmp_path):
         read_pom_masks(cfg, 7)
 
 
+def test_proba_ignored_keeps_locations_at_the_prior(tmp_path):
+    """Regression: PROBA_IGNORED 0.99 became ignored_below 0.010000000000000009 (1 - 0.99 in binary), which left
+    every location still at PRIOR 0.01 out of the first synthetic image; POM keeps them (its first iterate)."""
+    text = GOOD.replace("PRIOR 0.05", "PRIOR 0.01")
+    cfg = read_pom(_write(tmp_path, text))
+    assert cfg.params.ignored_below == 0.01
+    _masks(tmp_path, cfg, [7], people=(0,))
+    masks = read_pom_masks(cfg, 7)
+    one = dataclasses.replace(cfg.params, max_iterations=1, tolerance=0.0)
+    first = MeanFieldSolver(cfg.silhouettes, one).solve(masks).marginals
+    none_left_out = MeanFieldSolver(cfg.silhouettes, dataclasses.replace(one, ignored_below=0.0)).solve(masks)
+    assert np.array_equal(first, none_left_out.marginals)
+    write_pom(tmp_path / "back.pom", cfg.silhouettes, cfg.params)
+    assert "PROBA_IGNORED 0.99\n" in (tmp_path / "back.pom").read_text()
+
+
 def test_write_read_round_trip(tmp_path, rng):
     x0 = rng.integers(0, 50, (3, 20))
     y0 = rng.integers(0, 40, (3, 20))
@@ -152,13 +177,7 @@ def test_agrees_with_pom_on_its_test_data_held_out_frames(tmp_path):
         exe = ref.build_pom(tmp_path)
     except RuntimeError as exc:
         pytest.skip(f"POM cannot be built here: {exc}")
-    src = (data / "test.pom").read_text().replace("ROOM 160 120 2 1332",
-                                                  "ROOM -1 -1 2 1332\nCAMERA 0 160 120\nCAMERA 1 160 120")
-    lines = [ln for ln in src.splitlines() if not ln.startswith(("RESULT_VIEW_FORMAT", "RESULT_FORMAT", "PROCESS"))]
-    pom_file = _write(tmp_path, "\n".join(lines + ["RESULT_FORMAT out/proba-f%f.dat", "PROCESS 175 15"]) + "\n",
-                      "held_out.pom")
-    (tmp_path / "images").symlink_to(data / "images")
-    (tmp_path / "out").mkdir()
+    pom_file = ref.demo_pom_file(tmp_path, frames=(175, 15), data=data)
     frames = list(range(175, 190))
     pom, _ = ref.run_pom_program(exe, pom_file, 1332, frames, tmp_path / "out")
     ours = np.array([r.marginals for _, r in run_pom(read_pom(pom_file), frames, write=False)])

@@ -25,6 +25,8 @@ def pom(
     first_frame: int = typer.Option(None, help="First frame (default: the PROCESS lines)."),
     n_frames: int = typer.Option(None, help="Number of frames from --first-frame."),
     threshold: float = typer.Option(0.5, help="Marginal above which a location is listed as occupied."),
+    threads: int = typer.Option(1, min=1, help="Threads for the cameras (the same probabilities on any number; "
+                                              "pays on large grids with free cores)."),
     quiet: bool = typer.Option(False, "--quiet", help="Only the summary."),
 ) -> None:
     """Run the generative occupancy model (Fleuret et al. 2008) on a POM configuration's masks; write
@@ -44,7 +46,7 @@ def pom(
         console.print(f"note: {config} has no RESULT_FORMAT line: no proba-f<frame>.dat is written", highlight=False)
     rows, t0 = [], time.perf_counter()
     try:
-        for frame, res in run_pom(cfg, frames):
+        for frame, res in run_pom(cfg, frames, threads=threads):
             occupied = np.nonzero(res.marginals > threshold)[0]
             rows.append((frame, res.n_iterations, "yes" if res.converged else "no", len(occupied),
                          " ".join(str(k) for k in occupied[:12]) + (" ..." if len(occupied) > 12 else "")))

@@ -25,13 +25,17 @@ Every sum over a silhouette is four look-ups in an integral image. ``Abar`` itse
 the pixels of each box: each box multiplies its four corners of a 2-D "difference" array by ``(1 - q_k)`` or
 ``1 / (1 - q_k)``, and a running 2-D product turns it into ``prod_k (1 - q_k R_ck)`` for every pixel in one pass
 (the multiplicative analogue of a summed-area table). One iteration therefore costs O(pixels + K C), in a
-single numba kernel with no Python loop over locations or iterations. Three exact-or-bounded economies:
+single numba kernel with no Python loop over locations or iterations; its cameras can run on numba's threads
+(``threads``), each writing its own row of terms, summed in camera order: the same bits on any number of
+threads. The damping 0.8 is POM's: its first iterate from the prior is ``0.8 eps + 0.2 target`` (measured on
+its program, docs/results.md). Three exact-or-bounded economies:
 
 * the pass covers only the bounding region of the boxes in the synthetic image (``Abar = 0`` outside it, where
   the integral images are its edge values: look-ups are clamped into it);
 * marginals below ``1e-3 eps`` (and below ``ignored_below``) are left out of ``Abar``;
-* a location whose last target marginal was below 1e-13 is *dormant*: damped towards 0 without evaluation,
-  evaluated again every 5th iteration and before convergence is declared.
+* a location whose last target marginal was below 1e-8 is *dormant*: damped towards 0 without evaluation,
+  evaluated again every 5th iteration and before convergence is declared (its marginal differs from the full
+  update's by less than about 1e-8).
 
 A box covering no observed pixel, or an image whose synthetic image is empty, is guarded by ``|W A| >= 1`` pixel
 (the pseudo-distance of an empty synthetic image is otherwise undefined).
@@ -43,7 +47,8 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from numba import njit
+import numba
+from numba import njit, prange
 
 __all__ = ["GenerativeParams", "MeanFieldResult", "MeanFieldSolver", "Silhouettes", "occupancy_marginals"]
 
@@ -52,9 +57,9 @@ Q_MAX = 1.0 - 1e-6
 #: Marginals below this fraction of the prior are left out of the average synthetic image (each would change it
 #: by less than 1e-3 of what the prior's expected covering does).
 Q_NEGLIGIBLE = 1e-3
-#: A location whose log-odds of absence exceed this (target marginal < 1e-13) is dormant: only damped towards 0,
+#: A location whose log-odds of absence exceed this (target marginal < 1e-8) is dormant: only damped towards 0,
 #: evaluated again on every REFRESH-th iteration and on the iteration that confirms convergence.
-E_DORMANT = 30.0
+E_DORMANT = 18.42  # log(1e8)
 REFRESH = 5
 
 
@@ -72,8 +77,9 @@ class GenerativeParams:
         Bound on the fixed-point iterations (POM ``MAX_NB_SOLVER_ITERATIONS``, default 100).
     damping : float
         Weight in [0, 1) of the previous iterate in each update. The plain fixed point (0) oscillates: every
-        location explains the same foreground at once; 0.8 was chosen on POM's test frames 160-174 (agreement
-        with POM's marginals, docs/results.md) and reported on 175-189.
+        location explains the same foreground at once. 0.8 is POM's (its first iterate from the prior is
+        ``0.8 eps + 0.2 target``, measured on its program) and was also the best of 0-0.9 on POM's test frames
+        160-174 (agreement with POM's marginals, docs/results.md; reported on 175-189).
     tolerance : float
         Stop when no marginal moved by more than this in one iteration.
     ignored_below : float
@@ -206,11 +212,19 @@ class MeanFieldSolver:
     ----------
     silhouettes : Silhouettes
     params : GenerativeParams
+    threads : int
+        Threads for the cameras' terms (numba's pool, at most ``numba.config.NUMBA_NUM_THREADS``). 1 (default)
+        runs the serial kernel; more runs the cameras in parallel, with bit-identical marginals. It pays only
+        where a camera's work per iteration is large (many locations, large images) and cores are free.
     """
 
-    def __init__(self, silhouettes: Silhouettes, params: GenerativeParams = GenerativeParams()) -> None:
+    def __init__(self, silhouettes: Silhouettes, params: GenerativeParams = GenerativeParams(),
+                 threads: int = 1) -> None:
+        if int(threads) != threads or threads < 1:
+            raise ValueError(f"threads must be an integer >= 1, got {threads}")
         self.silhouettes = silhouettes
         self.params = params
+        self.threads = int(threads)
         sizes = silhouettes.image_sizes
         self._n_px = np.array([h * w for h, w in sizes], dtype=np.int64)
         self._n_ii = np.array([(h + 1) * (w + 1) for h, w in sizes], dtype=np.int64)
@@ -258,10 +272,18 @@ class MeanFieldSolver:
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
-        n_iter, converged = _solve(B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
-                                   float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations),
-                                   float(p.damping), float(p.tolerance), float(p.ignored_below), Q_MAX,
-                                   float(p.prior))
+        args = (B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
+                float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
+                float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
+        if self.threads == 1:
+            n_iter, converged = _solve(*args)
+        else:
+            before = numba.get_num_threads()
+            numba.set_num_threads(min(self.threads, numba.config.NUMBA_NUM_THREADS))
+            try:
+                n_iter, converged = _solve_parallel(*args)
+            finally:
+                numba.set_num_threads(before)
         return MeanFieldResult(q, int(n_iter), bool(converged))
 
 
@@ -376,34 +398,120 @@ def _abar_pass(D, W, B, I2, prev, o, wl, hl, p0, w):  # pragma: no cover - compi
 
 
 @njit(cache=True, boundscheck=False)
-def _solve(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
-           ignored_below, q_max, prior):  # pragma: no cover - compiled
+def _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB):  # pragma: no cover - compiled
+    # constant per frame for camera c: |W R_ck|, |W B R_ck| and |W B| (integral images built in D's storage of c)
+    h, w = hw[c, 0], hw[c, 1]
+    o, w1 = ii_off[c], w + 1
+    for pass_ in range(2):
+        _integral(ones if pass_ == 0 else B, W, h, w, px_off[c], D, o)
+        for k in range(boxes.shape[1]):
+            x0 = boxes[c, k, 0]
+            if x0 < 0:
+                continue
+            v = _box_sum(D, o, w1, x0, boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3])
+            if pass_ == 0:
+                RW[c, k] = v
+            else:
+                RB[c, k] = v
+    SB[c] = D[o + (h + 1) * w1 - 1]
+
+
+@njit(cache=True, boundscheck=False)
+def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
+                  inv_sigma, acc):  # pragma: no cover - compiled
+    # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated
+    # this iteration. Reads q, t_remove and skip; writes only camera c's storage (D and I2 at its offsets,
+    # prev[c], acc[c]): the cameras can run in parallel.
+    K = boxes.shape[1]
+    h, w = hw[c, 0], hw[c, 1]
+    o, po = ii_off[c], px_off[c]
+    # 1. the region [X0, X1] x [Y0, Y1] covered by some box in the synthetic image (Abar = 0 elsewhere, so the
+    # integral images need only cover it: outside, they are its values clamped to its edges)
+    X0, Y0, X1, Y1 = w, h, -1, -1
+    for k in range(K):
+        x0 = boxes[c, k, 0]
+        if x0 < 0 or q[k] < cut:
+            continue
+        X0 = min(X0, x0)
+        Y0 = min(Y0, boxes[c, k, 1])
+        X1 = max(X1, boxes[c, k, 2])
+        Y1 = max(Y1, boxes[c, k, 3])
+    if X1 < 0:
+        X0, Y0, X1, Y1 = 0, 0, -1, -1
+    wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
+    wl1 = wl + 1
+    # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each box scales its four corners
+    for i in range(o, o + (hl + 1) * wl1):
+        D[i] = 1.0
+    for k in range(K):
+        x0 = boxes[c, k, 0]
+        if x0 < 0 or q[k] < cut:
+            continue
+        y0, x1, y1 = boxes[c, k, 1] - Y0, boxes[c, k, 2] - X0, boxes[c, k, 3] - Y0
+        x0 -= X0
+        f = 1.0 - q[k]
+        g = t_remove[k]  # 1 / f
+        D[o + y0 * wl1 + x0] *= f
+        D[o + y0 * wl1 + x1 + 1] *= g
+        D[o + (y1 + 1) * wl1 + x0] *= g
+        D[o + (y1 + 1) * wl1 + x1 + 1] *= f
+    # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
+    # interleaved so that one box corner of both is one cache line
+    _abar_pass(D, W, B, I2, prev[c], o, wl, hl, po + Y0 * w + X0, w)
+    last = 2 * (o + (hl + 1) * wl1 - 1)
+    SA, SBA, sb = I2[last], I2[last + 1], SB[c]
+    # 3. per location: pseudo-distance with the location present and absent
+    for k in range(K):
+        x0 = boxes[c, k, 0]
+        if x0 < 0 or skip[k]:
+            continue
+        # box corners in the local integral image, clamped to it
+        lx0 = min(max(x0 - X0, 0), wl)
+        lx1 = min(max(boxes[c, k, 2] + 1 - X0, 0), wl)
+        ly0 = min(max(boxes[c, k, 1] - Y0, 0), hl)
+        ly1 = min(max(boxes[c, k, 3] + 1 - Y0, 0), hl)
+        i00 = 2 * (o + ly0 * wl1 + lx0)
+        i01 = 2 * (o + ly0 * wl1 + lx1)
+        i10 = 2 * (o + ly1 * wl1 + lx0)
+        i11 = 2 * (o + ly1 * wl1 + lx1)
+        rA = I2[i11] - I2[i01] - I2[i10] + I2[i00]
+        rBA = I2[i11 + 1] - I2[i01 + 1] - I2[i10 + 1] + I2[i00 + 1]
+        rW, rB = RW[c, k], RB[c, k]
+        t = t_remove[k]
+        in0 = rW - (rW - rA) * t
+        if in0 < 0.0:
+            in0 = 0.0
+        inb0 = rB - (rB - rBA) * t
+        if inb0 < 0.0:
+            inb0 = 0.0
+        if inb0 > in0:
+            inb0 = in0
+        a1 = SA - rA + rW
+        ba1 = SBA - rBA + rB
+        a0 = SA - rA + in0
+        ba0 = SBA - rBA + inb0
+        # psi1 - psi0 = n1 / d1 - n0 / d0, over one division
+        d1 = max(a1, 1.0)
+        d0 = max(a0, 1.0)
+        acc[c, k] = ((sb + a1 - 2.0 * ba1) * d0 - (sb + a0 - 2.0 * ba0) * d1) * inv_sigma / (d1 * d0)
+
+
+def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
+              ignored_below, q_max, prior):  # pragma: no cover - compiled
     n_cam, K = boxes.shape[0], boxes.shape[1]
-    # constant per frame: |W R_ck|, |W B R_ck| and |W B| (integral images built once, in D's storage)
     ones = np.ones(B.shape[0])
     RW = np.zeros((n_cam, K))
     RB = np.zeros((n_cam, K))
     SB = np.zeros(n_cam)
-    for c in range(n_cam):
-        h, w = hw[c, 0], hw[c, 1]
-        o, w1 = ii_off[c], w + 1
-        for pass_ in range(2):
-            _integral(ones if pass_ == 0 else B, W, h, w, px_off[c], D, o)
-            for k in range(K):
-                x0 = boxes[c, k, 0]
-                if x0 < 0:
-                    continue
-                v = _box_sum(D, o, w1, x0, boxes[c, k, 1], boxes[c, k, 2], boxes[c, k, 3])
-                if pass_ == 0:
-                    RW[c, k] = v
-                else:
-                    RB[c, k] = v
-        SB[c] = D[o + (h + 1) * w1 - 1]
-    acc = np.zeros(K)
-    prev = np.empty(hw[:, 1].max())
-    # a location whose last target marginal was below 1e-13 is dormant: damped towards 0 without evaluation,
+    for c in prange(n_cam):
+        _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB)
+    # one row per camera, summed in camera order after the parallel loop: the same sums on any number of threads
+    acc = np.zeros((n_cam, K))
+    prev = np.empty((n_cam, hw[:, 1].max()))
+    # a location whose last target marginal was below 1e-8 is dormant: damped towards 0 without evaluation,
     # evaluated again on every REFRESH-th iteration (and before convergence is declared)
     skip = np.zeros(K, dtype=np.bool_)
+    t_remove = np.ones(K)
     cut = max(ignored_below, Q_NEGLIGIBLE * prior)
     converged = False
     full = True
@@ -414,87 +522,23 @@ def _solve(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma
             full = True
         if full:
             skip[:] = False
-        acc[:] = 0.0
-        for c in range(n_cam):
-            h, w = hw[c, 0], hw[c, 1]
-            w1 = w + 1
-            o, po = ii_off[c], px_off[c]
-            # 1. the region [X0, X1] x [Y0, Y1] covered by some box in the synthetic image (Abar = 0 elsewhere,
-            # so the integral images need only cover it: outside, they are its values clamped to its edges)
-            X0, Y0, X1, Y1 = w, h, -1, -1
-            for k in range(K):
-                x0 = boxes[c, k, 0]
-                if x0 < 0 or q[k] < cut:
-                    continue
-                X0 = min(X0, x0)
-                Y0 = min(Y0, boxes[c, k, 1])
-                X1 = max(X1, boxes[c, k, 2])
-                Y1 = max(Y1, boxes[c, k, 3])
-            if X1 < 0:
-                X0, Y0, X1, Y1 = 0, 0, -1, -1
-            wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
-            wl1 = wl + 1
-            # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each box scales its four corners
-            for i in range(o, o + (hl + 1) * wl1):
-                D[i] = 1.0
-            for k in range(K):
-                x0 = boxes[c, k, 0]
-                if x0 < 0 or q[k] < cut:
-                    continue
-                y0, x1, y1 = boxes[c, k, 1] - Y0, boxes[c, k, 2] - X0, boxes[c, k, 3] - Y0
-                x0 -= X0
-                f = 1.0 - q[k]
-                g = 1.0 / f
-                D[o + y0 * wl1 + x0] *= f
-                D[o + y0 * wl1 + x1 + 1] *= g
-                D[o + (y1 + 1) * wl1 + x0] *= g
-                D[o + (y1 + 1) * wl1 + x1 + 1] *= f
-            # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
-            # interleaved so that one box corner of both is one cache line
-            _abar_pass(D, W, B, I2, prev, o, wl, hl, po + Y0 * w + X0, w)
-            last = 2 * (o + (hl + 1) * wl1 - 1)
-            SA, SBA, sb = I2[last], I2[last + 1], SB[c]
-            # 3. per location: pseudo-distance with the location present and absent
-            for k in range(K):
-                x0 = boxes[c, k, 0]
-                if x0 < 0 or skip[k]:
-                    continue
-                # box corners in the local integral image, clamped to it
-                lx0 = min(max(x0 - X0, 0), wl)
-                lx1 = min(max(boxes[c, k, 2] + 1 - X0, 0), wl)
-                ly0 = min(max(boxes[c, k, 1] - Y0, 0), hl)
-                ly1 = min(max(boxes[c, k, 3] + 1 - Y0, 0), hl)
-                i00 = 2 * (o + ly0 * wl1 + lx0)
-                i01 = 2 * (o + ly0 * wl1 + lx1)
-                i10 = 2 * (o + ly1 * wl1 + lx0)
-                i11 = 2 * (o + ly1 * wl1 + lx1)
-                rA = I2[i11] - I2[i01] - I2[i10] + I2[i00]
-                rBA = I2[i11 + 1] - I2[i01 + 1] - I2[i10 + 1] + I2[i00 + 1]
-                rW, rB = RW[c, k], RB[c, k]
-                t = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
-                in0 = rW - (rW - rA) * t
-                if in0 < 0.0:
-                    in0 = 0.0
-                inb0 = rB - (rB - rBA) * t
-                if inb0 < 0.0:
-                    inb0 = 0.0
-                if inb0 > in0:
-                    inb0 = in0
-                a1 = SA - rA + rW
-                ba1 = SBA - rBA + rB
-                a0 = SA - rA + in0
-                ba0 = SBA - rBA + inb0
-                psi1 = (sb + a1 - 2.0 * ba1) / max(a1, 1.0)
-                psi0 = (sb + a0 - 2.0 * ba0) / max(a0, 1.0)
-                acc[k] += (psi1 - psi0) * inv_sigma
+        # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it)
+        for k in range(K):
+            t_remove[k] = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
+        for c in prange(n_cam):
+            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
+                          inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
         delta = 0.0
         for k in range(K):
             if skip[k]:
-                q[k] *= damping  # its target is below 1e-13: the damped update without evaluating it
+                q[k] *= damping  # its target is below 1e-8: the damped update without evaluating it
                 continue
-            e = log_prior_ratio + acc[k]
+            s = 0.0
+            for c in range(n_cam):
+                s += acc[c, k]  # 0 where the location is not visible in camera c
+            e = log_prior_ratio + s
             if e > 700.0:
                 e = 700.0
             qn = 1.0 / (1.0 + np.exp(e))
@@ -515,3 +559,10 @@ def _solve(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma
         else:
             full = False
     return it, converged
+
+
+# One source, two kernels: prange is range in the serial one. The parallel one runs the cameras on numba's
+# threads; each camera writes only its own rows, summed in camera order, so both give the same bits. It is
+# compiled on first use (not cached: its cache entry would share the serial one's name).
+_solve = njit(cache=True, boundscheck=False)(_solve_py)
+_solve_parallel = njit(boundscheck=False, parallel=True)(_solve_py)

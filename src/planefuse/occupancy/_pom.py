@@ -206,7 +206,9 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         prior=float(scalars.get("PRIOR", defaults.prior)),
         sigma=float(scalars.get("SIGMA_IMAGE_DENSITY", defaults.sigma)),
         max_iterations=int(scalars.get("MAX_NB_SOLVER_ITERATIONS", defaults.max_iterations)),
-        ignored_below=1.0 - float(scalars.get("PROBA_IGNORED", 1.0)),
+        # rounded: 1 - 0.99 is 0.010000000000000009 in binary, which would leave out every location still at
+        # PRIOR 0.01 on the first iteration; POM keeps them (its first iterate, docs/results.md)
+        ignored_below=round(1.0 - float(scalars.get("PROBA_IGNORED", 1.0)), 12),
         damping=defaults.damping, tolerance=defaults.tolerance,
     )
     return PomConfig(path, tuple(ids), Silhouettes(boxes, sizes), params, formats, tuple(process), format_lines)
@@ -246,7 +248,7 @@ def write_pom_result(path: str | os.PathLike, marginals: np.ndarray) -> None:
 
 
 def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = True,
-            params: GenerativeParams | None = None) -> Iterator[tuple[int, MeanFieldResult]]:
+            params: GenerativeParams | None = None, threads: int = 1) -> Iterator[tuple[int, MeanFieldResult]]:
     """Run planefuse's mean-field solver on a POM configuration's masks, frame by frame.
 
     Parameters
@@ -258,12 +260,14 @@ def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = T
         Write ``RESULT_FORMAT`` files (``proba-f<frame>.dat``) where the configuration has that line.
     params : GenerativeParams, optional
         Overrides the configuration's solver parameters.
+    threads : int
+        Threads of the solver (:class:`MeanFieldSolver`; the same marginals on any number).
 
     Yields
     ------
     (frame, MeanFieldResult)
     """
-    solver = MeanFieldSolver(cfg.silhouettes, params or cfg.params)
+    solver = MeanFieldSolver(cfg.silhouettes, params or cfg.params, threads=threads)
     for frame in (cfg.frames if frames is None else frames):
         result = solver.solve(read_pom_masks(cfg, frame))
         if write and "RESULT_FORMAT" in cfg.formats:
@@ -290,7 +294,7 @@ def write_pom(path: str | os.PathLike, silhouettes: Silhouettes, params: Generat
     lines += [f"CAMERA {cid} {w} {h}" for cid, (h, w) in zip(ids, silhouettes.image_sizes)]
     lines += [f"PRIOR {params.prior!r}", f"SIGMA_IMAGE_DENSITY {params.sigma!r}",
               f"MAX_NB_SOLVER_ITERATIONS {int(params.max_iterations)}",
-              f"PROBA_IGNORED {1.0 - params.ignored_below!r}"]
+              f"PROBA_IGNORED {round(1.0 - params.ignored_below, 12)!r}"]
     if input_view_format:
         lines.append(f"INPUT_VIEW_FORMAT {input_view_format}")
     if result_format:

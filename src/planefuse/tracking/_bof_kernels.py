@@ -1,0 +1,298 @@
+"""numba kernels of the Bayesian Occupancy Filter, over square tiles of cells (see :mod:`planefuse.tracking._bof`).
+
+Tiles of ``TILE x TILE`` cells are *active* (the joint ``P(occ, v_k)`` is held for every ``k``) or *inactive*
+(the cell's velocity is uniform and only its total is held, in the zero-velocity slot ``k0``; the other
+slots are 0, so ``sum_k occ_v[:, k]`` is the occupancy everywhere). Every kernel loops (``numba.prange``)
+over a list of tiles, and every tile is computed from the previous state alone and writes only its own
+cells, so the result does not depend on the number of threads.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import prange
+
+#: Side of a tile [cells].
+TILE = 8
+
+
+@numba.njit(cache=True, inline="always")
+def _read_occ(occ_v, active, l, k, k0, y, x, ny, nx, outside, inv_k, checked):  # pragma: no cover - numba
+    """``P(occ, v_k)`` at cell (y, x), the prior outside the grid, the uniform share in inactive tiles."""
+    if not checked:
+        return occ_v[l, k, y, x]
+    if y < 0 or y >= ny or x < 0 or x >= nx:
+        return outside
+    if active[l, y // TILE, x // TILE]:
+        return occ_v[l, k, y, x]
+    return occ_v[l, k0, y, x] * inv_k
+
+
+@numba.njit(cache=True, inline="always")
+def _read_free(free, l, y, x, ny, nx, outside, inv_k, checked):  # pragma: no cover - numba
+    """``P(free) / K`` at cell (y, x), the prior's outside the grid."""
+    if checked and (y < 0 or y >= ny or x < 0 or x >= nx):
+        return outside
+    return free[l, y, x] * inv_k
+
+
+@numba.njit(cache=True, inline="always")
+def _update_scales(so, f, lam, max_log_odds, max_posterior):  # pragma: no cover - numba
+    """Scale factors ``(s_occ, s_free)`` of Bayes' rule with log-odds ``lam`` for a cell holding ``P(occ) = so``
+    and ``P(free) = f`` (module docstring of ``_bof``): no overflow, posterior log-odds within the bound."""
+    lam = min(max(lam, -max_log_odds), max_log_odds)
+    if so > 0 and f > 0:
+        prior = np.log(so) - np.log(f)
+        lam = min(max(lam, min(-max_posterior - prior, 0.0)), max(max_posterior - prior, 0.0))
+    if lam >= 0:
+        e = np.float32(np.exp(-lam))
+        z = np.float32(1.0) / (so + f * e)
+        return z, e * z
+    e = np.float32(np.exp(lam))
+    z = np.float32(1.0) / (so * e + f)
+    return e * z, z
+
+
+@numba.njit(cache=True)
+def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, bilinear, coef, prior, mix_src,
+                 mix_w, k0, log_odds, do_update, bounds, velocities, occ, vel):  # pragma: no cover - numba
+    L, K, ny, nx = occ_v.shape
+    y0, x0 = ty * TILE, tx * TILE
+    h, w = min(TILE, ny - y0), min(TILE, nx - x0)
+    s_occ, s_app, s_dis, s_free = coef[0], coef[1], coef[2], coef[3]
+    inv_k = np.float32(1.0 / K)
+    a_out = np.float32(prior / K)
+    b_out = np.float32((1.0 - prior) / K)
+    # reads need checks unless every antecedent lies in the grid, in active tiles
+    ya, yb, xa, xb = y0 + oy.min(), y0 + h + oy.max(), x0 + ox.min(), x0 + w + ox.max()
+    checked = ya < 0 or xa < 0 or yb >= ny or xb >= nx
+    if not checked:
+        for jy in range(ya // TILE, yb // TILE + 1):
+            for jx in range(xa // TILE, xb // TILE + 1):
+                if not active[l, jy, jx]:
+                    checked = True
+    hat = np.empty((K, TILE, TILE), np.float32)
+    fhat = np.zeros((TILE, TILE), np.float32)
+    # occ_hat_k = (1 - p_dis) alpha_k + p_app beta_k;  free_hat = sum_k p_dis alpha_k + (1 - p_app) beta_k
+    for k in range(K):
+        wy1, wx1 = np.float32(wy[k]), np.float32(wx[k])
+        w00, w01 = (1 - wy1) * (1 - wx1), (1 - wy1) * wx1
+        w10, w11 = wy1 * (1 - wx1), wy1 * wx1
+        for iy in range(h):
+            y = y0 + iy + oy[k]
+            for ix in range(w):
+                x = x0 + ix + ox[k]
+                if bilinear:
+                    a = (w00 * _read_occ(occ_v, active, l, k, k0, y, x, ny, nx, a_out, inv_k, checked)
+                         + w01 * _read_occ(occ_v, active, l, k, k0, y, x + 1, ny, nx, a_out, inv_k, checked)
+                         + w10 * _read_occ(occ_v, active, l, k, k0, y + 1, x, ny, nx, a_out, inv_k, checked)
+                         + w11 * _read_occ(occ_v, active, l, k, k0, y + 1, x + 1, ny, nx, a_out, inv_k, checked))
+                    b = (w00 * _read_free(free, l, y, x, ny, nx, b_out, inv_k, checked)
+                         + w01 * _read_free(free, l, y, x + 1, ny, nx, b_out, inv_k, checked)
+                         + w10 * _read_free(free, l, y + 1, x, ny, nx, b_out, inv_k, checked)
+                         + w11 * _read_free(free, l, y + 1, x + 1, ny, nx, b_out, inv_k, checked))
+                else:
+                    a = _read_occ(occ_v, active, l, k, k0, y, x, ny, nx, a_out, inv_k, checked)
+                    b = _read_free(free, l, y, x, ny, nx, b_out, inv_k, checked)
+                hat[k, iy, ix] = s_occ * a + s_app * b
+                fhat[iy, ix] += s_dis * a + s_free * b
+    # velocity noise: occ_tilde_k = sum_j mix_w[k, j] occ_hat[mix_src[k, j]]; then normalise and update
+    tilde = np.zeros((K, TILE, TILE), np.float32)
+    total = fhat.copy()
+    for k in range(K):
+        for j in range(mix_src.shape[1]):
+            wkj = np.float32(mix_w[k, j])
+            src = mix_src[k, j]
+            for iy in range(h):
+                for ix in range(w):
+                    tilde[k, iy, ix] += wkj * hat[src, iy, ix]
+        for iy in range(h):
+            for ix in range(w):
+                total[iy, ix] += tilde[k, iy, ix]
+    scale = np.empty((TILE, TILE), np.float32)
+    for iy in range(h):
+        for ix in range(w):
+            inv = np.float32(1.0) / total[iy, ix]
+            f = fhat[iy, ix] * inv
+            if do_update:
+                so = (total[iy, ix] - fhat[iy, ix]) * inv
+                s_o, s_f = _update_scales(so, f, log_odds[l, y0 + iy, x0 + ix], bounds[0], bounds[1])
+                scale[iy, ix] = inv * s_o
+                f *= s_f
+            else:
+                scale[iy, ix] = inv
+            out_f[l, y0 + iy, x0 + ix] = f
+            occ[l, y0 + iy, x0 + ix] = 0.0
+            vel[l, y0 + iy, x0 + ix, 0] = 0.0
+            vel[l, y0 + iy, x0 + ix, 1] = 0.0
+    for k in range(K):
+        vx, vy = velocities[k, 0], velocities[k, 1]
+        for iy in range(h):
+            for ix in range(w):
+                m = tilde[k, iy, ix] * scale[iy, ix]
+                out_v[l, k, y0 + iy, x0 + ix] = m
+                occ[l, y0 + iy, x0 + ix] += m
+                vel[l, y0 + iy, x0 + ix, 0] += m * vx
+                vel[l, y0 + iy, x0 + ix, 1] += m * vy
+    _finish_moments(occ, vel, l, y0, x0, h, w)
+
+
+@numba.njit(cache=True, inline="always")
+def _finish_moments(occ, vel, l, y0, x0, h, w):  # pragma: no cover - numba
+    """E[V | occ] = sum_k P(occ, v_k) v_k / P(occ); P(occ) clipped to [0, 1] (float32 sums of K masses)."""
+    for iy in range(y0, y0 + h):
+        for ix in range(x0, x0 + w):
+            o = occ[l, iy, ix]
+            if o > 0:
+                vel[l, iy, ix, 0] /= o
+                vel[l, iy, ix, 1] /= o
+            occ[l, iy, ix] = min(o, np.float32(1.0))
+
+
+@numba.njit(cache=True)
+def _inactive_tile(occ_v, free, out_v, out_f, dirty_out, l, ty, tx, coef, k0, log_odds, do_update, bounds,
+                   occ, vel):  # pragma: no cover - numba
+    """A tile of uniform-velocity cells: the transition alone (no motion), then the update, on the totals."""
+    L, K, ny, nx = occ_v.shape
+    y0, x0 = ty * TILE, tx * TILE
+    h, w = min(TILE, ny - y0), min(TILE, nx - x0)
+    s_occ, s_app, s_dis, s_free = coef[0], coef[1], coef[2], coef[3]
+    if dirty_out[l, ty, tx]:  # the output buffer last held this tile active: clear its other slots
+        for k in range(K):
+            if k != k0:
+                out_v[l, k, y0:y0 + h, x0:x0 + w] = 0.0
+        dirty_out[l, ty, tx] = False
+    for iy in range(y0, y0 + h):
+        for ix in range(x0, x0 + w):
+            o, f = occ_v[l, k0, iy, ix], free[l, iy, ix]
+            o, f = s_occ * o + s_app * f, s_dis * o + s_free * f
+            z = np.float32(1.0) / (o + f)
+            o *= z
+            f *= z
+            if do_update:
+                s_o, s_f = _update_scales(o, f, log_odds[l, iy, ix], bounds[0], bounds[1])
+                o *= s_o
+                f *= s_f
+            out_v[l, k0, iy, ix] = o
+            out_f[l, iy, ix] = f
+            occ[l, iy, ix] = min(o, np.float32(1.0))
+            vel[l, iy, ix, 0] = 0.0
+            vel[l, iy, ix, 1] = 0.0
+
+
+@numba.njit(cache=True, parallel=True)
+def step_kernel(occ_v, free, out_v, out_f, active, dirty_out, act_tiles, inact_tiles, oy, ox, wy, wx, bilinear,
+                coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
+                occ, vel):  # pragma: no cover - numba
+    """Prediction (and, if ``do_update``, the update) of every tile from ``(occ_v, free)`` into
+    ``(out_v, out_f)``; the moments ``P(occ)``, ``E[V | occ]`` of the result into ``(occ, vel)``."""
+    for i in prange(act_tiles.shape[0]):
+        _active_tile(occ_v, free, out_v, out_f, active, act_tiles[i, 0], act_tiles[i, 1], act_tiles[i, 2], oy, ox,
+                     wy, wx, bilinear, coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
+                     occ, vel)
+    for i in prange(inact_tiles.shape[0]):
+        _inactive_tile(occ_v, free, out_v, out_f, dirty_out, inact_tiles[i, 0], inact_tiles[i, 1],
+                       inact_tiles[i, 2], coef, k0, log_odds, do_update, bounds, occ, vel)
+
+
+@numba.njit(cache=True, parallel=True)
+def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, occ, vel):  # pragma: no cover
+    """Bayes update in place (no prediction) and the moments of the result."""
+    L, K, ny, nx = occ_v.shape
+    for i in prange(tiles.shape[0]):
+        l, ty, tx = tiles[i, 0], tiles[i, 1], tiles[i, 2]
+        y0, x0 = ty * TILE, tx * TILE
+        h, w = min(TILE, ny - y0), min(TILE, nx - x0)
+        if active[l, ty, tx]:
+            for iy in range(y0, y0 + h):
+                for ix in range(x0, x0 + w):
+                    so = np.float32(0.0)
+                    for k in range(K):
+                        so += occ_v[l, k, iy, ix]
+                    s_o, s_f = _update_scales(so, free[l, iy, ix], log_odds[l, iy, ix], bounds[0], bounds[1])
+                    free[l, iy, ix] *= s_f
+                    o, mx, my = np.float32(0.0), np.float32(0.0), np.float32(0.0)
+                    for k in range(K):
+                        m = occ_v[l, k, iy, ix] * s_o
+                        occ_v[l, k, iy, ix] = m
+                        o += m
+                        mx += m * velocities[k, 0]
+                        my += m * velocities[k, 1]
+                    occ[l, iy, ix], vel[l, iy, ix, 0], vel[l, iy, ix, 1] = o, mx, my
+            _finish_moments(occ, vel, l, y0, x0, h, w)
+        else:
+            for iy in range(y0, y0 + h):
+                for ix in range(x0, x0 + w):
+                    o, f = occ_v[l, k0, iy, ix], free[l, iy, ix]
+                    s_o, s_f = _update_scales(o, f, log_odds[l, iy, ix], bounds[0], bounds[1])
+                    occ_v[l, k0, iy, ix] = o * s_o
+                    free[l, iy, ix] = f * s_f
+                    occ[l, iy, ix] = min(o * s_o, np.float32(1.0))
+                    vel[l, iy, ix, 0] = 0.0
+                    vel[l, iy, ix, 1] = 0.0
+
+
+@numba.njit(cache=True, parallel=True)
+def moments_kernel(occ_v, active, tiles, k0, velocities, occ, vel):  # pragma: no cover - numba
+    """``P(occ) = sum_k P(occ, v_k)`` and ``E[V | occ]`` per cell (0 in inactive tiles)."""
+    L, K, ny, nx = occ_v.shape
+    for i in prange(tiles.shape[0]):
+        l, ty, tx = tiles[i, 0], tiles[i, 1], tiles[i, 2]
+        y0, x0 = ty * TILE, tx * TILE
+        h, w = min(TILE, ny - y0), min(TILE, nx - x0)
+        if active[l, ty, tx]:
+            for iy in range(y0, y0 + h):
+                for ix in range(x0, x0 + w):
+                    o, mx, my = np.float32(0.0), np.float32(0.0), np.float32(0.0)
+                    for k in range(K):
+                        m = occ_v[l, k, iy, ix]
+                        o += m
+                        mx += m * velocities[k, 0]
+                        my += m * velocities[k, 1]
+                    occ[l, iy, ix], vel[l, iy, ix, 0], vel[l, iy, ix, 1] = o, mx, my
+            _finish_moments(occ, vel, l, y0, x0, h, w)
+        else:
+            for iy in range(y0, y0 + h):
+                for ix in range(x0, x0 + w):
+                    occ[l, iy, ix] = min(occ_v[l, k0, iy, ix], np.float32(1.0))
+                    vel[l, iy, ix, 0] = 0.0
+                    vel[l, iy, ix, 1] = 0.0
+
+
+@numba.njit(cache=True, parallel=True)
+def retile_kernel(occ_v, tiles, to_active, k0):  # pragma: no cover - numba
+    """Change the representation of ``tiles`` in place: to active (the total spread uniformly over the K
+    hypotheses) or to inactive (the K hypotheses summed into slot ``k0``, the others set to 0)."""
+    L, K, ny, nx = occ_v.shape
+    inv_k = np.float32(1.0 / K)
+    for i in prange(tiles.shape[0]):
+        l, ty, tx = tiles[i, 0], tiles[i, 1], tiles[i, 2]
+        y0, x0 = ty * TILE, tx * TILE
+        h, w = min(TILE, ny - y0), min(TILE, nx - x0)
+        for iy in range(y0, y0 + h):
+            for ix in range(x0, x0 + w):
+                if to_active:
+                    m = occ_v[l, k0, iy, ix] * inv_k
+                    for k in range(K):
+                        occ_v[l, k, iy, ix] = m
+                else:
+                    s = np.float32(0.0)
+                    for k in range(K):
+                        s += occ_v[l, k, iy, ix]
+                        occ_v[l, k, iy, ix] = 0.0
+                    occ_v[l, k0, iy, ix] = s
+
+
+@numba.njit(cache=True)
+def hot_tiles(free, threshold):  # pragma: no cover - numba
+    """Tiles holding a cell with ``P(occ) = 1 - P(free) > threshold``, shape (L, ceil(ny/TILE), ceil(nx/TILE))."""
+    L, ny, nx = free.shape
+    out = np.zeros((L, (ny + TILE - 1) // TILE, (nx + TILE - 1) // TILE), np.bool_)
+    f_max = np.float32(1.0 - threshold)
+    for l in range(L):
+        for iy in range(ny):
+            for ix in range(nx):
+                if free[l, iy, ix] < f_max:
+                    out[l, iy // TILE, ix // TILE] = True
+    return out

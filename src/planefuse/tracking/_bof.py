@@ -65,12 +65,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage
 
 from .._state import StateDict, float_or_none, get_shaped, optional_float
 from ..grid import PlaneStack
 from .._params import check_fields, require
-from ._bof_kernels import TILE, hot_tiles, moments_kernel, retile_kernel, step_kernel, update_kernel
+from ._bof_kernels import TILE, active_tiles, moments_kernel, retile_kernel, step_kernel, update_kernel
 
 __all__ = [
     "BOFParams",
@@ -126,10 +125,12 @@ class BOFParams:
     velocity_noise_rate_hz: float = 1.0
     subcell: str = "bilinear"
     sparse_min_occupancy: float = 0.1
+    evidence_weight: float = 1.0
 
     def __post_init__(self) -> None:
         check_fields(self, n_velocities_per_axis="int>=1", velocity_max_m_s=">=0", prior_occupancy="(0,1)",
-                     decay_rate_hz=">=0", velocity_noise_rate_hz=">=0", sparse_min_occupancy="[0,1]")
+                     decay_rate_hz=">=0", velocity_noise_rate_hz=">=0", sparse_min_occupancy="[0,1]",
+                     evidence_weight="(0,1]")
         # a walking or running person: a larger value is a unit error (km/h, mm/s) or a wasted velocity grid
         require(self.velocity_max_m_s <= 10.0, self, "velocity_max_m_s",
                 f"must be at most 10 m/s, got {self.velocity_max_m_s}")
@@ -296,11 +297,7 @@ def _active_tiles(state: BOFState, params: BOFParams, reach_cells: int) -> np.nd
     with ``P(occ) > sparse_min_occupancy`` (all tiles where that is 0 or ``n`` is even)."""
     if params.sparse_min_occupancy <= 0 or state.k0 < 0:
         return np.ones_like(state.tile_active)
-    hot = hot_tiles(state.free, np.float32(params.sparse_min_occupancy))
-    r = -(-int(reach_cells) // TILE)
-    if r > 0 and hot.any():
-        hot = ndimage.binary_dilation(hot, structure=np.ones((1, 2 * r + 1, 2 * r + 1), bool))
-    return hot
+    return active_tiles(state.free, np.float32(params.sparse_min_occupancy), int(reach_cells))
 
 
 def _retile(state: BOFState, active: np.ndarray) -> None:
@@ -333,9 +330,11 @@ def bof_predict_update(state: BOFState, dt_s: float, evidence_log_odds, params: 
         raise ValueError(f"dt_s must be finite and >= 0, got {dt_s}")
     if state.occ_v.shape[1] != params.n_velocities:
         raise ValueError(f"state has {state.occ_v.shape[1]} velocity hypotheses, params {params.n_velocities}")
-    if dt_s == 0:
-        return state if evidence_log_odds is None else bof_update(state, evidence_log_odds)
     lo = None if evidence_log_odds is None else _check_log_odds(state, evidence_log_odds)
+    if lo is not None and params.evidence_weight != 1.0:
+        lo = lo * np.float32(params.evidence_weight)
+    if dt_s == 0:
+        return state if lo is None else bof_update(state, lo)
     occ = np.empty(state.free.shape, np.float32)
     vel = np.empty(state.free.shape + (2,), np.float32)
     bilinear = params.subcell == "bilinear"

@@ -17,27 +17,37 @@ from numba import prange
 TILE = 8
 
 
-@numba.njit(cache=True, inline="always")
-def _read_occ(occ_v, active, l, k, k0, y, x, ny, nx, outside, inv_k, checked):  # pragma: no cover - numba
-    """``P(occ, v_k)`` at cell (y, x), the prior outside the grid, the uniform share in inactive tiles."""
-    if not checked:
-        return occ_v[l, k, y, x]
-    if y < 0 or y >= ny or x < 0 or x >= nx:
-        return outside
-    if active[l, y // TILE, x // TILE]:
-        return occ_v[l, k, y, x]
-    return occ_v[l, k0, y, x] * inv_k
+@numba.njit(cache=True, fastmath=True)
+def _predict_hat(src, fsrc, by, bx, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat):  # pragma: no cover
+    """``occ_hat_k = (1 - p_dis) alpha_k + p_app beta_k`` into ``hat[k]``, ``free_hat += p_dis alpha_k +
+    (1 - p_app) beta_k`` into ``fhat``, for a tile whose cell (0, 0) is ``(by, bx)`` in ``src`` (K, H, W:
+    ``P(occ, v_k)``) and ``fsrc`` (H, W: ``P(free)``), which hold every antecedent."""
+    s_occ, s_app, s_dis, s_free = coef[0], coef[1], coef[2], coef[3]
+    for k in range(src.shape[0]):
+        wy1, wx1 = np.float32(wy[k]), np.float32(wx[k])
+        w00, w01 = (1 - wy1) * (1 - wx1), (1 - wy1) * wx1
+        w10, w11 = wy1 * (1 - wx1), wy1 * wx1
+        for iy in range(h):
+            y = by + iy + oy[k]
+            xs = bx + ox[k]
+            if bilinear:
+                for ix in range(w):
+                    x = xs + ix
+                    a = (w00 * src[k, y, x] + w01 * src[k, y, x + 1]
+                         + w10 * src[k, y + 1, x] + w11 * src[k, y + 1, x + 1])
+                    b = (w00 * fsrc[y, x] + w01 * fsrc[y, x + 1]
+                         + w10 * fsrc[y + 1, x] + w11 * fsrc[y + 1, x + 1]) * inv_k
+                    hat[k, iy, ix] = s_occ * a + s_app * b
+                    fhat[iy, ix] += s_dis * a + s_free * b
+            else:
+                for ix in range(w):
+                    a = src[k, y, xs + ix]
+                    b = fsrc[y, xs + ix] * inv_k
+                    hat[k, iy, ix] = s_occ * a + s_app * b
+                    fhat[iy, ix] += s_dis * a + s_free * b
 
 
-@numba.njit(cache=True, inline="always")
-def _read_free(free, l, y, x, ny, nx, outside, inv_k, checked):  # pragma: no cover - numba
-    """``P(free) / K`` at cell (y, x), the prior's outside the grid."""
-    if checked and (y < 0 or y >= ny or x < 0 or x >= nx):
-        return outside
-    return free[l, y, x] * inv_k
-
-
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", fastmath=True)
 def _update_scales(so, f, lam, max_log_odds, max_posterior):  # pragma: no cover - numba
     """Scale factors ``(s_occ, s_free)`` of Bayes' rule with log-odds ``lam`` for a cell holding ``P(occ) = so``
     and ``P(free) = f`` (module docstring of ``_bof``): no overflow, posterior log-odds within the bound."""
@@ -54,49 +64,53 @@ def _update_scales(so, f, lam, max_log_odds, max_posterior):  # pragma: no cover
     return e * z, z
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=True)
 def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, bilinear, coef, prior, mix_src,
                  mix_w, k0, log_odds, do_update, bounds, velocities, occ, vel):  # pragma: no cover - numba
     L, K, ny, nx = occ_v.shape
     y0, x0 = ty * TILE, tx * TILE
     h, w = min(TILE, ny - y0), min(TILE, nx - x0)
-    s_occ, s_app, s_dis, s_free = coef[0], coef[1], coef[2], coef[3]
     inv_k = np.float32(1.0 / K)
     a_out = np.float32(prior / K)
-    b_out = np.float32((1.0 - prior) / K)
-    # reads need checks unless every antecedent lies in the grid, in active tiles
+    # the antecedents are read in place when all lie in the grid, in active tiles; else gathered
     ya, yb, xa, xb = y0 + oy.min(), y0 + h + oy.max(), x0 + ox.min(), x0 + w + ox.max()
-    checked = ya < 0 or xa < 0 or yb >= ny or xb >= nx
-    if not checked:
+    gather = ya < 0 or xa < 0 or yb >= ny or xb >= nx
+    if not gather:
         for jy in range(ya // TILE, yb // TILE + 1):
             for jx in range(xa // TILE, xb // TILE + 1):
                 if not active[l, jy, jx]:
-                    checked = True
+                    gather = True
     hat = np.empty((K, TILE, TILE), np.float32)
     fhat = np.zeros((TILE, TILE), np.float32)
-    # occ_hat_k = (1 - p_dis) alpha_k + p_app beta_k;  free_hat = sum_k p_dis alpha_k + (1 - p_app) beta_k
-    for k in range(K):
-        wy1, wx1 = np.float32(wy[k]), np.float32(wx[k])
-        w00, w01 = (1 - wy1) * (1 - wx1), (1 - wy1) * wx1
-        w10, w11 = wy1 * (1 - wx1), wy1 * wx1
-        for iy in range(h):
-            y = y0 + iy + oy[k]
-            for ix in range(w):
-                x = x0 + ix + ox[k]
-                if bilinear:
-                    a = (w00 * _read_occ(occ_v, active, l, k, k0, y, x, ny, nx, a_out, inv_k, checked)
-                         + w01 * _read_occ(occ_v, active, l, k, k0, y, x + 1, ny, nx, a_out, inv_k, checked)
-                         + w10 * _read_occ(occ_v, active, l, k, k0, y + 1, x, ny, nx, a_out, inv_k, checked)
-                         + w11 * _read_occ(occ_v, active, l, k, k0, y + 1, x + 1, ny, nx, a_out, inv_k, checked))
-                    b = (w00 * _read_free(free, l, y, x, ny, nx, b_out, inv_k, checked)
-                         + w01 * _read_free(free, l, y, x + 1, ny, nx, b_out, inv_k, checked)
-                         + w10 * _read_free(free, l, y + 1, x, ny, nx, b_out, inv_k, checked)
-                         + w11 * _read_free(free, l, y + 1, x + 1, ny, nx, b_out, inv_k, checked))
+    if gather:  # gather the antecedents' window once: the prior outside the grid, uniform in inactive tiles
+        ly0, lx0 = y0 + oy.min(), x0 + ox.min()
+        sy, sx = h + oy.max() - oy.min() + 1, w + ox.max() - ox.min() + 1
+        src = np.empty((K, sy, sx), np.float32)
+        fsrc = np.empty((sy, sx), np.float32)
+        code = np.empty((sy, sx), np.int8)
+        for yy in range(sy):
+            y = ly0 + yy
+            for xx in range(sx):
+                x = lx0 + xx
+                if y < 0 or y >= ny or x < 0 or x >= nx:
+                    code[yy, xx] = 0
+                    fsrc[yy, xx] = np.float32(1.0 - prior)
                 else:
-                    a = _read_occ(occ_v, active, l, k, k0, y, x, ny, nx, a_out, inv_k, checked)
-                    b = _read_free(free, l, y, x, ny, nx, b_out, inv_k, checked)
-                hat[k, iy, ix] = s_occ * a + s_app * b
-                fhat[iy, ix] += s_dis * a + s_free * b
+                    code[yy, xx] = 1 if active[l, y // TILE, x // TILE] else 2
+                    fsrc[yy, xx] = free[l, y, x]
+        for k in range(K):
+            for yy in range(sy):
+                for xx in range(sx):
+                    c = code[yy, xx]
+                    if c == 1:
+                        src[k, yy, xx] = occ_v[l, k, ly0 + yy, lx0 + xx]
+                    elif c == 2:
+                        src[k, yy, xx] = occ_v[l, k0, ly0 + yy, lx0 + xx] * inv_k
+                    else:
+                        src[k, yy, xx] = a_out
+        _predict_hat(src, fsrc, y0 - ly0, x0 - lx0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat)
+    else:
+        _predict_hat(occ_v[l], free[l], y0, x0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat)
     # velocity noise: occ_tilde_k = sum_j mix_w[k, j] occ_hat[mix_src[k, j]]; then normalise and update
     tilde = np.zeros((K, TILE, TILE), np.float32)
     total = fhat.copy()
@@ -138,7 +152,7 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
     _finish_moments(occ, vel, l, y0, x0, h, w)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, inline="always", fastmath=True)
 def _finish_moments(occ, vel, l, y0, x0, h, w):  # pragma: no cover - numba
     """E[V | occ] = sum_k P(occ, v_k) v_k / P(occ); P(occ) clipped to [0, 1] (float32 sums of K masses)."""
     for iy in range(y0, y0 + h):
@@ -150,7 +164,7 @@ def _finish_moments(occ, vel, l, y0, x0, h, w):  # pragma: no cover - numba
             occ[l, iy, ix] = min(o, np.float32(1.0))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=True)
 def _inactive_tile(occ_v, free, out_v, out_f, dirty_out, l, ty, tx, coef, k0, log_odds, do_update, bounds,
                    occ, vel):  # pragma: no cover - numba
     """A tile of uniform-velocity cells: the transition alone (no motion), then the update, on the totals."""
@@ -181,7 +195,7 @@ def _inactive_tile(occ_v, free, out_v, out_f, dirty_out, l, ty, tx, coef, k0, lo
             vel[l, iy, ix, 1] = 0.0
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, fastmath=True)
 def step_kernel(occ_v, free, out_v, out_f, active, dirty_out, act_tiles, inact_tiles, oy, ox, wy, wx, bilinear,
                 coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
                 occ, vel):  # pragma: no cover - numba
@@ -196,7 +210,7 @@ def step_kernel(occ_v, free, out_v, out_f, active, dirty_out, act_tiles, inact_t
                        inact_tiles[i, 2], coef, k0, log_odds, do_update, bounds, occ, vel)
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, fastmath=True)
 def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, occ, vel):  # pragma: no cover
     """Bayes update in place (no prediction) and the moments of the result."""
     L, K, ny, nx = occ_v.shape
@@ -233,7 +247,7 @@ def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, 
                     vel[l, iy, ix, 1] = 0.0
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, fastmath=True)
 def moments_kernel(occ_v, active, tiles, k0, velocities, occ, vel):  # pragma: no cover - numba
     """``P(occ) = sum_k P(occ, v_k)`` and ``E[V | occ]`` per cell (0 in inactive tiles)."""
     L, K, ny, nx = occ_v.shape
@@ -260,7 +274,7 @@ def moments_kernel(occ_v, active, tiles, k0, velocities, occ, vel):  # pragma: n
                     vel[l, iy, ix, 1] = 0.0
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True, parallel=True, fastmath=True)
 def retile_kernel(occ_v, tiles, to_active, k0):  # pragma: no cover - numba
     """Change the representation of ``tiles`` in place: to active (the total spread uniformly over the K
     hypotheses) or to inactive (the K hypotheses summed into slot ``k0``, the others set to 0)."""
@@ -284,15 +298,19 @@ def retile_kernel(occ_v, tiles, to_active, k0):  # pragma: no cover - numba
                     occ_v[l, k0, iy, ix] = s
 
 
-@numba.njit(cache=True)
-def hot_tiles(free, threshold):  # pragma: no cover - numba
-    """Tiles holding a cell with ``P(occ) = 1 - P(free) > threshold``, shape (L, ceil(ny/TILE), ceil(nx/TILE))."""
+@numba.njit(cache=True, fastmath=True)
+def active_tiles(free, threshold, reach):  # pragma: no cover - numba
+    """Tiles within ``reach`` cells (Chebyshev distance) of a cell with ``P(occ) = 1 - P(free) > threshold``,
+    shape (L, ceil(ny / TILE), ceil(nx / TILE)), bool."""
     L, ny, nx = free.shape
-    out = np.zeros((L, (ny + TILE - 1) // TILE, (nx + TILE - 1) // TILE), np.bool_)
+    nty, ntx = (ny + TILE - 1) // TILE, (nx + TILE - 1) // TILE
+    out = np.zeros((L, nty, ntx), np.bool_)
     f_max = np.float32(1.0 - threshold)
     for l in range(L):
         for iy in range(ny):
             for ix in range(nx):
                 if free[l, iy, ix] < f_max:
-                    out[l, iy // TILE, ix // TILE] = True
+                    for jy in range(max(iy - reach, 0) // TILE, min(iy + reach, ny - 1) // TILE + 1):
+                        for jx in range(max(ix - reach, 0) // TILE, min(ix + reach, nx - 1) // TILE + 1):
+                            out[l, jy, jx] = True
     return out

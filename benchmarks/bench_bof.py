@@ -12,8 +12,8 @@ floor) and ``+3`` on a disc of 0.2 m radius around each person on the planes bel
 
 * ``dense kernel (main)``: the previous implementation (a copy of main's kernels, kept only here): one pass
   for the prediction with a padded copy of each plane, one for the update, one for the moments;
-* ``tiled, dense``: the new kernels with every tile active (``sparse_min_occupancy=0``): fused passes only;
-* ``tiled, sparse``: the defaults (cells far from any occupancy above 0.1 carry no velocity distribution);
+* ``tiled, dense``: the new kernels with every tile active (``sparse_min_excess=None``): fused passes only;
+* ``tiled, sparse``: the defaults (cells far from any occupancy 0.01 above the prior carry no velocity distribution);
 * ``tiled, sparse, 2 threads``: the same over ``numba.prange`` on 2 threads (identical results).
 
 Speeds are CPU time of this process per step (single-threaded rows: core time, meaningful on a shared
@@ -235,7 +235,7 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     impls = [
         ("dense kernel (main)", lambda: MainKernelFilter(stack, params), 1),
-        ("tiled, dense", lambda: TiledFilter(stack, BOFParams(sparse_min_occupancy=0.0)), 1),
+        ("tiled, dense", lambda: TiledFilter(stack, BOFParams(sparse_min_excess=None)), 1),
         ("tiled, sparse", lambda: TiledFilter(stack, params), 1),
         (f"tiled, sparse, {threads} threads", lambda: TiledFilter(stack, params), threads),
     ]

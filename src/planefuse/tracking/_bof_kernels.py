@@ -18,7 +18,7 @@ TILE = 8
 
 
 @numba.njit(cache=True, fastmath=True)
-def _predict_hat(src, fsrc, by, bx, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat):  # pragma: no cover
+def _predict_hat(src, fsrc, by, bx, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat, ohat):  # pragma: no cover
     """``occ_hat_k = (1 - p_dis) alpha_k + p_app beta_k`` into ``hat[k]``, ``free_hat += p_dis alpha_k +
     (1 - p_app) beta_k`` into ``fhat``, for a tile whose cell (0, 0) is ``(by, bx)`` in ``src`` (K, H, W:
     ``P(occ, v_k)``) and ``fsrc`` (H, W: ``P(free)``), which hold every antecedent."""
@@ -37,13 +37,17 @@ def _predict_hat(src, fsrc, by, bx, h, w, oy, ox, wy, wx, bilinear, coef, inv_k,
                          + w10 * src[k, y + 1, x] + w11 * src[k, y + 1, x + 1])
                     b = (w00 * fsrc[y, x] + w01 * fsrc[y, x + 1]
                          + w10 * fsrc[y + 1, x] + w11 * fsrc[y + 1, x + 1]) * inv_k
-                    hat[k, iy, ix] = s_occ * a + s_app * b
+                    o = s_occ * a + s_app * b
+                    hat[k, iy, ix] = o
+                    ohat[iy, ix] += o
                     fhat[iy, ix] += s_dis * a + s_free * b
             else:
                 for ix in range(w):
                     a = src[k, y, xs + ix]
                     b = fsrc[y, xs + ix] * inv_k
-                    hat[k, iy, ix] = s_occ * a + s_app * b
+                    o = s_occ * a + s_app * b
+                    hat[k, iy, ix] = o
+                    ohat[iy, ix] += o
                     fhat[iy, ix] += s_dis * a + s_free * b
 
 
@@ -52,8 +56,10 @@ def _update_scales(so, f, lam, max_log_odds, max_posterior):  # pragma: no cover
     """Scale factors ``(s_occ, s_free)`` of Bayes' rule with log-odds ``lam`` for a cell holding ``P(occ) = so``
     and ``P(free) = f`` (module docstring of ``_bof``): no overflow, posterior log-odds within the bound."""
     lam = min(max(lam, -max_log_odds), max_log_odds)
+    if lam == 0:
+        return np.float32(1.0), np.float32(1.0)
     if so > 0 and f > 0:
-        prior = np.log(so) - np.log(f)
+        prior = np.log(so / f)
         lam = min(max(lam, min(-max_posterior - prior, 0.0)), max(max_posterior - prior, 0.0))
     if lam >= 0:
         e = np.float32(np.exp(-lam))
@@ -82,6 +88,7 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
                     gather = True
     hat = np.empty((K, TILE, TILE), np.float32)
     fhat = np.zeros((TILE, TILE), np.float32)
+    ohat = np.zeros((TILE, TILE), np.float32)
     if gather:  # gather the antecedents' window once: the prior outside the grid, uniform in inactive tiles
         ly0, lx0 = y0 + oy.min(), x0 + ox.min()
         sy, sx = h + oy.max() - oy.min() + 1, w + ox.max() - ox.min() + 1
@@ -108,47 +115,48 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
                         src[k, yy, xx] = occ_v[l, k0, ly0 + yy, lx0 + xx] * inv_k
                     else:
                         src[k, yy, xx] = a_out
-        _predict_hat(src, fsrc, y0 - ly0, x0 - lx0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat)
+        _predict_hat(src, fsrc, y0 - ly0, x0 - lx0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat, ohat)
     else:
-        _predict_hat(occ_v[l], free[l], y0, x0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat)
-    # velocity noise: occ_tilde_k = sum_j mix_w[k, j] occ_hat[mix_src[k, j]]; then normalise and update
-    tilde = np.zeros((K, TILE, TILE), np.float32)
-    total = fhat.copy()
-    for k in range(K):
-        for j in range(mix_src.shape[1]):
-            wkj = np.float32(mix_w[k, j])
-            src = mix_src[k, j]
-            for iy in range(h):
-                for ix in range(w):
-                    tilde[k, iy, ix] += wkj * hat[src, iy, ix]
-        for iy in range(h):
-            for ix in range(w):
-                total[iy, ix] += tilde[k, iy, ix]
+        _predict_hat(occ_v[l], free[l], y0, x0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat, ohat)
+    # normalisation (the velocity noise moves occupied mass between hypotheses and keeps its sum) and update
     scale = np.empty((TILE, TILE), np.float32)
     for iy in range(h):
         for ix in range(w):
-            inv = np.float32(1.0) / total[iy, ix]
+            inv = np.float32(1.0) / (fhat[iy, ix] + ohat[iy, ix])
             f = fhat[iy, ix] * inv
             if do_update:
-                so = (total[iy, ix] - fhat[iy, ix]) * inv
-                s_o, s_f = _update_scales(so, f, log_odds[l, y0 + iy, x0 + ix], bounds[0], bounds[1])
+                s_o, s_f = _update_scales(ohat[iy, ix] * inv, f, log_odds[l, y0 + iy, x0 + ix], bounds[0],
+                                          bounds[1])
                 scale[iy, ix] = inv * s_o
                 f *= s_f
             else:
                 scale[iy, ix] = inv
             out_f[l, y0 + iy, x0 + ix] = f
-            occ[l, y0 + iy, x0 + ix] = 0.0
-            vel[l, y0 + iy, x0 + ix, 0] = 0.0
-            vel[l, y0 + iy, x0 + ix, 1] = 0.0
+    # velocity noise occ_tilde_k = sum_j mix_w[k, j] occ_hat[mix_src[k, j]], written with the moments
+    row = np.empty(TILE, np.float32)
+    mo = np.zeros((TILE, TILE), np.float32)
+    mx = np.zeros((TILE, TILE), np.float32)
+    my = np.zeros((TILE, TILE), np.float32)
     for k in range(K):
         vx, vy = velocities[k, 0], velocities[k, 1]
         for iy in range(h):
+            row[:] = 0.0
+            for j in range(mix_src.shape[1]):
+                wkj = np.float32(mix_w[k, j])
+                src_j = mix_src[k, j]
+                for ix in range(w):
+                    row[ix] += wkj * hat[src_j, iy, ix]
             for ix in range(w):
-                m = tilde[k, iy, ix] * scale[iy, ix]
+                m = row[ix] * scale[iy, ix]
                 out_v[l, k, y0 + iy, x0 + ix] = m
-                occ[l, y0 + iy, x0 + ix] += m
-                vel[l, y0 + iy, x0 + ix, 0] += m * vx
-                vel[l, y0 + iy, x0 + ix, 1] += m * vy
+                mo[iy, ix] += m
+                mx[iy, ix] += m * vx
+                my[iy, ix] += m * vy
+    for iy in range(h):
+        for ix in range(w):
+            occ[l, y0 + iy, x0 + ix] = mo[iy, ix]
+            vel[l, y0 + iy, x0 + ix, 0] = mx[iy, ix]
+            vel[l, y0 + iy, x0 + ix, 1] = my[iy, ix]
     _finish_moments(occ, vel, l, y0, x0, h, w)
 
 

@@ -133,7 +133,9 @@ __all__ = [
 MAX_UPDATE_LOG_ODDS = 30.0
 #: Bound on a cell's posterior log-odds that an update may reach (see the module docstring).
 MAX_POSTERIOR_LOG_ODDS = 60.0
-_BOUNDS = np.array([MAX_UPDATE_LOG_ODDS, MAX_POSTERIOR_LOG_ODDS], np.float32)
+#: the bounds as the kernels take them: (update, posterior, e^posterior, e^-posterior)
+_BOUNDS = np.array([MAX_UPDATE_LOG_ODDS, MAX_POSTERIOR_LOG_ODDS, np.exp(MAX_POSTERIOR_LOG_ODDS),
+                    np.exp(-MAX_POSTERIOR_LOG_ODDS)], np.float32)
 
 
 @dataclass(frozen=True)

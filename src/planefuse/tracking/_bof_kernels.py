@@ -17,55 +17,56 @@ from numba import prange
 TILE = 8
 
 
-@numba.njit(cache=True, fastmath=True)
-def _predict_hat(src, fsrc, by, bx, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat, ohat):  # pragma: no cover
-    """``occ_hat_k = (1 - p_dis) alpha_k + p_app beta_k`` into ``hat[k]``, ``free_hat += p_dis alpha_k +
-    (1 - p_app) beta_k`` into ``fhat``, for a tile whose cell (0, 0) is ``(by, bx)`` in ``src`` (K, H, W:
-    ``P(occ, v_k)``) and ``fsrc`` (H, W: ``P(free)``), which hold every antecedent."""
+@numba.njit(cache=True, inline="always", fastmath=True)
+def _predict_hat_k(src, sy, sx, fsrc, fy, fx, h, w, wy1, wx1, bilinear, coef, inv_k, hat_k, fhat,
+                   ohat):  # pragma: no cover - numba
+    """One hypothesis of the transition: ``occ_hat_k = (1 - p_dis) alpha_k + p_app beta_k`` into ``hat_k``
+    (and added to ``ohat``), ``p_dis alpha_k + (1 - p_app) beta_k`` added to ``fhat``; the antecedent of the
+    tile's cell (iy, ix) is at (sy + iy, sx + ix) in ``src`` (2-D, ``P(occ, v_k)``) and (fy + iy, fx + ix)
+    in ``fsrc`` (2-D, ``P(free)``), with bilinear weights ``(wy1, wx1)`` towards the next row and column."""
     s_occ, s_app, s_dis, s_free = coef[0], coef[1], coef[2], coef[3]
-    for k in range(src.shape[0]):
-        wy1, wx1 = np.float32(wy[k]), np.float32(wx[k])
-        w00, w01 = (1 - wy1) * (1 - wx1), (1 - wy1) * wx1
-        w10, w11 = wy1 * (1 - wx1), wy1 * wx1
-        for iy in range(h):
-            y = by + iy + oy[k]
-            xs = bx + ox[k]
-            if bilinear:
-                for ix in range(w):
-                    x = xs + ix
-                    a = (w00 * src[k, y, x] + w01 * src[k, y, x + 1]
-                         + w10 * src[k, y + 1, x] + w11 * src[k, y + 1, x + 1])
-                    b = (w00 * fsrc[y, x] + w01 * fsrc[y, x + 1]
-                         + w10 * fsrc[y + 1, x] + w11 * fsrc[y + 1, x + 1]) * inv_k
-                    o = s_occ * a + s_app * b
-                    hat[k, iy, ix] = o
-                    ohat[iy, ix] += o
-                    fhat[iy, ix] += s_dis * a + s_free * b
-            else:
-                for ix in range(w):
-                    a = src[k, y, xs + ix]
-                    b = fsrc[y, xs + ix] * inv_k
-                    o = s_occ * a + s_app * b
-                    hat[k, iy, ix] = o
-                    ohat[iy, ix] += o
-                    fhat[iy, ix] += s_dis * a + s_free * b
+    w00, w01 = (1 - wy1) * (1 - wx1), (1 - wy1) * wx1
+    w10, w11 = wy1 * (1 - wx1), wy1 * wx1
+    for iy in range(h):
+        y, yf = sy + iy, fy + iy
+        if bilinear:
+            for ix in range(w):
+                x, xf = sx + ix, fx + ix
+                a = w00 * src[y, x] + w01 * src[y, x + 1] + w10 * src[y + 1, x] + w11 * src[y + 1, x + 1]
+                b = (w00 * fsrc[yf, xf] + w01 * fsrc[yf, xf + 1]
+                     + w10 * fsrc[yf + 1, xf] + w11 * fsrc[yf + 1, xf + 1]) * inv_k
+                o = s_occ * a + s_app * b
+                hat_k[iy, ix] = o
+                ohat[iy, ix] += o
+                fhat[iy, ix] += s_dis * a + s_free * b
+        else:
+            for ix in range(w):
+                a = src[y, sx + ix]
+                b = fsrc[yf, fx + ix] * inv_k
+                o = s_occ * a + s_app * b
+                hat_k[iy, ix] = o
+                ohat[iy, ix] += o
+                fhat[iy, ix] += s_dis * a + s_free * b
 
 
 @numba.njit(cache=True, inline="always", fastmath=True)
-def _update_scales(so, f, lam, max_log_odds, max_posterior):  # pragma: no cover - numba
+def _update_scales(so, f, lam, bounds):  # pragma: no cover - numba
     """Scale factors ``(s_occ, s_free)`` of Bayes' rule with log-odds ``lam`` for a cell holding ``P(occ) = so``
-    and ``P(free) = f`` (module docstring of ``_bof``): no overflow, posterior log-odds within the bound."""
-    lam = min(max(lam, -max_log_odds), max_log_odds)
+    and ``P(free) = f`` (module docstring of ``_bof``), no overflow. ``bounds`` = (bound on ``|lam|``, bound
+    ``B`` on the posterior log-odds, ``e^B``, ``e^-B``): ``lam`` is reduced so that the posterior log-odds
+    ``log(so / f) + lam`` do not pass ``B`` (or ``-B``) where they would; ``log`` is only taken then."""
+    lam = min(max(lam, -bounds[0]), bounds[0])
     if lam == 0:
         return np.float32(1.0), np.float32(1.0)
-    if so > 0 and f > 0:
-        prior = np.log(so / f)
-        lam = min(max(lam, min(-max_posterior - prior, 0.0)), max(max_posterior - prior, 0.0))
-    if lam >= 0:
+    if lam > 0:
         e = np.float32(np.exp(-lam))
+        if so > f * e * bounds[2] and so > 0 and f > 0:  # posterior odds so / (f e) above e^B
+            e = np.float32(np.exp(-max(bounds[1] - np.log(so / f), 0.0)))
         z = np.float32(1.0) / (so + f * e)
         return z, e * z
     e = np.float32(np.exp(lam))
+    if so * e < f * bounds[3] and so > 0 and f > 0:  # posterior odds so e / f below e^-B
+        e = np.float32(np.exp(min(-bounds[1] - np.log(so / f), 0.0)))
     z = np.float32(1.0) / (so * e + f)
     return e * z, z
 
@@ -89,12 +90,11 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
     hat = np.empty((K, TILE, TILE), np.float32)
     fhat = np.zeros((TILE, TILE), np.float32)
     ohat = np.zeros((TILE, TILE), np.float32)
-    if gather:  # gather the antecedents' window once: the prior outside the grid, uniform in inactive tiles
+    if gather:  # copy each hypothesis' antecedents: the prior outside the grid, uniform in inactive tiles
         ly0, lx0 = y0 + oy.min(), x0 + ox.min()
         sy, sx = h + oy.max() - oy.min() + 1, w + ox.max() - ox.min() + 1
-        src = np.empty((K, sy, sx), np.float32)
-        fsrc = np.empty((sy, sx), np.float32)
-        code = np.empty((sy, sx), np.int8)
+        fsrc = np.empty((sy, sx), np.float32)  # P(free) over the window of every hypothesis' antecedents
+        code = np.empty((sy, sx), np.int8)  # 0: outside the grid, 1: active tile, 2: inactive tile
         for yy in range(sy):
             y = ly0 + yy
             for xx in range(sx):
@@ -105,19 +105,25 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
                 else:
                     code[yy, xx] = 1 if active[l, y // TILE, x // TILE] else 2
                     fsrc[yy, xx] = free[l, y, x]
+        src = np.empty((TILE + 1, TILE + 1), np.float32)
         for k in range(K):
-            for yy in range(sy):
-                for xx in range(sx):
-                    c = code[yy, xx]
+            by, bx = y0 + oy[k] - ly0, x0 + ox[k] - lx0
+            for yy in range(h + 1):
+                for xx in range(w + 1):
+                    c = code[by + yy, bx + xx]
                     if c == 1:
-                        src[k, yy, xx] = occ_v[l, k, ly0 + yy, lx0 + xx]
+                        src[yy, xx] = occ_v[l, k, ly0 + by + yy, lx0 + bx + xx]
                     elif c == 2:
-                        src[k, yy, xx] = occ_v[l, k0, ly0 + yy, lx0 + xx] * inv_k
+                        src[yy, xx] = occ_v[l, k0, ly0 + by + yy, lx0 + bx + xx] * inv_k
                     else:
-                        src[k, yy, xx] = a_out
-        _predict_hat(src, fsrc, y0 - ly0, x0 - lx0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat, ohat)
+                        src[yy, xx] = a_out
+            _predict_hat_k(src, 0, 0, fsrc, by, bx, h, w, np.float32(wy[k]), np.float32(wx[k]), bilinear, coef,
+                           inv_k, hat[k], fhat, ohat)
     else:
-        _predict_hat(occ_v[l], free[l], y0, x0, h, w, oy, ox, wy, wx, bilinear, coef, inv_k, hat, fhat, ohat)
+        for k in range(K):
+            y, x = y0 + oy[k], x0 + ox[k]
+            _predict_hat_k(occ_v[l, k], y, x, free[l], y, x, h, w, np.float32(wy[k]), np.float32(wx[k]), bilinear,
+                           coef, inv_k, hat[k], fhat, ohat)
     # normalisation (the velocity noise moves occupied mass between hypotheses and keeps its sum) and update
     scale = np.empty((TILE, TILE), np.float32)
     for iy in range(h):
@@ -125,8 +131,7 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
             inv = np.float32(1.0) / (fhat[iy, ix] + ohat[iy, ix])
             f = fhat[iy, ix] * inv
             if do_update:
-                s_o, s_f = _update_scales(ohat[iy, ix] * inv, f, log_odds[l, y0 + iy, x0 + ix], bounds[0],
-                                          bounds[1])
+                s_o, s_f = _update_scales(ohat[iy, ix] * inv, f, log_odds[l, y0 + iy, x0 + ix], bounds)
                 scale[iy, ix] = inv * s_o
                 f *= s_f
             else:
@@ -193,7 +198,7 @@ def _inactive_tile(occ_v, free, out_v, out_f, dirty_out, l, ty, tx, coef, k0, lo
             o *= z
             f *= z
             if do_update:
-                s_o, s_f = _update_scales(o, f, log_odds[l, iy, ix], bounds[0], bounds[1])
+                s_o, s_f = _update_scales(o, f, log_odds[l, iy, ix], bounds)
                 o *= s_o
                 f *= s_f
             out_v[l, k0, iy, ix] = o
@@ -232,7 +237,7 @@ def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, 
                     so = np.float32(0.0)
                     for k in range(K):
                         so += occ_v[l, k, iy, ix]
-                    s_o, s_f = _update_scales(so, free[l, iy, ix], log_odds[l, iy, ix], bounds[0], bounds[1])
+                    s_o, s_f = _update_scales(so, free[l, iy, ix], log_odds[l, iy, ix], bounds)
                     free[l, iy, ix] *= s_f
                     o, mx, my = np.float32(0.0), np.float32(0.0), np.float32(0.0)
                     for k in range(K):
@@ -247,7 +252,7 @@ def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, 
             for iy in range(y0, y0 + h):
                 for ix in range(x0, x0 + w):
                     o, f = occ_v[l, k0, iy, ix], free[l, iy, ix]
-                    s_o, s_f = _update_scales(o, f, log_odds[l, iy, ix], bounds[0], bounds[1])
+                    s_o, s_f = _update_scales(o, f, log_odds[l, iy, ix], bounds)
                     occ_v[l, k0, iy, ix] = o * s_o
                     free[l, iy, ix] = f * s_f
                     occ[l, iy, ix] = min(o * s_o, np.float32(1.0))

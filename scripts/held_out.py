@@ -24,6 +24,8 @@ CONFIGS = {
     "defaults (BOF, whole-cell motion, sparse)": _BASE,
     "previous BOF (bilinear, dense)": replace(_BASE, tracking=replace(_BASE.tracking, bof=replace(
         _BASE.tracking.bof, subcell="bilinear", sparse_min_excess=None))),
+    "BOF, whole-cell motion, dense": replace(_BASE, tracking=replace(_BASE.tracking, bof=replace(
+        _BASE.tracking.bof, sparse_min_excess=None))),
     "no filter": SystemParams(use_filter=False),
 }
 _T = _BASE.tracking
@@ -42,8 +44,11 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2,3,4,5,6")
     ap.add_argument("--duration-s", type=float, default=10.0)
     ap.add_argument("--probe", action="store_true", help="the clustering / tracker variants instead")
+    ap.add_argument("--only", default=None, help="only the configurations whose name contains this")
     args = ap.parse_args()
     configs = PROBE if args.probe else CONFIGS
+    if args.only is not None:
+        configs = {name: p for name, p in configs.items() if args.only in name}
     seeds = [int(s) for s in args.seeds.split(",")]
     print("| seed | configuration | MODA | precision | recall | MOTA | IDF1 | ID switches |")
     print("|---|---|---|---|---|---|---|---|")

@@ -297,7 +297,8 @@ def test_fused_step_equals_predict_then_update(rng):
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="numba has a single thread here")
-def test_threads_give_identical_results():
+def test_threads_give_identical_results(monkeypatch):
+    monkeypatch.setattr("planefuse.tracking._bof.MIN_PARALLEL_TILES", 1)  # threads even on this small grid
     stack = PlaneStack.from_extent([0.3, 1.0, 1.6], (0.0, 6.0), (0.0, 4.0), 0.1)
     out = []
     for n_threads in (1, 2):

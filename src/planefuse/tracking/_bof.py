@@ -85,9 +85,10 @@ One pass, threads
 -----------------
 The prediction, the update and the moments ``P(occ)``, ``E[V | occ]`` are computed tile by tile in one
 pass (:func:`bof_predict_update`; :class:`BayesianOccupancyFilter` holds a prediction until the next
-update for this). Tiles are spread over numba threads (``numba.prange``); each is computed from the
-previous state alone and writes only its own cells, so the result is the same, bit for bit, for any
-number of threads (``numba.set_num_threads(1)`` or ``NUMBA_NUM_THREADS=1`` for one core).
+update for this). From ``MIN_PARALLEL_TILES`` active tiles on, tiles are spread over numba's threads
+(``numba.prange``); each is computed from the previous state alone and writes only its own cells, so the
+result is the same, bit for bit, for any number of threads (``numba.set_num_threads(1)`` or
+``NUMBA_NUM_THREADS=1`` for one core).
 
 Update with the sensors present at time t (seed eq. 7)
 ------------------------------------------------------
@@ -109,12 +110,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from .._state import StateDict, float_or_none, get_shaped, optional_float
 from ..grid import PlaneStack
 from .._params import check_fields, require
-from ._bof_kernels import TILE, active_tiles, moments_kernel, retile_kernel, step_kernel, update_kernel
+from ._bof_kernels import (TILE, active_tiles, moments_kernel, retile_kernel, step_kernel, step_kernel_serial,
+                           update_kernel)
 
 __all__ = [
     "BOFParams",
@@ -134,6 +137,8 @@ MAX_UPDATE_LOG_ODDS = 30.0
 #: Bound on a cell's posterior log-odds that an update may reach (see the module docstring).
 MAX_POSTERIOR_LOG_ODDS = 60.0
 #: the bounds as the kernels take them: (update, posterior, e^posterior, e^-posterior)
+#: Active tiles from which a prediction is spread over numba's threads (below, thread start-up costs more).
+MIN_PARALLEL_TILES = 64
 _BOUNDS = np.array([MAX_UPDATE_LOG_ODDS, MAX_POSTERIOR_LOG_ODDS, np.exp(MAX_POSTERIOR_LOG_ODDS),
                     np.exp(-MAX_POSTERIOR_LOG_ODDS)], np.float32)
 
@@ -392,10 +397,13 @@ def bof_predict_update(state: BOFState, dt_s: float, evidence_log_odds, params: 
         state._spare = (np.zeros_like(state.occ_v), np.zeros_like(state.free), np.zeros_like(state.tile_active))
     out_v, out_f, dirty = state._spare
     active = state.tile_active
-    step_kernel(state.occ_v, state.free, out_v, out_f, active, dirty, np.argwhere(active), np.argwhere(~active),
-                oy, ox, wy, wx, bilinear, coef, params.prior_occupancy, mix_src, mix_w, max(state.k0, 0),
-                lo if lo is not None else state.free, lo is not None, _BOUNDS, state.velocities_m_s.astype(np.float32),
-                occ, vel)
+    act_tiles = np.argwhere(active)
+    threads = numba.get_num_threads() > 1 and len(act_tiles) >= MIN_PARALLEL_TILES
+    (step_kernel if threads else step_kernel_serial)(
+        state.occ_v, state.free, out_v, out_f, active, dirty, act_tiles, np.argwhere(~active), oy, ox, wy, wx,
+        bilinear, coef, params.prior_occupancy, mix_src, mix_w, max(state.k0, 0),
+        lo if lo is not None else state.free, lo is not None, _BOUNDS, state.velocities_m_s.astype(np.float32),
+        occ, vel)
     # the old buffer becomes the spare; its active tiles hold hypotheses the next inactive write must clear
     state._spare = (state.occ_v, state.free, active.copy())
     state.occ_v, state.free = out_v, out_f

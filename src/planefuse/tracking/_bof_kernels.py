@@ -2,9 +2,10 @@
 
 Tiles of ``TILE x TILE`` cells are *active* (the joint ``P(occ, v_k)`` is held for every ``k``) or *inactive*
 (the cell's velocity is uniform and only its total is held, in the zero-velocity slot ``k0``; the other
-slots are 0, so ``sum_k occ_v[:, k]`` is the occupancy everywhere). Every kernel loops (``numba.prange``)
-over a list of tiles, and every tile is computed from the previous state alone and writes only its own
-cells, so the result does not depend on the number of threads.
+slots are 0, so ``sum_k occ_v[:, k]`` is the occupancy everywhere). Every kernel loops over a list of
+tiles, and every tile is computed from the previous state alone and writes only its own cells, so
+:func:`step_kernel` (tiles on numba's threads, ``numba.prange``) and :func:`step_kernel_serial` give the
+same numbers.
 """
 
 from __future__ import annotations
@@ -213,7 +214,8 @@ def step_kernel(occ_v, free, out_v, out_f, active, dirty_out, act_tiles, inact_t
                 coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
                 occ, vel):  # pragma: no cover - numba
     """Prediction (and, if ``do_update``, the update) of every tile from ``(occ_v, free)`` into
-    ``(out_v, out_f)``; the moments ``P(occ)``, ``E[V | occ]`` of the result into ``(occ, vel)``."""
+    ``(out_v, out_f)``; the moments ``P(occ)``, ``E[V | occ]`` of the result into ``(occ, vel)``. Tiles on
+    numba's threads."""
     for i in prange(act_tiles.shape[0]):
         _active_tile(occ_v, free, out_v, out_f, active, act_tiles[i, 0], act_tiles[i, 1], act_tiles[i, 2], oy, ox,
                      wy, wx, bilinear, coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
@@ -223,7 +225,21 @@ def step_kernel(occ_v, free, out_v, out_f, active, dirty_out, act_tiles, inact_t
                        inact_tiles[i, 2], coef, k0, log_odds, do_update, bounds, occ, vel)
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@numba.njit(cache=True, fastmath=True)
+def step_kernel_serial(occ_v, free, out_v, out_f, active, dirty_out, act_tiles, inact_tiles, oy, ox, wy, wx, bilinear,
+                       coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
+                       occ, vel):  # pragma: no cover - numba
+    """:func:`step_kernel` on the calling thread (the same numbers: the tiles are independent)."""
+    for i in range(act_tiles.shape[0]):
+        _active_tile(occ_v, free, out_v, out_f, active, act_tiles[i, 0], act_tiles[i, 1], act_tiles[i, 2], oy, ox,
+                     wy, wx, bilinear, coef, prior, mix_src, mix_w, k0, log_odds, do_update, bounds, velocities,
+                     occ, vel)
+    for i in range(inact_tiles.shape[0]):
+        _inactive_tile(occ_v, free, out_v, out_f, dirty_out, inact_tiles[i, 0], inact_tiles[i, 1],
+                       inact_tiles[i, 2], coef, k0, log_odds, do_update, bounds, occ, vel)
+
+
+@numba.njit(cache=True, fastmath=True)
 def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, occ, vel):  # pragma: no cover
     """Bayes update in place (no prediction) and the moments of the result."""
     L, K, ny, nx = occ_v.shape
@@ -260,7 +276,7 @@ def update_kernel(occ_v, free, active, tiles, k0, log_odds, bounds, velocities, 
                     vel[l, iy, ix, 1] = 0.0
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@numba.njit(cache=True, fastmath=True)
 def moments_kernel(occ_v, active, tiles, k0, velocities, occ, vel):  # pragma: no cover - numba
     """``P(occ) = sum_k P(occ, v_k)`` and ``E[V | occ]`` per cell (0 in inactive tiles)."""
     L, K, ny, nx = occ_v.shape
@@ -287,7 +303,7 @@ def moments_kernel(occ_v, active, tiles, k0, velocities, occ, vel):  # pragma: n
                     vel[l, iy, ix, 1] = 0.0
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
+@numba.njit(cache=True, fastmath=True)
 def retile_kernel(occ_v, tiles, to_active, k0):  # pragma: no cover - numba
     """Change the representation of ``tiles`` in place: to active (the total spread uniformly over the K
     hypotheses) or to inactive (the K hypotheses summed into slot ``k0``, the others set to 0)."""

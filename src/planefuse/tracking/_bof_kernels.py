@@ -75,6 +75,8 @@ def _update_scales(so, f, lam, bounds):  # pragma: no cover - numba
 @numba.njit(cache=True, fastmath=True)
 def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, bilinear, coef, prior, mix_src,
                  mix_w, k0, log_odds, do_update, bounds, velocities, occ, vel):  # pragma: no cover - numba
+    """A tile holding every hypothesis: prediction (module docstring of ``_bof``), normalisation, update and
+    moments, from ``(occ_v, free)`` into ``(out_v, out_f)`` and ``(occ, vel)``."""
     L, K, ny, nx = occ_v.shape
     y0, x0 = ty * TILE, tx * TILE
     h, w = min(TILE, ny - y0), min(TILE, nx - x0)

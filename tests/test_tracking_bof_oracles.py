@@ -106,7 +106,7 @@ def reference_update(occ_v, free, log_odds):
 ])
 def test_predict_matches_independent_reference(n, v_max, dts, rng):
     params = BOFParams(n_velocities_per_axis=n, velocity_max_m_s=v_max, prior_occupancy=0.07,
-                       decay_rate_hz=0.6, velocity_noise_rate_hz=2.5)
+                       decay_rate_hz=0.6, velocity_noise_rate_hz=2.5, subcell="bilinear", sparse_min_excess=None)
     s = _random_state(params, rng)
     for dt in dts:
         ref_occ, ref_free = reference_predict(s.occ_v, s.free, dt, params)
@@ -118,7 +118,7 @@ def test_predict_matches_independent_reference(n, v_max, dts, rng):
 def test_accumulate_moves_whole_cells_like_the_reference(rng):
     """Displacements of exactly one cell per step: 'accumulate' and the bilinear reference coincide."""
     params = BOFParams(n_velocities_per_axis=3, velocity_max_m_s=1.0, subcell="accumulate",
-                       velocity_noise_rate_hz=1.5)
+                       velocity_noise_rate_hz=1.5, sparse_min_excess=None)
     s = _random_state(params, rng)
     for _ in range(3):
         ref_occ, ref_free = reference_predict(s.occ_v, s.free, 0.1, params)  # 1 m/s * 0.1 s = 1 cell

@@ -27,6 +27,8 @@ def bof_predict_numpy(state: BOFState, dt_s: float, params: BOFParams) -> BOFSta
         raise ValueError(f"dt_s must be finite and >= 0, got {dt_s}")
     if dt_s == 0:
         return state
+    if not state.tile_active.all():
+        raise ValueError("the numpy reference handles dense states only (every tile active)")
     L, K, ny, nx = state.occ_v.shape
     bilinear = params.subcell == "bilinear"
     oy, ox, ty, tx = _motion_offsets(state, dt_s, bilinear)

@@ -146,7 +146,7 @@ class EvidenceTracker:
             while nxt <= batch.time_s + 1e-9:
                 nxt += period
             self.next_output_s = nxt
-        occ, vel = self.bof.state.moments()
+        occ, vel = self.bof.moments()  # computed by the update, in the same pass
         clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster)
         tracks = self.tracker.step(clusters)
         sensors = tuple(self.sensors)

@@ -18,7 +18,7 @@ from ..grid import Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy, velocity_variance_m2_s2
-from ._tracker import MultiPersonTracker, TrackerParams, Tracks
+from ._tracker import MultiPersonTracker, TrackerParams, Tracks, velocity_prior_variance_m2_s2
 from .._params import check_fields
 
 __all__ = ["EvidenceTracker", "TrackerOutput", "TrackingParams", "track_evidence"]
@@ -112,7 +112,8 @@ class EvidenceTracker:
         self.params = params if params is not None else TrackingParams()
         self.buffer = AsyncEvidenceBuffer(self.params.window_s, self.params.merge_tolerance_s, shape=stack.shape)
         self.bof = BayesianOccupancyFilter(stack, self.params.bof)
-        self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m)
+        self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m,
+                                          velocity_prior_variance_m2_s2(self.params.bof))
         self.next_output_s: float | None = None
         self.sensors: list[str] = []
         #: outputs given so far (the index of the next output step)

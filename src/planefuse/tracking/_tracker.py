@@ -6,11 +6,17 @@ velocity, ``z = (px, py, vx, vy)`` with ``H = I_4`` and the covariance::
 
     R = diag(s_p^2, s_p^2, s_v^2 + var_vx, s_v^2 + var_vy)
 
-``s_p = position_std_m``, ``s_v = velocity_std_m_s`` and ``var_v`` the cluster's velocity variance
-(:attr:`Clusters.velocity_var_m2_s2`: the BOF's velocity uncertainty in the cluster's cells plus the spread of
-the cell velocities over the disc). Where the BOF knows nothing about velocity (no temporal filter: a
-uniform velocity law, variance ``~v_max^2 / 2``) or a blob holds two people moving apart (a spread of
-velocities), the velocity measurement weighs little and the track's own velocity carries it through.
+``s_p = position_std_m``, ``s_v = velocity_std_m_s``. The cluster's velocity ``v`` and variance ``var``
+(:attr:`Clusters.velocity_var_m2_s2`: the BOF's velocity uncertainty in the cluster's cells plus the
+spread of the cell velocities over the disc) are a *posterior* of the BOF, whose prior over velocities is
+its uniform law on the hypotheses (mean 0, variance ``var0`` per axis). That prior is divided out (the
+Gaussian quotient) so that it is not counted once per step::
+
+    1 / var_lik = 1 / var - 1 / var0,    v_lik = v var_lik / var,    var_v = var_lik
+
+Where the BOF knows nothing about the motion (``var >= var0``: no temporal filter, a new blob) or
+``var_lik > velocity_max_std_m_s^2``, the cluster is a *position* measurement only (``H`` = the first two
+rows of ``I_4``); a blob holding two people moving apart (a spread of velocities) weighs little.
 
 Each step (``dt`` since the last one):
 
@@ -23,10 +29,10 @@ Each step (``dt`` since the last one):
 2. gate: the position innovation ``y = z_p - x_p`` with ``S_p = P_pp + R_pp`` is admissible if
    ``y^T S_p^-1 y <= gate_chi2`` (chi-square, 2 d.o.f.) and ``|y| <= gate_m`` [m] (a hard cap for
    coasting tracks whose covariance has grown);
-3. associate: ``scipy.optimize.linear_sum_assignment`` on the negative log-likelihood of the full
-   innovation, ``c = y^T S^-1 y + ln det S`` with ``S = P + R`` (position and velocity: two people crossing
-   at one spot are told apart by their velocities), forbidden outside the gate; confirmed tracks are
-   served first, tentative ones get the remaining clusters;
+3. associate: ``scipy.optimize.linear_sum_assignment`` on the negative log-likelihood of the
+   innovation, ``c = y^T S^-1 y + ln det S`` with ``S = H P H^T + R`` (position and, where informative,
+   velocity: two people crossing at one spot are told apart by their velocities), forbidden outside the
+   gate; confirmed tracks are served first, tentative ones get the remaining clusters;
 4. update every matched track (filterpy ``update``, Joseph form) with its cluster; height and confidence
    are copied from it;
 5. merged people: a confirmed track left without a cluster whose position gate holds a cluster taken by
@@ -35,8 +41,8 @@ Each step (``dt`` since the last one):
    row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
    (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
 6. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
-   a tentative track at ``x = z``, ``P = R`` (the velocity variance capped at
-   ``initial_velocity_std_m_s^2``).
+   a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
+   velocity variance capped at ``initial_velocity_std_m_s^2``).
 
 Track management (states of a track)
 ------------------------------------
@@ -63,9 +69,10 @@ from scipy.optimize import linear_sum_assignment
 
 from .._params import check_fields
 from .._state import StateDict, float_or_none, get, optional_float
+from ._bof import BOFParams, velocity_grid_m_s
 from ._clustering import Clusters
 
-__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks"]
+__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks", "cluster_measurements", "velocity_prior_variance_m2_s2"]
 
 _H_POS = np.eye(2, 4)  # position rows of the state
 
@@ -92,6 +99,9 @@ class TrackerParams:
         ``s_v``: standard deviation [m/s] of a cluster's BOF velocity, per axis, added to its own variance.
     acceleration_std_m_s2 : float
         Standard deviation [m/s^2] of the white-noise acceleration of the constant-velocity model.
+    velocity_max_std_m_s : float
+        A cluster velocity whose likelihood standard deviation [m/s] exceeds this carries no motion
+        information (e.g. without temporal filtering): the cluster is a position measurement only.
     initial_velocity_std_m_s : float
         Largest initial velocity standard deviation [m/s] of a new track.
     merged_position_std_m : float
@@ -113,6 +123,7 @@ class TrackerParams:
     position_std_m: float = 0.1
     velocity_std_m_s: float = 0.3
     acceleration_std_m_s2: float = 1.0
+    velocity_max_std_m_s: float = 2.0
     initial_velocity_std_m_s: float = 1.0
     merged_position_std_m: float = 0.25
     max_shared_s: float = 1.0
@@ -122,7 +133,8 @@ class TrackerParams:
     def __post_init__(self) -> None:
         check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
                      max_coast_report="int>=0", position_std_m=">0", velocity_std_m_s=">0",
-                     acceleration_std_m_s2=">=0", initial_velocity_std_m_s=">0", merged_position_std_m=">=0",
+                     acceleration_std_m_s2=">=0", initial_velocity_std_m_s=">0",
+                     velocity_max_std_m_s=">0", merged_position_std_m=">=0",
                      max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0")
 
 
@@ -173,15 +185,30 @@ class _Track:
     shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
 
 
-def measurement_covariance(clusters: Clusters, params: TrackerParams) -> np.ndarray:
-    """``R`` of every cluster (module docstring), shape (N, 4, 4) [m^2, m^2/s^2]."""
+def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):
+    """Measurements of every cluster (module docstring): ``z`` (N, 4) [m, m/s], ``R`` (N, 4, 4) and whether
+    its velocity is informative, (N,) bool (where not, it is a position measurement only)."""
     n = len(clusters)
-    var = np.empty((n, 4))
-    var[:, :2] = params.position_std_m**2
-    var[:, 2:] = params.velocity_std_m_s**2 + clusters.velocity_variance()
+    z = np.concatenate([clusters.xy_m, clusters.velocity_m_s], axis=1).reshape(-1, 4)
+    var = np.maximum(clusters.velocity_variance(), 1e-6)
+    if velocity_prior_var_m2_s2 is None:
+        lik_var = var
+    else:  # divide the BOF's prior N(0, var0) out of its posterior N(v, var): the likelihood of the motion
+        info = 1.0 / var - 1.0 / velocity_prior_var_m2_s2
+        lik_var = np.full_like(var, np.inf)
+        np.divide(1.0, info, out=lik_var, where=info > 0)
+        z[:, 2:] = np.where(info > 0, z[:, 2:] / var * np.minimum(lik_var, 1e12), 0.0)
+    has_v = np.all(lik_var <= params.velocity_max_std_m_s**2, axis=1)
     R = np.zeros((n, 4, 4))
-    R[:, np.arange(4), np.arange(4)] = var
-    return R
+    R[:, [0, 1], [0, 1]] = params.position_std_m**2
+    R[:, [2, 3], [2, 3]] = params.velocity_std_m_s**2 + np.where(has_v[:, None], lik_var, 0.0)
+    z[~has_v, 2:] = 0.0
+    return z, R, has_v
+
+
+def velocity_prior_variance_m2_s2(bof: BOFParams) -> float:
+    """Variance [m^2/s^2] per axis of the BOF's uniform law over its velocity hypotheses, ``mean(v_k,x^2)``."""
+    return float(np.mean(velocity_grid_m_s(bof)[:, 0] ** 2))
 
 
 class MultiPersonTracker:
@@ -193,16 +220,22 @@ class MultiPersonTracker:
         Tracker parameters.
     extent_m : tuple of float, optional
         ``(x_min, x_max, y_min, y_max)`` [m]; a coasting track predicted outside is deleted.
+    velocity_prior_var_m2_s2 : float, optional
+        Prior variance [m^2/s^2] per axis of the velocity law behind the clusters' velocities (the BOF's
+        uniform law over its hypotheses, :func:`velocity_prior_variance_m2_s2`), divided out of them; None:
+        the cluster velocities are likelihoods already.
     """
 
-    def __init__(self, params: TrackerParams | None = None, extent_m=None) -> None:
+    def __init__(self, params: TrackerParams | None = None, extent_m=None,
+                 velocity_prior_var_m2_s2: float | None = None) -> None:
         self.params = params if params is not None else TrackerParams()
         self.extent_m = extent_m
+        self.velocity_prior_var_m2_s2 = velocity_prior_var_m2_s2
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
         self._next_id = 1
 
-    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, free: np.ndarray):
+    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray):
         """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs."""
         det = np.flatnonzero(free)
         if not group or det.size == 0:
@@ -211,9 +244,11 @@ class MultiPersonTracker:
         P = np.array([tr.P for tr in group])
         y = z[det][None, :, :] - x[:, None, :]  # innovations, (T, D, 4)
         S = P[:, None] + R[det][None]  # (T, D, 4, 4)
-        d2_pos = np.einsum("tdi,tdij,tdj->td", y[..., :2], np.linalg.inv(S[..., :2, :2]), y[..., :2])
+        S_pos = S[..., :2, :2]
+        d2_pos = np.einsum("tdi,tdij,tdj->td", y[..., :2], np.linalg.inv(S_pos), y[..., :2])
         gated = (d2_pos <= self.params.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= self.params.gate_m)
-        nll = np.einsum("tdi,tdij,tdj->td", y, np.linalg.inv(S), y) + np.linalg.slogdet(S)[1]
+        nll_full = np.einsum("tdi,tdij,tdj->td", y, np.linalg.inv(S), y) + np.linalg.slogdet(S)[1]
+        nll = np.where(has_v[det][None], nll_full, d2_pos + np.linalg.slogdet(S_pos)[1])
         cost = np.where(gated, nll, 1e9)
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if gated[r, c]]
@@ -232,24 +267,24 @@ class MultiPersonTracker:
             Q = Q_discrete_white_noise(2, dt, p.acceleration_std_m_s2**2, block_size=2, order_by_dim=False)
             for tr in self.tracks:
                 tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
-        R = measurement_covariance(clusters, p)
-        z = clusters_z(clusters)
+        z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
         free = np.ones(len(clusters), bool)
         owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
         matched: set[int] = set()
         for group in ([tr for tr in self.tracks if tr.confirmed], [tr for tr in self.tracks if not tr.confirmed]):
-            for ti, ci in self._associate(group, z, R, free):
+            for ti, ci in self._associate(group, z, R, has_v, free):
                 tr = group[ti]
                 free[ci] = False
                 matched.add(tr.id)
                 if tr.confirmed:
                     owner[ci] = tr
                 else:
-                    self._update(tr, z[ci], R[ci], clusters, ci)
+                    self._update(tr, z[ci], R[ci], clusters, ci, position_only=not has_v[ci])
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
-            self._update(tr, z[ci], R[ci], clusters, ci, position_only=ci in sharers)
+            self._update(tr, z[ci], R[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
+                         merged=ci in sharers)
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
                 matched.add(sharer.id)
@@ -274,13 +309,14 @@ class MultiPersonTracker:
         return self.reported()
 
     def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
-                position_only: bool = False) -> None:
-        """Kalman update of a track that took cluster ``ci``; a hit."""
+                position_only: bool = False, merged: bool = False) -> None:
+        """Kalman update of a track that took cluster ``ci`` (a hit); ``merged``: the cluster is shared."""
         if position_only:
-            R_pos = R[:2, :2] + self.params.merged_position_std_m**2 * np.eye(2)
+            R_pos = R[:2, :2] + (self.params.merged_position_std_m**2 if merged else 0.0) * np.eye(2)
             tr.x, tr.P = kf_update(tr.x, tr.P, z[:2], R_pos, _H_POS)
         else:
             tr.x, tr.P = kf_update(tr.x, tr.P, z, R, np.eye(4))
+        if not merged:
             tr.shared_s = 0.0
         if np.isfinite(clusters.height_m[ci]):
             tr.height = float(clusters.height_m[ci])
@@ -380,7 +416,3 @@ class MultiPersonTracker:
             np.array([tr.misses for tr in rep], dtype=np.int64),
         )
 
-
-def clusters_z(clusters: Clusters) -> np.ndarray:
-    """Measurements ``z = (px, py, vx, vy)`` of every cluster, shape (N, 4) [m, m/s]."""
-    return np.concatenate([clusters.xy_m, clusters.velocity_m_s], axis=1).reshape(-1, 4)

@@ -238,7 +238,7 @@ def test_merged_blob_velocity_variance_is_the_spread_of_its_cells():
     occ_v = np.broadcast_to((occ / len(v_k))[:, None], (STACK.shape[0], len(v_k)) + STACK.shape[1:])
     var = velocity_variance_m2_s2(occ_v, v_k, occ, np.zeros(STACK.shape + (2,)))
     np.testing.assert_allclose(var[:, inside], 1.0, rtol=1e-5)
-    c = cluster_occupancy(0.0, occ, np.zeros_like(vel), STACK, 0.05, velocity_var_m2_s2=var)
+    c = cluster_occupancy(0.0, occ, np.zeros_like(vel), STACK, 0.05, velocity_hypotheses=(occ_v, v_k))
     np.testing.assert_allclose(c.velocity_variance()[0], [1.0, 1.0], rtol=1e-5)
 
 

@@ -169,22 +169,22 @@ def velocity_variance_m2_s2(occ_v, velocities_m_s, occupancy, velocity_m_s) -> n
 
     Parameters
     ----------
-    occ_v : array_like, shape (L, K, ny, nx)
-        Joint ``P(occ, v_k)`` per plane, hypothesis and cell (the BOF state).
+    occ_v : array_like, shape (L, K, *cells)
+        Joint ``P(occ, v_k)`` per plane, hypothesis and cell (the BOF state; ``cells`` e.g. ``(ny, nx)``).
     velocities_m_s : array_like, shape (K, 2)
         The hypotheses ``v_k`` (vx, vy) [m/s].
-    occupancy : array_like, shape (L, ny, nx)
+    occupancy : array_like, shape (L, *cells)
         ``P(occ)``.
-    velocity_m_s : array_like, shape (L, ny, nx, 2)
+    velocity_m_s : array_like, shape (L, *cells, 2)
         ``E[V | occ]`` [m/s].
 
     Returns
     -------
-    ndarray, shape (L, ny, nx, 2), float32
+    ndarray, shape (L, *cells, 2), float32
         Variance per axis [m^2/s^2], >= 0 (0 where ``P(occ) = 0``).
     """
     v2 = np.asarray(velocities_m_s, dtype=np.float32) ** 2
-    m2 = np.moveaxis(np.tensordot(v2, np.asarray(occ_v), axes=([0], [1])), 0, -1)  # (L, ny, nx, 2)
+    m2 = np.moveaxis(np.tensordot(v2, np.asarray(occ_v), axes=([0], [1])), 0, -1)  # (L, *cells, 2)
     occ = np.asarray(occupancy, dtype=np.float32)[..., None]
     m2 = np.divide(m2, occ, out=np.zeros_like(m2), where=occ > 0)
     return np.maximum(m2 - np.asarray(velocity_m_s, dtype=np.float32) ** 2, 0.0)
@@ -210,7 +210,7 @@ def cluster_occupancy(
     stack: PlaneStack,
     prior_occupancy: float,
     params: ClusterParams | None = None,
-    velocity_var_m2_s2=None,
+    velocity_hypotheses=None,
 ) -> Clusters:
     """Find person hypotheses in the filtered plane stack (module docstring).
 
@@ -228,16 +228,22 @@ def cluster_occupancy(
         ``p0`` of the filter.
     params : ClusterParams, optional
         Clustering parameters.
-    velocity_var_m2_s2 : array_like, shape (L, ny, nx, 2), optional
-        BOF ``Var[V | occ]`` per cell and axis [m^2/s^2] (:func:`velocity_variance_m2_s2`); None: 0.
+    velocity_hypotheses : (ndarray (L, K, ny, nx), ndarray (K, 2)), optional
+        The BOF's joint ``P(occ, v_k)`` and its hypotheses ``v_k`` [m/s] (``BOFState.occ_v``,
+        ``BOFState.velocities_m_s``), for the within-cell velocity variance of each cluster
+        (:func:`velocity_variance_m2_s2`, evaluated in the clusters' discs only); None: taken as 0.
     """
     params = params if params is not None else ClusterParams()
     occ = np.asarray(occupancy, dtype=float)
     vel = np.asarray(velocity_m_s, dtype=float)
     if vel.shape != stack.shape + (2,):
         raise ValueError(f"velocity_m_s must have shape {stack.shape + (2,)}, got {vel.shape}")
-    if velocity_var_m2_s2 is not None and np.shape(velocity_var_m2_s2) != vel.shape:
-        raise ValueError(f"velocity_var_m2_s2 must have shape {vel.shape}, got {np.shape(velocity_var_m2_s2)}")
+    if velocity_hypotheses is not None:
+        occ_v, v_k = velocity_hypotheses
+        K = len(v_k)
+        if np.shape(occ_v) != (occ.shape[0], K) + occ.shape[1:] or np.shape(v_k) != (K, 2):
+            raise ValueError(f"velocity_hypotheses must be (L, K, ny, nx) and (K, 2) arrays with (L, ny, nx) = "
+                             f"{occ.shape}, got {np.shape(occ_v)} and {np.shape(v_k)}")
     S = column_log_odds(occ, stack, prior_occupancy, params)
     cell = stack.cell_size_m
 
@@ -296,8 +302,9 @@ def cluster_occupancy(
             v_out[i] = np.einsum("lc,lcd->d", w, v_cells) / w.sum()
             # law of total variance over the cells: mean within-cell variance + spread of the cell means
             spread = (v_cells - v_out[i]) ** 2
-            if velocity_var_m2_s2 is not None:
-                spread = spread + np.asarray(velocity_var_m2_s2)[body][:, iy, ix]
+            if velocity_hypotheses is not None:
+                spread = spread + velocity_variance_m2_s2(occ_v[:, :, iy, ix][body], v_k, occ[body][:, iy, ix],
+                                                          v_cells)
             var_out[i] = np.einsum("lc,lcd->d", w, spread) / w.sum()
         h_out[i] = _height_from_profile(occ[:, iy, ix].max(axis=1), heights)
     xy = stack.xy_from_index(centres[:, 0], centres[:, 1])

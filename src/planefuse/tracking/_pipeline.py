@@ -17,7 +17,7 @@ from .._state import StateDict, float_or_none, get, optional_float, strings, sub
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
-from ._clustering import ClusterParams, Clusters, cluster_occupancy, velocity_variance_m2_s2
+from ._clustering import ClusterParams, Clusters, cluster_occupancy
 from ._tracker import MultiPersonTracker, TrackerParams, Tracks, velocity_prior_variance_m2_s2
 from .._params import check_fields
 
@@ -149,8 +149,8 @@ class EvidenceTracker:
             self.next_output_s = nxt
         state = self.bof.state
         occ, vel = state.moments()
-        var = velocity_variance_m2_s2(state.occ_v, state.velocities_m_s, occ, vel)
-        clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster, var)
+        clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster,
+                                     (state.occ_v, state.velocities_m_s))
         tracks = self.tracker.step(clusters)
         sensors = tuple(self.sensors)
         self.sensors.clear()

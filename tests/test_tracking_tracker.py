@@ -128,6 +128,9 @@ def test_empty_and_bad_input():
     assert len(tr.step(c)) == 0
     with pytest.raises(ValueError, match="velocity_m_s must have shape"):
         cluster_occupancy(0.0, occ, np.zeros((2, 2)), STACK, 0.05)
+    with pytest.raises(ValueError, match="velocity_hypotheses must be"):
+        cluster_occupancy(0.0, occ, np.zeros(STACK.shape + (2,)), STACK, 0.05,
+                          velocity_hypotheses=(np.zeros((5, 49, 3, 3)), np.zeros((49, 2))))
     with pytest.raises(ValueError, match="body_max_height_m"):
         cluster_occupancy(0.0, occ, np.zeros(STACK.shape + (2,)), STACK, 0.05, ClusterParams(body_max_height_m=0.1))
     with pytest.raises(ValueError, match="before the tracker time"):

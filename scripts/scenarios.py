@@ -179,17 +179,22 @@ def main() -> None:
     ap.add_argument("--filters", default="on,off", help="temporal filter on, off or both")
     ap.add_argument("--modalities", default="all", help=f"comma-separated of {', '.join(MODALITIES)}")
     ap.add_argument("--previous-tracker", action="store_true", help="also the tracker before the Kalman tracker")
-    ap.add_argument("--sweep", action="store_true", help="tuning grid of Kalman tracker parameters (seeds 1-3)")
+    ap.add_argument("--sweep", action="store_true",
+                    help="a grid of Kalman tracker variants, scored on the same runs (choose on seeds 1-3 only)")
+    ap.add_argument("--from-csv", type=Path, default=None, help="re-summarise the rows of an earlier run")
+    ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
     ap.add_argument("--n-workers", type=int, default=2)
     ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
     ap.add_argument("--out", type=Path, default=Path("scenario-results"))
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
-    if args.sweep and not set(seeds) <= set(TUNING_SEEDS):
-        raise SystemExit(f"--sweep tunes: use tuning seeds only ({TUNING_SEEDS}), got {seeds}")
     for name in args.modalities.split(","):
         if name not in MODALITIES:
             raise SystemExit(f"--modalities: unknown {name!r}; expected {', '.join(MODALITIES)}")
+    if args.from_csv is not None:
+        rows = _read_rows(args.from_csv)
+        write(rows, args, len({(r["scenario"], r["seed"], r["filter"], r["modalities"]) for r in rows}), wall_s=None)
+        return
     cases = [Case(s, seed, args.duration_s, f == "on", mod) for s in args.scenarios.split(",") for seed in seeds
              for f in args.filters.split(",") for mod in args.modalities.split(",")]
     trackers = _tracker_variants(args.sweep)
@@ -201,13 +206,35 @@ def main() -> None:
     with batch_client(args.scheduler, None if args.scheduler else args.n_workers) as client:
         futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, pure=False)
         rows = [r for rs in client.gather(futures) for r in rs]
-    wall = time.time() - t0
     args.out.mkdir(parents=True, exist_ok=True)
-    stem = "sweep" if args.sweep else "scenarios"
-    with open(args.out / f"{stem}.csv", "w", newline="") as f:
+    with open(args.out / f"{_stem(args)}.csv", "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
+    write(rows, args, len(cases), time.time() - t0)
+
+
+def _stem(args) -> str:
+    return "sweep" if args.sweep else "scenarios"
+
+
+def _read_rows(path: Path) -> list[dict]:
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        for k in (*KEYS, "run_cpu_s", "tracker_ms_per_step", "duration_s"):
+            r[k] = float(r[k])
+        r["seed"] = int(r["seed"])
+    return rows
+
+
+def write(rows: list[dict], args, n_runs: int, wall_s: float | None) -> None:
+    """The Markdown summary (means, worst cases) and the figures of ``rows`` into ``args.out``."""
+    if args.trackers:
+        keep = args.trackers.split(",")
+        rows = [r for r in rows if r["tracker"] in keep]
+    stem = _stem(args)
+    args.out.mkdir(parents=True, exist_ok=True)
     text = []
     for split in ("tuning", "held-out"):
         summary = summarise(rows, split)
@@ -215,14 +242,14 @@ def main() -> None:
             title = (f"{split} seeds {sorted({r['seed'] for r in rows if r['split'] == split})}, "
                      f"{args.duration_s:g} s scenes")
             text.append(markdown(summary, title))
-            if not args.sweep:
+            if args.trackers or not args.sweep:
                 figure([s for s in summary if s["scenario"] != "all scenarios"],
                        args.out / f"{stem}_{split}.png", title)
     cmd = "PYTHONPATH=src python scripts/scenarios.py " + " ".join(sys.argv[1:])
-    (args.out / f"{stem}.md").write_text(f"`{cmd}` ({len(cases)} system runs, {wall:.0f} s wall)\n\n"
-                                         + "\n".join(text))
+    took = f", {wall_s:.0f} s wall" if wall_s is not None else ""
+    (args.out / f"{stem}.md").write_text(f"`{cmd}` ({n_runs} system runs{took})\n\n" + "\n".join(text))
     print("\n".join(text))
-    print(f"{len(cases)} runs in {wall:.0f} s; wrote {args.out}/{stem}.csv, .md and figures")
+    print(f"{n_runs} system runs; wrote {args.out}/{stem}.md and figures")
 
 
 if __name__ == "__main__":

@@ -14,9 +14,11 @@ from planefuse.tracking import (
     MultiPersonTracker,
     TrackerParams,
     TrackingParams,
+    cluster_measurements,
     cluster_occupancy,
     evidence_from_people,
     track_evidence,
+    velocity_variance_m2_s2,
 )
 
 STACK = PlaneStack.from_extent([0.3, 0.7, 1.1, 1.5, 1.9], (0.0, 6.0), (0.0, 5.0), 0.1)
@@ -219,30 +221,39 @@ def test_crossing_at_a_shallow_angle_through_a_merged_blob_keeps_ids(rng):
 
 
 def test_merged_blob_velocity_variance_is_the_spread_of_its_cells():
-    """Clustering coupling: a blob whose two halves move in opposite directions has the mean velocity 0 and a
-    velocity variance of about v^2 along the motion; a uniform BOF velocity law (no motion information) gives
-    the hypotheses' variance."""
-    from planefuse.tracking import BOFParams, velocity_grid_m_s, velocity_variance_m2_s2
+    """Clustering coupling: a blob whose two halves move at +-1 m/s along x (each cell sure of its velocity) has
+    a mean velocity near 0 and the velocity variance ~1 m^2/s^2 along x, 0 along y; a uniform BOF velocity law (no
+    motion information) gives the hypotheses' variance, and without the hypotheses the variance is unknown."""
+    from planefuse.tracking import BOFParams, velocity_grid_m_s
 
+    v_k = velocity_grid_m_s(BOFParams())  # 7 x 7 on linspace(-1.5, 1.5, 7)
     occ = np.full(STACK.shape, 0.05)
-    vel = np.zeros(STACK.shape + (2,))
     centres = STACK.cell_centers_xy()
-    inside = np.sum((centres - [3.0, 2.5]) ** 2, axis=-1) <= 0.3**2
+    inside = np.sum((centres - [3.05, 2.55]) ** 2, axis=-1) <= 0.3**2
     occ[:, inside] = 0.95
-    left = inside & (centres[..., 0] < 3.0)
-    vel[:, left] = [0.8, 0.0]
-    vel[:, inside & ~left] = [-0.8, 0.0]
-    c = cluster_occupancy(0.0, occ, vel, STACK, 0.05)
+    left = inside & (centres[..., 0] < 3.05)
+    occ_v = np.broadcast_to((occ / len(v_k))[:, None], (STACK.shape[0], len(v_k)) + STACK.shape[1:]).copy()
+    vel = np.zeros(STACK.shape + (2,))
+    for cells, v in ((left, [1.0, 0.0]), (inside & ~left, [-1.0, 0.0])):
+        k = int(np.argmin(np.linalg.norm(v_k - v, axis=1)))
+        occ_v[:, :, cells] = 0.0
+        occ_v[:, k, cells] = 0.95
+        vel[:, cells] = v
+    c = cluster_occupancy(0.0, occ, vel, STACK, 0.05, velocity_hypotheses=(occ_v, v_k))
     assert len(c) == 1
-    assert abs(c.velocity_m_s[0, 0]) < 0.15
-    assert 0.5 < c.velocity_variance()[0, 0] <= 0.64 + 1e-9 and c.velocity_variance()[0, 1] < 1e-9
-    # uniform law over the 7 x 7 hypotheses of +-1.5 m/s: variance mean(linspace(-1.5, 1.5, 7)^2) = 1.0 per axis
-    v_k = velocity_grid_m_s(BOFParams())
-    occ_v = np.broadcast_to((occ / len(v_k))[:, None], (STACK.shape[0], len(v_k)) + STACK.shape[1:])
-    var = velocity_variance_m2_s2(occ_v, v_k, occ, np.zeros(STACK.shape + (2,)))
+    assert abs(c.velocity_m_s[0, 0]) < 0.25 and c.velocity_m_s[0, 1] == 0  # the disc is not split exactly in half
+    # every cell is at +-1 m/s: Var = E[v^2] - E[v]^2 = 1 - v_mean^2 along x
+    np.testing.assert_allclose(c.velocity_variance()[0], [1.0 - c.velocity_m_s[0, 0] ** 2, 0.0], atol=1e-5)
+    # uniform law over the hypotheses: variance mean(linspace(-1.5, 1.5, 7)^2) = 1.0 per axis, in every cell
+    uniform = np.broadcast_to((occ / len(v_k))[:, None], occ_v.shape)
+    var = velocity_variance_m2_s2(uniform, v_k, occ, np.zeros(STACK.shape + (2,)))
     np.testing.assert_allclose(var[:, inside], 1.0, rtol=1e-5)
-    c = cluster_occupancy(0.0, occ, np.zeros_like(vel), STACK, 0.05, velocity_hypotheses=(occ_v, v_k))
+    c = cluster_occupancy(0.0, occ, np.zeros_like(vel), STACK, 0.05, velocity_hypotheses=(uniform, v_k))
     np.testing.assert_allclose(c.velocity_variance()[0], [1.0, 1.0], rtol=1e-5)
+    # and the tracker takes such a cluster as a position measurement only
+    z, R, has_v = cluster_measurements(c, TrackerParams(), velocity_prior_var_m2_s2=1.0)
+    assert not has_v[0] and np.all(z[0, 2:] == 0)
+    assert np.all(np.isinf(cluster_occupancy(0.0, occ, vel, STACK, 0.05).velocity_variance()))
 
 
 def test_walker_through_an_occluder_keeps_its_id(rng):

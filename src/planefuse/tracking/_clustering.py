@@ -105,7 +105,7 @@ class Clusters:
     velocity_var_m2_s2 : ndarray, shape (N, 2), optional
         Variance [m^2/s^2] of the velocity (vx, vy) over the cluster's occupied mass: the BOF's own velocity
         variance in its cells plus the spread of the cell velocities (two people moving apart in one blob).
-        None: unknown, taken as 0 by :meth:`velocity_variance`.
+        None: unknown (no motion information; infinite in :meth:`velocity_variance`).
     """
 
     time_s: float
@@ -120,9 +120,9 @@ class Clusters:
         return len(self.xy_m)
 
     def velocity_variance(self) -> np.ndarray:
-        """:attr:`velocity_var_m2_s2`, zeros where it is None; shape (N, 2) [m^2/s^2]."""
+        """:attr:`velocity_var_m2_s2`, infinite where it is None (unknown); shape (N, 2) [m^2/s^2]."""
         if self.velocity_var_m2_s2 is None:
-            return np.zeros((len(self), 2))
+            return np.full((len(self), 2), np.inf)
         return np.asarray(self.velocity_var_m2_s2, dtype=float).reshape(-1, 2)
 
     def to_ground_detections(self) -> GroundDetections:
@@ -231,7 +231,8 @@ def cluster_occupancy(
     velocity_hypotheses : (ndarray (L, K, ny, nx), ndarray (K, 2)), optional
         The BOF's joint ``P(occ, v_k)`` and its hypotheses ``v_k`` [m/s] (``BOFState.occ_v``,
         ``BOFState.velocities_m_s``), for the within-cell velocity variance of each cluster
-        (:func:`velocity_variance_m2_s2`, evaluated in the clusters' discs only); None: taken as 0.
+        (:func:`velocity_variance_m2_s2`, evaluated in the clusters' discs only); None: the clusters'
+        velocity variance is unknown (``Clusters.velocity_var_m2_s2`` None: no motion information).
     """
     params = params if params is not None else ClusterParams()
     occ = np.asarray(occupancy, dtype=float)
@@ -255,7 +256,8 @@ def cluster_occupancy(
     lab, n = ndimage.label(peaks)
     if n == 0:
         empty = np.zeros((0, 2))
-        return Clusters(float(time_s), empty, empty.copy(), np.zeros(0), np.zeros(0), S, empty.copy())
+        return Clusters(float(time_s), empty, empty.copy(), np.zeros(0), np.zeros(0), S,
+                        None if velocity_hypotheses is None else empty.copy())
     centres = np.asarray(ndimage.center_of_mass(peaks, lab, np.arange(1, n + 1)))  # (n, 2) as (iy, ix)
 
     # mean-shift with a flat disc kernel on max(S, 0)
@@ -292,7 +294,7 @@ def cluster_occupancy(
     excess = np.maximum(occ - prior_occupancy, 0.0)
     heights = np.asarray(stack.heights_m)
     v_out = np.zeros((len(centres), 2))
-    var_out = np.zeros((len(centres), 2))
+    var_out = np.zeros((len(centres), 2)) if velocity_hypotheses is not None else None
     h_out = np.full(len(centres), np.nan)
     for i, c in enumerate(centres):
         iy, ix = window(c)
@@ -300,12 +302,10 @@ def cluster_occupancy(
         if w.sum() > 0:
             v_cells = vel[body][:, iy, ix]
             v_out[i] = np.einsum("lc,lcd->d", w, v_cells) / w.sum()
-            # law of total variance over the cells: mean within-cell variance + spread of the cell means
-            spread = (v_cells - v_out[i]) ** 2
-            if velocity_hypotheses is not None:
-                spread = spread + velocity_variance_m2_s2(occ_v[:, :, iy, ix][body], v_k, occ[body][:, iy, ix],
-                                                          v_cells)
-            var_out[i] = np.einsum("lc,lcd->d", w, spread) / w.sum()
+            if var_out is not None:
+                # law of total variance over the cells: mean within-cell variance + spread of the cell means
+                var_cells = velocity_variance_m2_s2(occ_v[:, :, iy, ix][body], v_k, occ[body][:, iy, ix], v_cells)
+                var_out[i] = np.einsum("lc,lcd->d", w, var_cells + (v_cells - v_out[i]) ** 2) / w.sum()
         h_out[i] = _height_from_profile(occ[:, iy, ix].max(axis=1), heights)
     xy = stack.xy_from_index(centres[:, 0], centres[:, 1])
     conf = probability_from_log_odds(strength - params.threshold)

@@ -198,6 +198,7 @@ def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_pri
         lik_var = np.full_like(var, np.inf)
         np.divide(1.0, info, out=lik_var, where=info > 0)
         z[:, 2:] = np.where(info > 0, z[:, 2:] / var * np.minimum(lik_var, 1e12), 0.0)
+    lik_var = np.nan_to_num(lik_var, nan=np.inf)
     has_v = np.all(lik_var <= params.velocity_max_std_m_s**2, axis=1)
     R = np.zeros((n, 4, 4))
     R[:, [0, 1], [0, 1]] = params.position_std_m**2

@@ -202,15 +202,23 @@ def main() -> None:
 
     from planefuse.batch import batch_client
 
+    from distributed import as_completed
+
     t0 = time.time()
-    with batch_client(args.scheduler, None if args.scheduler else args.n_workers) as client:
-        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, pure=False)
-        rows = [r for rs in client.gather(futures) for r in rs]
     args.out.mkdir(parents=True, exist_ok=True)
-    with open(args.out / f"{_stem(args)}.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+    rows: list[dict] = []
+    with batch_client(args.scheduler, None if args.scheduler else args.n_workers) as client, \
+            open(args.out / f"{_stem(args)}.csv", "w", newline="") as f:
+        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, pure=False)
+        writer = None
+        for done, (future, case_rows) in enumerate(as_completed(futures, with_results=True), 1):
+            if writer is None:  # rows are written as runs finish: an interrupted evaluation keeps them
+                writer = csv.DictWriter(f, fieldnames=list(case_rows[0]))
+                writer.writeheader()
+            writer.writerows(case_rows)
+            f.flush()
+            rows += case_rows
+            print(f"{done}/{len(cases)} runs ({time.time() - t0:.0f} s)", flush=True)
     write(rows, args, len(cases), time.time() - t0)
 
 

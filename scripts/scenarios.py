@@ -162,7 +162,7 @@ def figure(summary: list[dict], path: Path, title: str) -> None:
                 ax.plot(xs, worst, "k_", markersize=8)
         ax.set_xticks(range(len(scens)), scens, rotation=30, ha="right")
         ax.set_title(f"{key.upper()} (bars: mean; ticks: worst seed)")
-        ax.set_ylim(0, 1)
+        ax.set_ylim(min(0.0, min(s[key] for s in summary)) - 0.05, 1)
         ax.grid(axis="y", alpha=0.3)
     axes[0].legend(fontsize=7, loc="lower left")
     fig.suptitle(title)
@@ -243,6 +243,11 @@ def write(rows: list[dict], args, n_runs: int, wall_s: float | None) -> None:
         rows = [r for r in rows if r["tracker"] in keep]
     stem = _stem(args)
     args.out.mkdir(parents=True, exist_ok=True)
+    if args.from_csv is not None and args.trackers:  # the rows of the summary, for the figure and tables
+        with open(args.out / f"{stem}.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
     text = []
     for split in ("tuning", "held-out"):
         summary = summarise(rows, split)

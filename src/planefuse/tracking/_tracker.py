@@ -302,7 +302,8 @@ class MultiPersonTracker:
             if near.size and near.min() < p.birth_exclusion_m:
                 continue  # a second mode of someone already tracked, not a new person
             P0 = R[ci].copy()
-            P0[2:, 2:] = np.minimum(P0[2:, 2:], p.initial_velocity_std_m_s**2)
+            v_var = R[ci, [2, 3], [2, 3]] if has_v[ci] else np.full(2, np.inf)  # unknown: the initial spread
+            P0[[2, 3], [2, 3]] = np.minimum(v_var, p.initial_velocity_std_m_s**2)
             alive.append(_Track(self._next_id, z[ci].copy(), P0, float(clusters.height_m[ci]),
                                 float(clusters.confidence[ci]), confirmed=p.confirm_hits <= 1))
             self._next_id += 1

@@ -357,6 +357,22 @@ class DetectionModelConfig(_Model):
         description="Output steps a track may go unobserved before it is ended", unit="steps",
         expected="an integer >= 0", library="system.tracking.tracker.max_misses",
     )
+    gate_chi2: float = _field(
+        description="Mahalanobis gate of a track's position innovation (chi-square, 2 degrees of freedom; 9.21 = "
+        "99 %)", expected="> 0", library="system.tracking.tracker.gate_chi2",
+    )
+    position_std_m: float = _field(
+        description="Standard deviation of a cluster's position per axis (Kalman tracker measurement)", unit="m",
+        expected="> 0", library="system.tracking.tracker.position_std_m",
+    )
+    velocity_std_m_s: float = _field(
+        description="Standard deviation added to a cluster's BOF velocity variance per axis (Kalman tracker "
+        "measurement)", unit="m/s", expected="> 0", library="system.tracking.tracker.velocity_std_m_s",
+    )
+    acceleration_std_m_s2: float = _field(
+        description="White-noise acceleration of the tracks' constant-velocity model", unit="m/s^2",
+        expected=">= 0", library="system.tracking.tracker.acceleration_std_m_s2",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

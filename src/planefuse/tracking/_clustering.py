@@ -22,6 +22,11 @@ column. Modes of ``S`` above ``threshold`` (local maxima at least
 * position: the mean-shift mode [m];
 * velocity: the occupancy-weighted mean of the BOF cell velocities ``E[V | occ]`` over the disc and the
   body planes, weights ``max(P_l - p0, 0)`` [m/s];
+* velocity variance: with the same weights, the law of total variance over those cells,
+  ``Var = E_w[Var(V | occ, cell)] + E_w[(E[V | occ, cell] - v)^2]`` per axis [m^2/s^2]: the BOF's own
+  uncertainty (large where it has no motion information, e.g. without temporal filtering) plus the spread
+  of the cell velocities (large for a blob of two people walking apart), so that the tracker weighs a
+  merged blob's mean velocity, which belongs to neither person, accordingly;
 * height: the highest plane whose disc-maximum occupancy reaches 0.5, linearly interpolated with the plane
   above it to the height where the profile crosses 0.5 [m] (NaN if no plane reaches 0.5);
 * confidence: ``logistic(S(mode) - threshold)``.
@@ -37,7 +42,7 @@ from scipy import ndimage
 from ..grid import GroundDetections, PlaneStack, log_odds_from_probability, probability_from_log_odds
 from .._params import check_fields
 
-__all__ = ["ClusterParams", "Clusters", "cluster_occupancy", "column_log_odds"]
+__all__ = ["ClusterParams", "Clusters", "cluster_occupancy", "column_log_odds", "velocity_variance_m2_s2"]
 
 
 @dataclass(frozen=True)
@@ -97,6 +102,10 @@ class Clusters:
         In [0, 1].
     column_log_odds : ndarray, shape (ny, nx)
         The column evidence ``S``.
+    velocity_var_m2_s2 : ndarray, shape (N, 2), optional
+        Variance [m^2/s^2] of the velocity (vx, vy) over the cluster's occupied mass: the BOF's own velocity
+        variance in its cells plus the spread of the cell velocities (two people moving apart in one blob).
+        None: unknown (no motion information; infinite in :meth:`velocity_variance`).
     """
 
     time_s: float
@@ -105,9 +114,16 @@ class Clusters:
     height_m: np.ndarray
     confidence: np.ndarray
     column_log_odds: np.ndarray
+    velocity_var_m2_s2: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.xy_m)
+
+    def velocity_variance(self) -> np.ndarray:
+        """:attr:`velocity_var_m2_s2`, infinite where it is None (unknown); shape (N, 2) [m^2/s^2]."""
+        if self.velocity_var_m2_s2 is None:
+            return np.full((len(self), 2), np.inf)
+        return np.asarray(self.velocity_var_m2_s2, dtype=float).reshape(-1, 2)
 
     def to_ground_detections(self) -> GroundDetections:
         """The clusters as :class:`~planefuse.grid.GroundDetections` (source ``"bof"``)."""
@@ -148,6 +164,32 @@ def column_log_odds(occupancy, stack: PlaneStack, prior_occupancy: float, params
     return np.where(observed, np.minimum(d, params.plane_cap), 0.0).sum(axis=0) / np.maximum(observed.sum(axis=0), 1)
 
 
+def velocity_variance_m2_s2(occ_v, velocities_m_s, occupancy, velocity_m_s) -> np.ndarray:
+    """Per-cell ``Var[V | occ]`` of a velocity-hypothesis grid: ``sum_k P(occ, v_k) v_k^2 / P(occ) - E[V | occ]^2``.
+
+    Parameters
+    ----------
+    occ_v : array_like, shape (L, K, *cells)
+        Joint ``P(occ, v_k)`` per plane, hypothesis and cell (the BOF state; ``cells`` e.g. ``(ny, nx)``).
+    velocities_m_s : array_like, shape (K, 2)
+        The hypotheses ``v_k`` (vx, vy) [m/s].
+    occupancy : array_like, shape (L, *cells)
+        ``P(occ)``.
+    velocity_m_s : array_like, shape (L, *cells, 2)
+        ``E[V | occ]`` [m/s].
+
+    Returns
+    -------
+    ndarray, shape (L, *cells, 2), float32
+        Variance per axis [m^2/s^2], >= 0 (0 where ``P(occ) = 0``).
+    """
+    v2 = np.asarray(velocities_m_s, dtype=np.float32) ** 2
+    m2 = np.moveaxis(np.tensordot(v2, np.asarray(occ_v), axes=([0], [1])), 0, -1)  # (L, *cells, 2)
+    occ = np.asarray(occupancy, dtype=np.float32)[..., None]
+    m2 = np.divide(m2, occ, out=np.zeros_like(m2), where=occ > 0)
+    return np.maximum(m2 - np.asarray(velocity_m_s, dtype=np.float32) ** 2, 0.0)
+
+
 def _height_from_profile(profile: np.ndarray, heights_m: np.ndarray) -> float:
     """Height [m] where the occupancy profile (per plane, bottom up) last crosses 0.5; NaN if never >= 0.5."""
     above = np.flatnonzero(profile >= 0.5)
@@ -168,6 +210,7 @@ def cluster_occupancy(
     stack: PlaneStack,
     prior_occupancy: float,
     params: ClusterParams | None = None,
+    velocity_hypotheses=None,
 ) -> Clusters:
     """Find person hypotheses in the filtered plane stack (module docstring).
 
@@ -185,12 +228,23 @@ def cluster_occupancy(
         ``p0`` of the filter.
     params : ClusterParams, optional
         Clustering parameters.
+    velocity_hypotheses : (ndarray (L, K, ny, nx), ndarray (K, 2)), optional
+        The BOF's joint ``P(occ, v_k)`` and its hypotheses ``v_k`` [m/s] (``BOFState.occ_v``,
+        ``BOFState.velocities_m_s``), for the within-cell velocity variance of each cluster
+        (:func:`velocity_variance_m2_s2`, evaluated in the clusters' discs only); None: the clusters'
+        velocity variance is unknown (``Clusters.velocity_var_m2_s2`` None: no motion information).
     """
     params = params if params is not None else ClusterParams()
     occ = np.asarray(occupancy, dtype=float)
     vel = np.asarray(velocity_m_s, dtype=float)
     if vel.shape != stack.shape + (2,):
         raise ValueError(f"velocity_m_s must have shape {stack.shape + (2,)}, got {vel.shape}")
+    if velocity_hypotheses is not None:
+        occ_v, v_k = velocity_hypotheses
+        K = len(v_k)
+        if np.shape(occ_v) != (occ.shape[0], K) + occ.shape[1:] or np.shape(v_k) != (K, 2):
+            raise ValueError(f"velocity_hypotheses must be (L, K, ny, nx) and (K, 2) arrays with (L, ny, nx) = "
+                             f"{occ.shape}, got {np.shape(occ_v)} and {np.shape(v_k)}")
     S = column_log_odds(occ, stack, prior_occupancy, params)
     cell = stack.cell_size_m
 
@@ -202,7 +256,8 @@ def cluster_occupancy(
     lab, n = ndimage.label(peaks)
     if n == 0:
         empty = np.zeros((0, 2))
-        return Clusters(float(time_s), empty, empty.copy(), np.zeros(0), np.zeros(0), S)
+        return Clusters(float(time_s), empty, empty.copy(), np.zeros(0), np.zeros(0), S,
+                        None if velocity_hypotheses is None else empty.copy())
     centres = np.asarray(ndimage.center_of_mass(peaks, lab, np.arange(1, n + 1)))  # (n, 2) as (iy, ix)
 
     # mean-shift with a flat disc kernel on max(S, 0)
@@ -239,13 +294,19 @@ def cluster_occupancy(
     excess = np.maximum(occ - prior_occupancy, 0.0)
     heights = np.asarray(stack.heights_m)
     v_out = np.zeros((len(centres), 2))
+    var_out = np.zeros((len(centres), 2)) if velocity_hypotheses is not None else None
     h_out = np.full(len(centres), np.nan)
     for i, c in enumerate(centres):
         iy, ix = window(c)
         w = excess[body][:, iy, ix]
         if w.sum() > 0:
-            v_out[i] = np.einsum("lc,lcd->d", w, vel[body][:, iy, ix]) / w.sum()
+            v_cells = vel[body][:, iy, ix]
+            v_out[i] = np.einsum("lc,lcd->d", w, v_cells) / w.sum()
+            if var_out is not None:
+                # law of total variance over the cells: mean within-cell variance + spread of the cell means
+                var_cells = velocity_variance_m2_s2(occ_v[:, :, iy, ix][body], v_k, occ[body][:, iy, ix], v_cells)
+                var_out[i] = np.einsum("lc,lcd->d", w, var_cells + (v_cells - v_out[i]) ** 2) / w.sum()
         h_out[i] = _height_from_profile(occ[:, iy, ix].max(axis=1), heights)
     xy = stack.xy_from_index(centres[:, 0], centres[:, 1])
     conf = probability_from_log_odds(strength - params.threshold)
-    return Clusters(float(time_s), xy, v_out, h_out, conf, S)
+    return Clusters(float(time_s), xy, v_out, h_out, conf, S, var_out)

@@ -18,7 +18,7 @@ from ..grid import Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
-from ._tracker import MultiPersonTracker, TrackerParams, Tracks
+from ._tracker import MultiPersonTracker, TrackerParams, Tracks, velocity_prior_variance_m2_s2
 from .._params import check_fields
 
 __all__ = ["EvidenceTracker", "TrackerOutput", "TrackingParams", "track_evidence"]
@@ -112,7 +112,8 @@ class EvidenceTracker:
         self.params = params if params is not None else TrackingParams()
         self.buffer = AsyncEvidenceBuffer(self.params.window_s, self.params.merge_tolerance_s, shape=stack.shape)
         self.bof = BayesianOccupancyFilter(stack, self.params.bof)
-        self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m)
+        self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m,
+                                          velocity_prior_variance_m2_s2(self.params.bof))
         self.next_output_s: float | None = None
         self.sensors: list[str] = []
         #: outputs given so far (the index of the next output step)
@@ -147,7 +148,11 @@ class EvidenceTracker:
                 nxt += period
             self.next_output_s = nxt
         occ, vel = self.bof.moments()  # computed by the update, in the same pass
-        clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster)
+        # the joint P(occ, v_k) for the clusters' velocity variance (cells of inactive tiles hold their mass at
+        # v = 0 there, but have next to no excess occupancy, so next to no weight in a cluster)
+        state = self.bof.state
+        clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster,
+                                     (state.occ_v, state.velocities_m_s))
         tracks = self.tracker.step(clusters)
         sensors = tuple(self.sensors)
         self.sensors.clear()

@@ -1,25 +1,60 @@
-r"""Multi-person tracker on the BOF clusters ("fast clustering-tracking", Mekhnacha et al. 2008).
+r"""Multi-person tracker on the BOF clusters: one constant-velocity Kalman filter per track.
 
-Each step:
+Each track ``i`` carries the ground state ``x = (px, py, vx, vy)`` [m, m/s] in world XY and its covariance
+``P``. The BOF and the clustering are its *sensor*: every cluster is a measurement of position and
+velocity, ``z = (px, py, vx, vy)`` with ``H = I_4`` and the covariance::
 
-1. predict every track with its BOF velocity: ``x_pred = x + v dt``;
-2. associate clusters to tracks with the Hungarian algorithm (``scipy.optimize.linear_sum_assignment``) on
-   the Euclidean distance ``|x_pred - x_cluster|`` [m], pairs farther than ``gate_m`` forbidden; confirmed
-   tracks are served first, tentative ones get the remaining clusters;
-3. a matched track takes the cluster position and height and blends its velocity with the cluster's BOF
-   velocity, ``v <- (1 - a) v + a v_cluster`` (``a = velocity_gain``);
-4. a confirmed track left without a cluster but predicted within the gate of a cluster taken by another
-   confirmed track moving differently (two people merged while crossing: velocities differing by at
-   least ``share_min_relative_speed_m_s``) shares it for at most ``max_shared_s``: both keep their own
-   predicted positions and velocities;
-5. an unmatched track coasts on its prediction and counts a miss; a tentative track is confirmed after
-   ``confirm_hits`` consecutive hits and dropped at its first miss, a confirmed track is deleted after more
-   than ``max_misses`` consecutive misses or when its prediction leaves the grid;
-6. an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts a tentative
-   track with a new id.
+    R = diag(s_p^2, s_p^2, s_v^2 + var_vx, s_v^2 + var_vy)
 
-Reported tracks are the confirmed ones with at most ``max_coast_report`` consecutive misses; their
-confidence is the last cluster confidence times ``0.5 ** misses``.
+``s_p = position_std_m``, ``s_v = velocity_std_m_s``. The cluster's velocity ``v`` and variance ``var``
+(:attr:`Clusters.velocity_var_m2_s2`: the BOF's velocity uncertainty in the cluster's cells plus the
+spread of the cell velocities over the disc) are a *posterior* of the BOF, whose prior over velocities is
+its uniform law on the hypotheses (mean 0, variance ``var0`` per axis). That prior is divided out (the
+Gaussian quotient) so that it is not counted once per step::
+
+    1 / var_lik = 1 / var - 1 / var0,    v_lik = v var_lik / var,    var_v = var_lik
+
+Where the BOF knows nothing about the motion (``var >= var0``: no temporal filter, a new blob) or
+``var_lik > velocity_max_std_m_s^2``, the cluster is a *position* measurement only (``H`` = the first two
+rows of ``I_4``); a blob holding two people moving apart (a spread of velocities) weighs little.
+
+Each step (``dt`` since the last one):
+
+1. predict (filterpy ``predict``)::
+
+       F = [[I, dt I], [0, I]],   x <- F x,   P <- F P F^T + Q,
+
+   ``Q`` the discrete white-noise acceleration of standard deviation ``acceleration_std_m_s2``
+   (filterpy ``Q_discrete_white_noise``);
+2. gate: the position innovation ``y = z_p - x_p`` with ``S_p = P_pp + R_pp`` is admissible if
+   ``y^T S_p^-1 y <= gate_chi2`` (chi-square, 2 d.o.f.) and ``|y| <= gate_m`` [m] (a hard cap for
+   coasting tracks whose covariance has grown);
+3. associate: ``scipy.optimize.linear_sum_assignment`` on the negative log-likelihood of the
+   innovation, ``c = y^T S^-1 y + ln det S`` with ``S = H P H^T + R`` (position and, where informative,
+   velocity: two people crossing at one spot are told apart by their velocities), forbidden outside the
+   gate; confirmed tracks are served first, tentative ones get the remaining clusters;
+4. update every matched track (filterpy ``update``, Joseph form) with its cluster; height and confidence
+   are copied from it;
+5. merged people: a confirmed track left without a cluster whose position gate holds a cluster taken by
+   another confirmed track moving differently (velocities at least ``share_min_relative_speed_m_s``
+   apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
+   row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
+   (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
+6. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
+   a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
+   velocity variance capped at ``initial_velocity_std_m_s^2``).
+
+Track management (states of a track)
+------------------------------------
+* **tentative**: born from an unexplained cluster; becomes *confirmed* after ``confirm_hits``
+  consecutive hits, deleted at its first miss;
+* **confirmed**: associated at this step (or sharing a merged cluster); reported;
+* **coasting**: confirmed, without a cluster for ``misses`` consecutive steps: it moves on its prediction
+  and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
+  ``last cluster confidence x 0.5^misses``;
+* **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
+
+Step counts are in output steps (scale them with the output rate).
 """
 
 from __future__ import annotations
@@ -27,13 +62,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import predict as kf_predict
+from filterpy.kalman import update as kf_update
 from scipy.optimize import linear_sum_assignment
 
-from .._state import StateDict, float_or_none, get, optional_float
-from ._clustering import Clusters
 from .._params import check_fields
+from .._state import StateDict, float_or_none, get, optional_float
+from ._bof import BOFParams, velocity_grid_m_s
+from ._clustering import Clusters
 
-__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks"]
+__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks", "cluster_measurements", "velocity_prior_variance_m2_s2"]
+
+_H_POS = np.eye(2, 4)  # position rows of the state
 
 
 @dataclass(frozen=True)
@@ -43,15 +84,28 @@ class TrackerParams:
     Attributes
     ----------
     gate_m : float
-        Largest association distance [m].
+        Largest distance [m] between a track's predicted position and its cluster.
+    gate_chi2 : float
+        Mahalanobis gate on the position innovation (chi-square, 2 degrees of freedom; 9.21 = 99 %).
     confirm_hits : int
         Consecutive hits that confirm a tentative track.
     max_misses : int
         Consecutive misses after which a confirmed track is deleted.
     max_coast_report : int
         Confirmed tracks with more consecutive misses than this are not reported (still kept).
-    velocity_gain : float
-        ``a`` in (0, 1]: weight of the cluster's BOF velocity in the track velocity.
+    position_std_m : float
+        ``s_p``: standard deviation [m] of a cluster's position, per axis.
+    velocity_std_m_s : float
+        ``s_v``: standard deviation [m/s] of a cluster's BOF velocity, per axis, added to its own variance.
+    acceleration_std_m_s2 : float
+        Standard deviation [m/s^2] of the white-noise acceleration of the constant-velocity model.
+    velocity_max_std_m_s : float
+        A cluster velocity whose likelihood standard deviation [m/s] exceeds this carries no motion
+        information (e.g. without temporal filtering): the cluster is a position measurement only.
+    initial_velocity_std_m_s : float
+        Largest initial velocity standard deviation [m/s] of a new track.
+    merged_position_std_m : float
+        Extra position standard deviation [m] of a cluster shared by two tracks (merged people).
     max_shared_s : float
         Longest time [s] a track may share another track's cluster (people merged while crossing).
     share_min_relative_speed_m_s : float
@@ -62,17 +116,26 @@ class TrackerParams:
     """
 
     gate_m: float = 0.75
+    gate_chi2: float = 9.21
     confirm_hits: int = 3
     max_misses: int = 10
     max_coast_report: int = 2
-    velocity_gain: float = 0.7
+    position_std_m: float = 0.1
+    velocity_std_m_s: float = 0.3
+    acceleration_std_m_s2: float = 1.0
+    velocity_max_std_m_s: float = 2.0
+    initial_velocity_std_m_s: float = 1.0
+    merged_position_std_m: float = 0.25
     max_shared_s: float = 1.0
     share_min_relative_speed_m_s: float = 0.3
     birth_exclusion_m: float = 0.5
 
     def __post_init__(self) -> None:
-        check_fields(self, gate_m=">0", confirm_hits="int>=1", max_misses="int>=0", max_coast_report="int>=0",
-                     max_shared_s=">=0", birth_exclusion_m=">=0", velocity_gain="(0,1]")
+        check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
+                     max_coast_report="int>=0", position_std_m=">0", velocity_std_m_s=">0",
+                     acceleration_std_m_s2=">=0", initial_velocity_std_m_s=">0",
+                     velocity_max_std_m_s=">0", merged_position_std_m=">=0",
+                     max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0")
 
 
 @dataclass(frozen=True)
@@ -112,21 +175,45 @@ class Tracks:
 @dataclass
 class _Track:
     id: int
-    xy: np.ndarray
-    v: np.ndarray
+    x: np.ndarray  # (4,) px, py [m], vx, vy [m/s]
+    P: np.ndarray  # (4, 4)
     height: float
     confidence: float
     hits: int = 1
     misses: int = 0
     confirmed: bool = False
-    pred: np.ndarray | None = None  # position predicted for the current step
-    v_before: np.ndarray | None = None  # velocity before the current step's correction
-    cluster: int = -1  # cluster matched in the current step
-    shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster
+    shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
+
+
+def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):
+    """Measurements of every cluster (module docstring): ``z`` (N, 4) [m, m/s], ``R`` (N, 4, 4) and whether
+    its velocity is informative, (N,) bool (where not, it is a position measurement only)."""
+    n = len(clusters)
+    z = np.concatenate([clusters.xy_m, clusters.velocity_m_s], axis=1).reshape(-1, 4)
+    var = np.maximum(clusters.velocity_variance(), 1e-6)
+    if velocity_prior_var_m2_s2 is None:
+        lik_var = var
+    else:  # divide the BOF's prior N(0, var0) out of its posterior N(v, var): the likelihood of the motion
+        info = 1.0 / var - 1.0 / velocity_prior_var_m2_s2
+        lik_var = np.full_like(var, np.inf)
+        np.divide(1.0, info, out=lik_var, where=info > 0)
+        z[:, 2:] = np.where(info > 0, z[:, 2:] / var * np.minimum(lik_var, 1e12), 0.0)
+    lik_var = np.nan_to_num(lik_var, nan=np.inf)
+    has_v = np.all(lik_var <= params.velocity_max_std_m_s**2, axis=1)
+    R = np.zeros((n, 4, 4))
+    R[:, [0, 1], [0, 1]] = params.position_std_m**2
+    R[:, [2, 3], [2, 3]] = params.velocity_std_m_s**2 + np.where(has_v[:, None], lik_var, 0.0)
+    z[~has_v, 2:] = 0.0
+    return z, R, has_v
+
+
+def velocity_prior_variance_m2_s2(bof: BOFParams) -> float:
+    """Variance [m^2/s^2] per axis of the BOF's uniform law over its velocity hypotheses, ``mean(v_k,x^2)``."""
+    return float(np.mean(velocity_grid_m_s(bof)[:, 0] ** 2))
 
 
 class MultiPersonTracker:
-    """Track people from successive :class:`~planefuse.tracking.Clusters`.
+    """Track people from successive :class:`~planefuse.tracking.Clusters` (module docstring).
 
     Parameters
     ----------
@@ -134,96 +221,141 @@ class MultiPersonTracker:
         Tracker parameters.
     extent_m : tuple of float, optional
         ``(x_min, x_max, y_min, y_max)`` [m]; a coasting track predicted outside is deleted.
+    velocity_prior_var_m2_s2 : float, optional
+        Prior variance [m^2/s^2] per axis of the velocity law behind the clusters' velocities (the BOF's
+        uniform law over its hypotheses, :func:`velocity_prior_variance_m2_s2`), divided out of them; None:
+        the cluster velocities are likelihoods already.
     """
 
-    def __init__(self, params: TrackerParams | None = None, extent_m=None) -> None:
+    def __init__(self, params: TrackerParams | None = None, extent_m=None,
+                 velocity_prior_var_m2_s2: float | None = None) -> None:
         self.params = params if params is not None else TrackerParams()
         self.extent_m = extent_m
+        self.velocity_prior_var_m2_s2 = velocity_prior_var_m2_s2
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
         self._next_id = 1
 
-    def _associate(self, tracks: list[_Track], pred: np.ndarray, clusters: Clusters, free: np.ndarray):
-        """Hungarian matching of ``tracks`` to the still-free clusters; returns (track_idx, cluster_idx) pairs."""
+    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray):
+        """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs."""
         det = np.flatnonzero(free)
-        if not tracks or det.size == 0:
+        if not group or det.size == 0:
             return []
-        d = np.linalg.norm(pred[:, None, :] - clusters.xy_m[det][None, :, :], axis=-1)
-        big = 1e6
-        rows, cols = linear_sum_assignment(np.where(d <= self.params.gate_m, d, big))
-        return [(r, det[c]) for r, c in zip(rows, cols) if d[r, c] <= self.params.gate_m]
+        x = np.array([tr.x for tr in group])
+        P = np.array([tr.P for tr in group])
+        y = z[det][None, :, :] - x[:, None, :]  # innovations, (T, D, 4)
+        S = P[:, None] + R[det][None]  # (T, D, 4, 4)
+        S_pos = S[..., :2, :2]
+        d2_pos = np.einsum("tdi,tdij,tdj->td", y[..., :2], np.linalg.inv(S_pos), y[..., :2])
+        gated = (d2_pos <= self.params.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= self.params.gate_m)
+        nll_full = np.einsum("tdi,tdij,tdj->td", y, np.linalg.inv(S), y) + np.linalg.slogdet(S)[1]
+        nll = np.where(has_v[det][None], nll_full, d2_pos + np.linalg.slogdet(S_pos)[1])
+        cost = np.where(gated, nll, 1e9)
+        rows, cols = linear_sum_assignment(cost)
+        return [(r, int(det[c])) for r, c in zip(rows, cols) if gated[r, c]]
 
     def step(self, clusters: Clusters) -> Tracks:
-        """Advance to ``clusters.time_s`` and associate; return the reported tracks."""
+        """Advance to ``clusters.time_s``, associate and update; return the reported tracks."""
         p = self.params
         t = float(clusters.time_s)
         dt = 0.0 if self.time_s is None else t - self.time_s
         if dt < 0:
             raise ValueError(f"clusters.time_s {t} is before the tracker time {self.time_s}")
         self.time_s = t
-        for tr in self.tracks:
-            tr.xy = tr.xy + tr.v * dt
-            tr.pred = tr.xy.copy()
+        if self.tracks and dt > 0:
+            F = np.eye(4)
+            F[0, 2] = F[1, 3] = dt
+            Q = Q_discrete_white_noise(2, dt, p.acceleration_std_m_s2**2, block_size=2, order_by_dim=False)
+            for tr in self.tracks:
+                tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
+        z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
         free = np.ones(len(clusters), bool)
+        owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
         matched: set[int] = set()
         for group in ([tr for tr in self.tracks if tr.confirmed], [tr for tr in self.tracks if not tr.confirmed]):
-            pred = np.array([tr.xy for tr in group]).reshape(-1, 2)
-            for ti, ci in self._associate(group, pred, clusters, free):
+            for ti, ci in self._associate(group, z, R, has_v, free):
                 tr = group[ti]
-                tr.v_before = tr.v.copy()
-                tr.cluster = ci
                 free[ci] = False
                 matched.add(tr.id)
-                tr.xy = clusters.xy_m[ci].copy()
-                tr.v = (1 - p.velocity_gain) * tr.v + p.velocity_gain * clusters.velocity_m_s[ci]
-                if np.isfinite(clusters.height_m[ci]):
-                    tr.height = float(clusters.height_m[ci])
-                tr.confidence = float(clusters.confidence[ci])
-                tr.hits += 1
-                tr.misses = 0
-                tr.shared_s = 0.0
-                tr.confirmed = tr.confirmed or tr.hits >= p.confirm_hits
-        self._share_merged_clusters(matched, clusters, dt)
+                if tr.confirmed:
+                    owner[ci] = tr
+                else:
+                    self._update(tr, z[ci], R[ci], clusters, ci, position_only=not has_v[ci])
+        sharers = self._sharers(owner, matched, z, R, dt)
+        for ci, tr in owner.items():
+            # a merged blob: its position only, for the owner and its sharers alike
+            self._update(tr, z[ci], R[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
+                         merged=ci in sharers)
+            for sharer in sharers.get(ci, ()):
+                self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
+                matched.add(sharer.id)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:
                 tr.misses += 1
-                if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.xy):
+                if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.x[:2]):
                     continue
             alive.append(tr)
-        confirmed_xy = np.array([tr.xy for tr in alive if tr.confirmed]).reshape(-1, 2)
+        confirmed_xy = np.array([tr.x[:2] for tr in alive if tr.confirmed]).reshape(-1, 2)
         for ci in np.flatnonzero(free):
-            near = np.linalg.norm(confirmed_xy - clusters.xy_m[ci], axis=-1)
+            near = np.linalg.norm(confirmed_xy - z[ci, :2], axis=-1)
             if near.size and near.min() < p.birth_exclusion_m:
                 continue  # a second mode of someone already tracked, not a new person
-            alive.append(_Track(self._next_id, clusters.xy_m[ci].copy(), clusters.velocity_m_s[ci].copy(),
-                                float(clusters.height_m[ci]), float(clusters.confidence[ci]),
-                                confirmed=p.confirm_hits <= 1))
+            P0 = R[ci].copy()
+            v_var = R[ci, [2, 3], [2, 3]] if has_v[ci] else np.full(2, np.inf)  # unknown: the initial spread
+            P0[[2, 3], [2, 3]] = np.minimum(v_var, p.initial_velocity_std_m_s**2)
+            alive.append(_Track(self._next_id, z[ci].copy(), P0, float(clusters.height_m[ci]),
+                                float(clusters.confidence[ci]), confirmed=p.confirm_hits <= 1))
             self._next_id += 1
         self.tracks = alive
         return self.reported()
 
-    def _share_merged_clusters(self, matched: set[int], clusters: Clusters, dt: float) -> None:
-        """People passing close merge into one cluster: a confirmed track left without a cluster whose
-        prediction lies within the gate of a cluster taken by another confirmed track shares that cluster,
-        for at most ``max_shared_s`` in a row. Both tracks keep their own predicted position and velocity
-        (the merged cluster's mean velocity belongs to neither) and the sharer counts no miss."""
-        owners = {tr.cluster: tr for tr in self.tracks if tr.confirmed and tr.id in matched}
-        if not owners:
-            return
-        cis = np.array(list(owners))
+    def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
+                position_only: bool = False, merged: bool = False) -> None:
+        """Kalman update of a track that took cluster ``ci`` (a hit); ``merged``: the cluster is shared."""
+        if position_only:
+            R_pos = R[:2, :2] + (self.params.merged_position_std_m**2 if merged else 0.0) * np.eye(2)
+            tr.x, tr.P = kf_update(tr.x, tr.P, z[:2], R_pos, _H_POS)
+        else:
+            tr.x, tr.P = kf_update(tr.x, tr.P, z, R, np.eye(4))
+        if not merged:
+            tr.shared_s = 0.0
+        if np.isfinite(clusters.height_m[ci]):
+            tr.height = float(clusters.height_m[ci])
+        tr.confidence = float(clusters.confidence[ci])
+        tr.hits += 1
+        tr.misses = 0
+        tr.confirmed = tr.confirmed or tr.hits >= self.params.confirm_hits
+
+    def _sharers(self, owner: dict[int, _Track], matched: set[int], z: np.ndarray, R: np.ndarray,
+                 dt: float) -> dict[int, list[_Track]]:
+        """Confirmed tracks left without a cluster that share an owned cluster (merged people, step 5)."""
+        p = self.params
+        out: dict[int, list[_Track]] = {}
+        if not owner:
+            return out
+        cis = np.array(list(owner))
         for tr in self.tracks:
-            if not tr.confirmed or tr.id in matched:
+            if not tr.confirmed or tr.id in matched or tr.shared_s + dt > p.max_shared_s:
                 continue
-            d = np.linalg.norm(clusters.xy_m[cis] - tr.pred, axis=-1)
-            if d.min() > self.params.gate_m or tr.shared_s + dt > self.params.max_shared_s:
+            y = z[cis, :2] - tr.x[:2]
+            S = tr.P[:2, :2] + R[cis, :2, :2] + p.merged_position_std_m**2 * np.eye(2)
+            d2 = np.einsum("di,dij,dj->d", y, np.linalg.inv(S), y)
+            ok = (d2 <= p.gate_chi2) & (np.linalg.norm(y, axis=-1) <= p.gate_m)
+            if not ok.any():
                 continue
-            owner = owners[int(cis[np.argmin(d)])]
-            if np.linalg.norm(tr.v - owner.v_before) < self.params.share_min_relative_speed_m_s:
+            k = int(np.argmin(np.where(ok, d2, np.inf)))
+            if np.linalg.norm(tr.x[2:] - owner[int(cis[k])].x[2:]) < p.share_min_relative_speed_m_s:
                 continue  # moving with the owner: a duplicate of the same person, not a crossing
-            owner.xy, owner.v = owner.pred.copy(), owner.v_before.copy()
-            tr.xy, tr.shared_s = tr.pred.copy(), tr.shared_s + dt
-            matched.add(tr.id)
+            out.setdefault(int(cis[k]), []).append(tr)
+        return out
+
+    def _update_shared(self, tr: _Track, z_xy: np.ndarray, R_xy: np.ndarray, dt: float) -> None:
+        """A sharer's update: the merged cluster's position only, with the extra merged variance; no hit."""
+        R_pos = R_xy + self.params.merged_position_std_m**2 * np.eye(2)
+        tr.x, tr.P = kf_update(tr.x, tr.P, z_xy, R_pos, _H_POS)
+        tr.shared_s += dt
+        tr.misses = 0
 
     def _inside(self, xy: np.ndarray) -> bool:
         if self.extent_m is None:
@@ -232,21 +364,18 @@ class MultiPersonTracker:
         return bool(x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1)
 
     # -- checkpoint ------------------------------------------------------------------------------------------------
-    _TRACK_FIELDS = ("id", "xy", "v", "height", "confidence", "hits", "misses", "confirmed", "shared_s")
+    _TRACK_FIELDS = ("id", "x", "P", "height", "confidence", "hits", "misses", "confirmed", "shared_s")
 
     def state_dict(self) -> StateDict:
-        """Every track (tentative ones included), the clock and the next identity, as arrays.
-
-        The per-step scratch of a track (prediction, matched cluster) is not saved: :meth:`step` sets it
-        before use.
-        """
+        """Every track (tentative ones included: state ``x`` (N, 4), covariance ``P`` (N, 4, 4) and the
+        management counters), the clock and the next identity, as arrays."""
         tr = self.tracks
         return {
             "time_s": optional_float(self.time_s),
             "next_id": np.asarray(self._next_id, dtype=np.int64),
             "id": np.array([t.id for t in tr], dtype=np.int64),
-            "xy": np.array([t.xy for t in tr], dtype=float).reshape(-1, 2),
-            "v": np.array([t.v for t in tr], dtype=float).reshape(-1, 2),
+            "x": np.array([t.x for t in tr], dtype=float).reshape(-1, 4),
+            "P": np.array([t.P for t in tr], dtype=float).reshape(-1, 4, 4),
             "height": np.array([t.height for t in tr], dtype=float),
             "confidence": np.array([t.confidence for t in tr], dtype=float),
             "hits": np.array([t.hits for t in tr], dtype=np.int64),
@@ -262,8 +391,11 @@ class MultiPersonTracker:
         if any(len(c) != n for c in cols.values()):
             raise ValueError(f"tracker state: track fields disagree in length "
                              f"({ {k: len(c) for k, c in cols.items()} })")
+        if np.shape(cols["x"])[1:] != (4,) or np.shape(cols["P"])[1:] != (4, 4):
+            raise ValueError(f"tracker state: x must have shape (N, 4) and P (N, 4, 4), got "
+                             f"{np.shape(cols['x'])} and {np.shape(cols['P'])}")
         self.tracks = [
-            _Track(int(cols["id"][i]), cols["xy"][i].astype(float), cols["v"][i].astype(float),
+            _Track(int(cols["id"][i]), np.array(cols["x"][i], dtype=float), np.array(cols["P"][i], dtype=float),
                    float(cols["height"][i]), float(cols["confidence"][i]), hits=int(cols["hits"][i]),
                    misses=int(cols["misses"][i]), confirmed=bool(cols["confirmed"][i]),
                    shared_s=float(cols["shared_s"][i]))
@@ -275,12 +407,14 @@ class MultiPersonTracker:
     def reported(self) -> Tracks:
         """Confirmed tracks with at most ``max_coast_report`` consecutive misses."""
         rep = [tr for tr in self.tracks if tr.confirmed and tr.misses <= self.params.max_coast_report]
+        x = np.array([tr.x for tr in rep]).reshape(-1, 4)
         return Tracks(
             float(self.time_s) if self.time_s is not None else float("nan"),
             np.array([tr.id for tr in rep], dtype=np.int64),
-            np.array([tr.xy for tr in rep]).reshape(-1, 2),
-            np.array([tr.v for tr in rep]).reshape(-1, 2),
+            x[:, :2].copy(),
+            x[:, 2:].copy(),
             np.array([tr.height for tr in rep], dtype=float),
             np.array([tr.confidence * 0.5**tr.misses for tr in rep], dtype=float),
             np.array([tr.misses for tr in rep], dtype=np.int64),
         )
+

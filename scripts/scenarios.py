@@ -1,0 +1,269 @@
+"""Scenario evaluation: scenario x seed x configuration (temporal filter on/off, modalities, tracker), one row
+of scores per run, means and worst cases per scenario, written as a CSV, a Markdown table and a figure.
+
+Usage::
+
+    PYTHONPATH=src python scripts/scenarios.py --seeds 4,5,6 --duration-s 6 --out docs/scenarios
+    PYTHONPATH=src python scripts/scenarios.py --seeds 1,2,3 --sweep      # tuning: tracker variants
+    PYTHONPATH=src python scripts/scenarios.py --scheduler tcp://host:8786 ...   # on a dask cluster
+
+Each (scenario, seed, filter, modalities) is one system run (``planefuse.pipeline.run_system``, what
+``planefuse run`` runs) on a dask worker (:func:`planefuse.batch.batch_client`: a LocalCluster of
+``--n-workers`` processes, or a running scheduler). The trackers are then run on that run's clusters
+(the clusters do not depend on the tracker, so every tracker sees the same input): the Kalman tracker
+(:class:`planefuse.tracking.MultiPersonTracker`) and, with ``--previous-tracker``, the nearest-neighbour
+tracker it replaced (read from git, ``benchmarks/_previous_tracker.py``). Scores as in
+:func:`planefuse.eval.system_metrics` (first second skipped, 0.5 m match distance).
+
+Hold-out: parameters are tuned on seeds 1-3 only (rows marked ``tuning``); every other seed is held out,
+on every scenario.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from planefuse.pipeline import SystemParams
+from planefuse.sim import SCENARIOS
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from _previous_tracker import load_previous_tracker, previous_tracker_source  # noqa: E402
+
+TUNING_SEEDS = (1, 2, 3)
+KEYS = ("moda", "precision", "recall", "mota", "idf1", "id_switches")
+#: modality sets: name -> SystemParams fields
+MODALITIES = {
+    "all": {},
+    "cameras": {"laser": False, "sound": False},
+    "laser+sound": {"cameras": False},
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One system run: a scenario, a seed, the filter on or off, a modality set."""
+
+    scenario: str
+    seed: int
+    duration_s: float
+    use_filter: bool
+    modalities: str
+
+
+def _tracker_variants(sweep: bool) -> dict:
+    """Tracker name -> TrackerParams of the Kalman tracker (``--sweep``: the tuning grid)."""
+    base = SystemParams().tracking.tracker
+    if not sweep:
+        return {"kalman": base}
+    out = {"kalman": base}
+    for pos in (0.1, 0.15, 0.2):
+        for acc in (0.5, 1.0, 2.0):
+            for gate in (0.75, 1.0):
+                out[f"kalman p{pos} a{acc} g{gate}"] = replace(base, position_std_m=pos, acceleration_std_m_s2=acc,
+                                                               gate_m=gate)
+    return out
+
+
+def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[dict]:
+    """Run the system once for ``case`` and score every tracker on its clusters (runs on a dask worker)."""
+    from planefuse.eval import system_metrics
+    from planefuse.pipeline import run_system
+    from planefuse.sim import scenario_config, simulate
+    from planefuse.tracking import MultiPersonTracker, velocity_prior_variance_m2_s2
+
+    rec = simulate(scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s))
+    params = SystemParams(use_filter=case.use_filter, **MODALITIES[case.modalities])
+    t0 = time.process_time()
+    result = run_system(rec, params)
+    run_cpu_s = time.process_time() - t0
+    outs = result.outputs
+    times = np.array([o.time_s for o in outs])
+    dets = [o.detections.xy_m for o in outs]
+    extent = result.stack.extent_m
+    # the "no filter" run's BOF still holds the uniform velocity law: its prior is the same
+    prior_var = velocity_prior_variance_m2_s2(params.tracking.bof)
+    makers = {name: (lambda tp=tp: MultiPersonTracker(tp, extent, prior_var)) for name, tp in trackers.items()}
+    if previous_source is not None:
+        prev = load_previous_tracker(previous_source)
+        makers["previous"] = lambda: prev.MultiPersonTracker(prev.TrackerParams(), extent)
+    rows = []
+    for name, make in makers.items():
+        tracker = make()
+        t0 = time.perf_counter()
+        tracks = [tracker.step(o.clusters) for o in outs]
+        tracker_ms = 1e3 * (time.perf_counter() - t0) / max(len(outs), 1)
+        m = system_metrics(rec, times, dets, [(t.time_s, t.ids, t.xy_m) for t in tracks], result.report,
+                           result.elapsed_s, params.match_distance_m)
+        rows.append({"scenario": case.scenario, "seed": case.seed,
+                     "split": "tuning" if case.seed in TUNING_SEEDS else "held-out",
+                     "filter": "BOF" if case.use_filter else "none", "modalities": case.modalities,
+                     "tracker": name, **{k: m[k] for k in KEYS}, "run_cpu_s": run_cpu_s,
+                     "tracker_ms_per_step": tracker_ms, "duration_s": case.duration_s})
+    return rows
+
+
+def _config(r: dict) -> str:
+    return f"{r['filter']} / {r['modalities']} / {r['tracker']}"
+
+
+def summarise(rows: list[dict], split: str) -> list[dict]:
+    """Per scenario (and over all scenarios) and configuration: means, worst cases and switches of ``split``."""
+    out = []
+    rows = [r for r in rows if r["split"] == split]
+    for scen in [*SCENARIOS, "all scenarios"]:
+        sub = [r for r in rows if scen == "all scenarios" or r["scenario"] == scen]
+        for cfg in dict.fromkeys(_config(r) for r in sub):
+            c = [r for r in sub if _config(r) == cfg]
+            col = {k: np.array([r[k] for r in c], dtype=float) for k in KEYS}
+            out.append({"scenario": scen, "configuration": cfg, "runs": len(c),
+                        "moda": col["moda"].mean(), "mota": col["mota"].mean(), "idf1": col["idf1"].mean(),
+                        "worst_mota": col["mota"].min(), "worst_idf1": col["idf1"].min(),
+                        "id_switches": int(col["id_switches"].sum())})
+    return out
+
+
+def markdown(summary: list[dict], title: str) -> str:
+    lines = [f"{title}\n", "| scenario | filter / modalities / tracker | runs | MODA | MOTA | IDF1 | worst MOTA | "
+             "worst IDF1 | ID switches |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for s in summary:
+        lines.append(f"| {s['scenario']} | {s['configuration']} | {s['runs']} | {s['moda']:.3f} | {s['mota']:.3f} | "
+                     f"{s['idf1']:.3f} | {s['worst_mota']:.3f} | {s['worst_idf1']:.3f} | {s['id_switches']} |")
+    return "\n".join(lines) + "\n"
+
+
+def figure(summary: list[dict], path: Path, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scens = list(dict.fromkeys(s["scenario"] for s in summary))
+    cfgs = list(dict.fromkeys(s["configuration"] for s in summary))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), sharey=True)
+    width = 0.8 / len(cfgs)
+    for ax, key in zip(axes, ("moda", "mota", "idf1")):
+        for j, cfg in enumerate(cfgs):
+            xs, mean, worst = [], [], []
+            for i, scen in enumerate(scens):
+                s = next((s for s in summary if s["scenario"] == scen and s["configuration"] == cfg), None)
+                if s is not None:
+                    xs.append(i + (j - (len(cfgs) - 1) / 2) * width)
+                    mean.append(s[key])
+                    worst.append(s.get(f"worst_{key}", np.nan))
+            ax.bar(xs, mean, width, label=cfg)
+            if key != "moda":
+                ax.plot(xs, worst, "k_", markersize=8)
+        ax.set_xticks(range(len(scens)), scens, rotation=30, ha="right")
+        ax.set_title(f"{key.upper()} (bars: mean; ticks: worst seed)")
+        ax.set_ylim(min(0.0, min(s[key] for s in summary)) - 0.05, 1)
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].legend(fontsize=7, loc="lower left")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenarios", default=",".join(SCENARIOS))
+    ap.add_argument("--seeds", default="4,5,6", help="comma-separated; 1-3 are the tuning seeds")
+    ap.add_argument("--duration-s", type=float, default=6.0)
+    ap.add_argument("--filters", default="on,off", help="temporal filter on, off or both")
+    ap.add_argument("--modalities", default="all", help=f"comma-separated of {', '.join(MODALITIES)}")
+    ap.add_argument("--previous-tracker", action="store_true", help="also the tracker before the Kalman tracker")
+    ap.add_argument("--sweep", action="store_true",
+                    help="a grid of Kalman tracker variants, scored on the same runs (choose on seeds 1-3 only)")
+    ap.add_argument("--from-csv", type=Path, default=None, help="re-summarise the rows of an earlier run")
+    ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
+    ap.add_argument("--n-workers", type=int, default=2)
+    ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
+    ap.add_argument("--out", type=Path, default=Path("scenario-results"))
+    args = ap.parse_args()
+    seeds = [int(s) for s in args.seeds.split(",")]
+    for name in args.modalities.split(","):
+        if name not in MODALITIES:
+            raise SystemExit(f"--modalities: unknown {name!r}; expected {', '.join(MODALITIES)}")
+    if args.from_csv is not None:
+        rows = _read_rows(args.from_csv)
+        write(rows, args, len({(r["scenario"], r["seed"], r["filter"], r["modalities"]) for r in rows}), wall_s=None)
+        return
+    cases = [Case(s, seed, args.duration_s, f == "on", mod) for s in args.scenarios.split(",") for seed in seeds
+             for f in args.filters.split(",") for mod in args.modalities.split(",")]
+    trackers = _tracker_variants(args.sweep)
+    prev = previous_tracker_source() if args.previous_tracker else None
+
+    from planefuse.batch import batch_client
+
+    from distributed import as_completed
+
+    t0 = time.time()
+    args.out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict] = []
+    with batch_client(args.scheduler, None if args.scheduler else args.n_workers) as client, \
+            open(args.out / f"{_stem(args)}.csv", "w", newline="") as f:
+        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, pure=False)
+        writer = None
+        for done, (future, case_rows) in enumerate(as_completed(futures, with_results=True), 1):
+            if writer is None:  # rows are written as runs finish: an interrupted evaluation keeps them
+                writer = csv.DictWriter(f, fieldnames=list(case_rows[0]))
+                writer.writeheader()
+            writer.writerows(case_rows)
+            f.flush()
+            rows += case_rows
+            print(f"{done}/{len(cases)} runs ({time.time() - t0:.0f} s)", flush=True)
+    write(rows, args, len(cases), time.time() - t0)
+
+
+def _stem(args) -> str:
+    return "sweep" if args.sweep else "scenarios"
+
+
+def _read_rows(path: Path) -> list[dict]:
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        for k in (*KEYS, "run_cpu_s", "tracker_ms_per_step", "duration_s"):
+            r[k] = float(r[k])
+        r["seed"] = int(r["seed"])
+    return rows
+
+
+def write(rows: list[dict], args, n_runs: int, wall_s: float | None) -> None:
+    """The Markdown summary (means, worst cases) and the figures of ``rows`` into ``args.out``."""
+    if args.trackers:
+        keep = args.trackers.split(",")
+        rows = [r for r in rows if r["tracker"] in keep]
+    stem = _stem(args)
+    args.out.mkdir(parents=True, exist_ok=True)
+    if args.from_csv is not None and args.trackers:  # the rows of the summary, for the figure and tables
+        with open(args.out / f"{stem}.csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]))
+            w.writeheader()
+            w.writerows(rows)
+    text = []
+    for split in ("tuning", "held-out"):
+        summary = summarise(rows, split)
+        if summary:
+            title = (f"{split} seeds {sorted({r['seed'] for r in rows if r['split'] == split})}, "
+                     f"{args.duration_s:g} s scenes")
+            text.append(markdown(summary, title))
+            if args.trackers or not args.sweep:
+                figure([s for s in summary if s["scenario"] != "all scenarios"],
+                       args.out / f"{stem}_{split}.png", title)
+    cmd = "PYTHONPATH=src python scripts/scenarios.py " + " ".join(sys.argv[1:])
+    took = f", {wall_s:.0f} s wall" if wall_s is not None else ""
+    (args.out / f"{stem}.md").write_text(f"`{cmd}` ({n_runs} system runs{took})\n\n" + "\n".join(text))
+    print("\n".join(text))
+    print(f"{n_runs} system runs; wrote {args.out}/{stem}.md and figures")
+
+
+if __name__ == "__main__":
+    main()

@@ -37,8 +37,6 @@ _T = _BASE.tracking
 PROBE = {
     "defaults": _BASE,
     "min_separation_m 0.6": replace(_BASE, tracking=replace(_T, cluster=replace(_T.cluster, min_separation_m=0.6))),
-    "min_separation_m 0.6, velocity_gain 0.2": replace(_BASE, tracking=replace(
-        _T, cluster=replace(_T.cluster, min_separation_m=0.6), tracker=replace(_T.tracker, velocity_gain=0.2))),
     "column threshold 2.5": replace(_BASE, tracking=replace(_T, cluster=replace(_T.cluster, threshold=2.5))),
 }
 KEYS = ("moda", "precision", "recall", "mota", "idf1")

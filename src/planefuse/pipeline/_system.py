@@ -25,7 +25,7 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 1
+CHECKPOINT_FORMAT = 2  # 2: the BOF's active tiles, the Kalman tracks
 
 
 def system_laser_model() -> LaserSensorModel:

@@ -113,7 +113,7 @@ def animate_stack(
     fps: float = 10.0,
     max_frames: int = 300,
     max_width_px: int = 1200,
-    block_steps: int = 32,
+    block_steps: int = 16,
 ) -> Path:
     """Write an animation of the plane stack over time to ``path`` (``.gif`` or ``.mp4``).
 

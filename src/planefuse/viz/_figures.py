@@ -348,7 +348,7 @@ def run_figures(
     return out
 
 
-def occupancy_mean(occupancy, block_steps: int = 64) -> np.ndarray:
+def occupancy_mean(occupancy, block_steps: int = 16) -> np.ndarray:
     """Mean over time of every cell's P(occupied), ignoring NaN (unobserved) steps, read block by block.
 
     Parameters
@@ -367,9 +367,9 @@ def occupancy_mean(occupancy, block_steps: int = 64) -> np.ndarray:
     total = np.zeros(occupancy.shape[1:], np.float64)
     count = np.zeros(occupancy.shape[1:], np.int64)
     for a in range(0, T, block_steps):
-        block = np.asarray(occupancy[a: a + block_steps], np.float64)
+        block = np.asarray(occupancy[a: a + block_steps])
         seen = ~np.isnan(block)
-        total += np.where(seen, block, 0.0).sum(axis=0)
+        total += np.sum(block, axis=0, dtype=np.float64, where=seen)  # summed in float64, no float64 copy
         count += seen.sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(count > 0, total / np.maximum(count, 1), np.nan)

@@ -270,7 +270,7 @@ def test_stabilising_map_points_to_where_the_turned_camera_sees_each_point():
     reg.lookups_at(0.0)
     cam = rec.cameras[1]
     R = Rotation.from_rotvec([0.01, -0.03, 0.02]).as_matrix() @ cam.R_world_cam
-    map_u, map_v = reg._stabilising_map(1, R)
+    map_u, map_v, _ = reg._stabilising_map(1, R)
     rng = np.random.default_rng(0)
     p = np.c_[rng.uniform(1, 9, (200, 2)), np.zeros(200)]
     dist = cam.intrinsics.dist
@@ -285,6 +285,47 @@ def test_stabilising_map_points_to_where_the_turned_camera_sees_each_point():
                           cv2.INTER_LINEAR).ravel()]
     np.testing.assert_allclose(got, u1[inside], atol=0.02)
     assert reg._stabilising_map(1, cam.R_world_cam) is None  # at the calibrated attitude: nothing to do
+
+
+def test_unseen_strip_of_a_turned_camera_gives_no_evidence():
+    """A camera panned by 3 deg: the calibrated pixels whose ray leaves its current image (a strip along one
+    side, from OpenCV's projection of those rays) are :meth:`unseen`, and the front end gives them the
+    neutral foreground likelihood, whose fused log-odds is ~0 (no evidence either way)."""
+    import cv2
+
+    from planefuse.vision import CameraFrontEnd, FusionParams, ForegroundParams, camera_foregrounds
+    from planefuse.vision._fusion import NEUTRAL_FOREGROUND, log_odds_table, quantise_foreground
+
+    _, rec = scene(1.0, seed=18)
+    stack = stack_for_recording(rec, SystemParams())
+    reg = CameraRegistration.from_recording(rec, stack, RegistrationParams(attitude_source="imu"))
+    reg.lookups_at(0.0)
+    cam = rec.cameras[1]
+    R = Rotation.from_rotvec([0.0, 0.0, np.radians(3.0)]).as_matrix() @ cam.R_world_cam  # about the vertical
+    reg._maps[1] = reg._stabilising_map(1, R)
+    unseen = reg.unseen(1)
+    W, H = cam.intrinsics.width_px, cam.intrinsics.height_px
+    assert unseen is not None and 0.01 < unseen.mean() < 0.2
+    # reference: each calibrated pixel's ray, seen by the turned camera through OpenCV's full model
+    v, u = np.mgrid[0:H:7, 0:W:7]
+    xy = cam.intrinsics.normalized_from_pixels(np.c_[u.ravel(), v.ravel()].astype(float))
+    rays_world = (cam.R_world_cam @ np.c_[xy, np.ones(len(xy))].T).T
+    uv = cv2.projectPoints(rays_world, cv2.Rodrigues(R.T)[0], np.zeros(3), cam.K, cam.intrinsics.dist)[0][:, 0]
+    outside = (uv[:, 0] < -0.5) | (uv[:, 0] > W - 0.5) | (uv[:, 1] < -0.5) | (uv[:, 1] > H - 0.5)
+    got = unseen[v.ravel(), u.ravel()]
+    assert np.mean(got == outside) > 0.995  # disagreements only at the strip's edge
+    # the front end: unseen pixels are neutral, the others are the subtractor's foreground
+    frame = np.full((H, W), 200, np.uint8)
+    fe = [CameraFrontEnd(W, H, ForegroundParams(), c.name) for c in rec.cameras]
+    images = [frame.copy() for _ in rec.cameras]
+    reg._moved = lambda time_s: []  # keep the map set above
+    (_, fgs, status), = camera_foregrounds([(0.5, images)], fe, registration=reg)
+    assert status[1] == "ok"
+    assert np.all(fgs[1][unseen] == NEUTRAL_FOREGROUND)
+    assert not np.any(fgs[1][~unseen] == NEUTRAL_FOREGROUND)
+    assert all(reg.unseen(c) is None and not np.any(fgs[c] == NEUTRAL_FOREGROUND) for c in (0, 2, 3))
+    table = log_odds_table(FusionParams())
+    assert abs(table[quantise_foreground(np.float32([NEUTRAL_FOREGROUND]))[0]]) < 0.01 * table[255]
 
 
 def test_imu_route_follows_a_pan():

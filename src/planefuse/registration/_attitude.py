@@ -336,7 +336,7 @@ class CameraRegistration:
         self.n_rebuilds = [0] * len(self.cameras)
         self.rebuild_times_s: list[list[float]] = [[] for _ in self.cameras]
         self._built: list[np.ndarray | None] = [None] * len(self.cameras)
-        self._maps: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(self.cameras)
+        self._maps: list[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None] = [None] * len(self.cameras)
         self._rays: list[np.ndarray | None] = [None] * len(self.cameras)
 
     @classmethod
@@ -420,9 +420,10 @@ class CameraRegistration:
         A camera turning about its centre from its calibrated attitude ``R0`` to ``R`` sees the pixel of ray
         ``x0`` (camera frame at ``R0``) at ray ``R^T R0 x0``: the map from each calibrated pixel to the
         current image is rebuilt when the attitude has moved an image point by more than the tolerance since
-        it was last built, and applied by ``cv2.remap`` (bilinear; the few border pixels with no source
-        repeat the border). Frames and foreground alike stay in the calibration's pixels, so the
-        background models and the lookups stay valid; a camera at its calibrated attitude is passed through.
+        it was last built, and applied by ``cv2.remap`` (bilinear). Frames and foreground alike stay in the
+        calibration's pixels, so the background models and the lookups stay valid; a camera at its calibrated
+        attitude is passed through. The calibrated pixels the turned camera does not see (a strip along the
+        border) repeat the border in the image; :meth:`unseen` names them, so that they give no evidence.
         """
         import cv2
 
@@ -437,6 +438,13 @@ class CameraRegistration:
             out[c] = cv2.remap(img, m[0], m[1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return out
 
+    def unseen(self, camera_index: int) -> np.ndarray | None:
+        """Pixels (bool, (height_px, width_px)) of camera ``camera_index``'s calibrated view that its current
+        frame does not see (it turned away from them), as of the last :meth:`stabilise`; None when it sees
+        them all."""
+        m = self._maps[camera_index]
+        return None if m is None else m[2]
+
     def advance(self, times_s: Iterable[float]) -> None:
         """Follow the attitudes through ``times_s`` as :meth:`stabilise` would, without images (a resumed
         run replays the instants it skips so that its maps are those of the uninterrupted run)."""
@@ -446,9 +454,11 @@ class CameraRegistration:
     def _following(self) -> list[int]:
         return [c for c, cam in enumerate(self.cameras) if cam.name in self.tracks]
 
-    def _stabilising_map(self, c: int, R_world_cam) -> tuple[np.ndarray, np.ndarray] | None:
+    def _stabilising_map(self, c: int, R_world_cam
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
         """``cv2.remap`` tables (float32, (H, W) each): for every pixel of the calibrated view, where it is in
-        the image of camera ``c`` at attitude ``R_world_cam``; None at the calibrated attitude itself."""
+        the image of camera ``c`` at attitude ``R_world_cam``, and the pixels with no source in that image
+        (bool (H, W), None if there is none); None at the calibrated attitude itself."""
         cam = self.cameras[c]
         intr = cam.intrinsics
         if pixel_shift_px(cam.K, cam.R_world_cam, R_world_cam, intr.width_px, intr.height_px) < 1e-6:
@@ -468,7 +478,10 @@ class CameraRegistration:
         map_v = K[1, 1] * d[..., 1] + K[1, 2]
         behind = z <= 1e-6  # no source
         map_u[behind] = map_v[behind] = -1e4
-        return map_u, map_v
+        # outside the current image by more than half a pixel: no source (the border is only repeated there)
+        unseen = ((map_u < -0.5) | (map_u > intr.width_px - 0.5) | (map_v < -0.5)
+                  | (map_v > intr.height_px - 0.5))
+        return map_u, map_v, (unseen if unseen.any() else None)
 
     def _moved(self, time_s: float) -> list[int]:
         """Cameras whose attitude moved beyond the tolerance at ``time_s``; their map is rebuilt."""

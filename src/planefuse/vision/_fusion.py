@@ -32,9 +32,16 @@ from ..grid import Evidence, PlaneStack
 from ..registration import ImagePlaneLookup
 from .._params import check_fields, require
 
-__all__ = ["CameraFusion", "FusionParams", "log_odds_table", "max_log_ratio", "quantise_foreground"]
+__all__ = ["CameraFusion", "FusionParams", "NEUTRAL_FOREGROUND", "log_odds_table", "max_log_ratio",
+           "quantise_foreground"]
 
 _LEVELS = 256
+
+#: The foreground likelihood that is no evidence either way: ``P(f | occ) = P(f | free)`` at ``f = 1/2`` for every
+#: ``p_d``, ``p_fa`` (module docstring). A pixel the camera does not observe gets it; quantised, it is level 128,
+#: whose log-likelihood ratio is ``log((1 + (2 p_d - 1) / 255) / (1 + (2 p_fa - 1) / 255))`` (0.0055 at the
+#: defaults, against 1.5 for a certain foreground pixel).
+NEUTRAL_FOREGROUND = 0.5
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
 from ._foreground import BackgroundSubtractor, ForegroundParams
-from ._fusion import CameraFusion, FusionParams, max_log_ratio, quantise_foreground
+from ._fusion import NEUTRAL_FOREGROUND, CameraFusion, FusionParams, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds
 
@@ -215,6 +215,8 @@ def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]
 
     With ``registration``, every live frame (replayed ones included) is first brought back to its camera's
     calibrated view (:meth:`CameraRegistration.stabilise`); black or frozen frames are told from the raw frames.
+    The pixels of the calibrated view a turned camera does not see (:meth:`CameraRegistration.unseen`) get the
+    foreground likelihood :data:`NEUTRAL_FOREGROUND`: unobserved, no evidence either way.
     """
     n = len(front_ends)
     for i, (time_s, images) in enumerate(frames):
@@ -229,8 +231,14 @@ def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]
                 if s == OK:
                     fe.learn(img)
             continue
-        yield time_s, [fe.foreground(img) if s == OK else None
-                       for fe, img, s in zip(front_ends, images, status)], status
+        fgs = [fe.foreground(img) if s == OK else None for fe, img, s in zip(front_ends, images, status)]
+        if registration is not None:
+            for c, fg in enumerate(fgs):
+                unseen = registration.unseen(c) if fg is not None else None
+                if unseen is not None:
+                    fgs[c] = fg = fg.copy()
+                    fg[unseen] = 128 if fg.dtype == np.uint8 else NEUTRAL_FOREGROUND
+        yield time_s, fgs, status
 
 
 def camera_detections(

@@ -3,7 +3,8 @@
 ``track_evidence(stack, evidence, params)`` consumes :class:`~planefuse.grid.Evidence` from any sensors in
 any order within ``params.window_s`` (re-ordered by :class:`AsyncEvidenceBuffer`), fuses every batch of
 simultaneous messages into the filter (predict over the elapsed time, then one update with the summed
-log-odds, each message weighted by its share of its sensor's error correlation time) and, at each output step, clusters the filtered planes and advances the tracker.
+log-odds, each message weighted by its share of its sensor's error correlation time) and, at each output
+step, clusters the filtered planes and advances the tracker.
 """
 
 from __future__ import annotations

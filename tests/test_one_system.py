@@ -109,6 +109,9 @@ CHANGED = {
     "models.filter.merge_tolerance_s": 0.01,
     "models.filter.window_s": 0.5,
     "models.filter.output_period_s": 0.1,
+    "models.filter.camera_correlation_s": 0.0,
+    "models.filter.laser_correlation_s": 0.2,
+    "models.filter.sound_correlation_s": 1.0,
     "models.detection.column_threshold": 3.0,
     "models.detection.person_radius_m": 0.4,
     "models.detection.min_separation_m": 0.6,
@@ -188,7 +191,8 @@ def _outputs(rec, cfg: RunConfig):
 RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cameras.p_foreground_given_free",
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
-              "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s"]
+              "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
+              "models.filter.camera_correlation_s"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)

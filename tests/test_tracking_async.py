@@ -112,6 +112,49 @@ def test_prediction_covers_elapsed_time_whatever_the_rates():
     np.testing.assert_allclose(a.occupancy[:, 6:19, 6:24], b.occupancy[:, 6:19, 6:24], atol=1e-5)
 
 
+def test_messages_weighted_by_their_share_of_the_correlation_time():
+    """w_i = min(1, (t_i - t_{i-1}) / tau): the first message and one after a gap count fully, a 25 Hz frame
+    0.04 / 0.2 of one; sensors without a correlation time are not weighted; a checkpoint keeps the clock."""
+    z = np.ones(STACK.shape, np.float32)
+    buf = AsyncEvidenceBuffer(window_s=0.0, merge_tolerance_s=1e-6, correlation_s={"cam": 0.2, "laser": 0.0})
+    got = []
+    for t, s in ((0.0, "cam"), (0.04, "cam"), (0.08, "cam"), (0.08, "laser"), (0.12, "laser")):
+        got += buf.push(Evidence(t, s, z))
+    np.testing.assert_allclose([b.log_odds[0, 0, 0] for b in got], [1.0, 0.2, 0.2, 1.0, 1.0], rtol=1e-6)
+    again = AsyncEvidenceBuffer(window_s=0.0, merge_tolerance_s=1e-6, correlation_s={"cam": 0.2})
+    again.load_state_dict(buf.state_dict())
+    for b in (buf, again):  # after 0.5 s without frames (dropped or a slow camera): one whole observation
+        np.testing.assert_allclose([x.log_odds[0, 0, 0] for x in b.push(Evidence(0.58, "cam", z))], [1.0])
+    with pytest.raises(ValueError, match="correlation_s"):
+        AsyncEvidenceBuffer(correlation_s={"cam": -1.0})
+
+
+def test_persistent_camera_ghost_does_not_drown_the_laser():
+    """A cell a 25 Hz camera calls occupied in every frame (a single-view ray, a ghost: log-odds +1 per frame)
+    while a 40 Hz laser's beams cross it (-0.2 per scan), for 3 s. Taken as independent, the camera's frames
+    bring 25 log-odds per second against the laser's 8 and the filter believes the ghost (P > 0.8); with the
+    cameras' correlation time (the system default) they bring 1 / tau = 2 per second and the cell ends free.
+    The same camera at 5 Hz (one frame per 0.2 s) and 25 Hz give about the same belief with the weighting."""
+    from planefuse.pipeline import SystemParams
+
+    tau = SystemParams().camera_correlation_s
+    ghost = np.zeros(STACK.shape, np.float32)
+    ghost[:, 10:13, 10:13] = 1.0
+
+    def final_occupancy(correlation_s, camera_hz=25.0):
+        msgs = [Evidence(t, "cameras", ghost) for t in np.arange(0.0, 3.0, 1 / camera_hz)]
+        msgs += [Evidence(t, "laser", -0.2 * ghost) for t in np.arange(0.0, 3.0, 1 / 40)]
+        msgs.sort(key=lambda e: e.time_s)
+        params = TrackingParams(window_s=0.0, merge_tolerance_s=1e-6, evidence_correlation_s=correlation_s)
+        return list(track_evidence(STACK, msgs, params))[-1].occupancy[:, 11, 11]
+
+    prior = BOFParams().prior_occupancy
+    assert np.all(final_occupancy({}) > 0.8)
+    weighted = final_occupancy({"cameras": tau})
+    assert np.all(weighted < prior)
+    np.testing.assert_allclose(final_occupancy({"cameras": tau}, camera_hz=5.0), weighted, atol=0.02)
+
+
 def test_bad_input_raises():
     with pytest.raises(ValueError, match="window_s"):
         AsyncEvidenceBuffer(window_s=-1)

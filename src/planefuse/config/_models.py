@@ -319,6 +319,19 @@ class FilterModelConfig(_Model):
         description="Re-ordering window for out-of-order messages", unit="s", expected=">= 0",
         library="system.tracking.window_s",
     )
+    camera_correlation_s: float = _field(
+        description="Correlation time of the cameras' evidence errors: each fused camera frame counts "
+        "min(1, dt / this) of an independent observation, dt the time since the previous frame; 0 = every frame "
+        "fully", unit="s", expected=">= 0", library="system.camera_correlation_s",
+    )
+    laser_correlation_s: float = _field(
+        description="The same for each laser's scans", unit="s", expected=">= 0",
+        library="system.laser_correlation_s",
+    )
+    sound_correlation_s: float = _field(
+        description="The same for each binaural head's blocks", unit="s", expected=">= 0",
+        library="system.sound_correlation_s",
+    )
     output_period_s: float = _field(
         description="Time between output steps (occupancy, detections, tracks)", unit="s", expected="> 0",
         library="system.output_period_s",

@@ -25,7 +25,7 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 2  # 2: the BOF's active tiles, the Kalman tracks
+CHECKPOINT_FORMAT = 3  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time
 
 
 def system_laser_model() -> LaserSensorModel:
@@ -62,7 +62,14 @@ class SystemParams:
         Modalities to fuse.
     use_filter : bool
         False: no temporal filtering (each output step is the current evidence alone,
-        the "no filter" ablation): prediction resets the grid to the prior.
+        the "no filter" ablation): prediction resets the grid to the prior, and no message is weighted
+        by a correlation time (below).
+    camera_correlation_s, laser_correlation_s, sound_correlation_s : float
+        Correlation time ``tau`` [s] >= 0 of the errors of the cameras' fused evidence, of each laser's and
+        of each binaural head's: the filter weighs every message by ``min(1, dt / tau)``, ``dt`` the time
+        since that sensor's previous message (``TrackingParams.evidence_correlation_s``; 0: every message
+        counts fully). A camera's errors (crossing silhouette rays of standing people, single-view rays, a
+        camera gone) persist for many frames; the laser's and sound's, at their rates, were not found to.
     camera_params : planefuse.vision.CameraParams
         Camera pipeline parameters (foreground, sensor model, person model, registration).
     laser_model : planefuse.laser.LaserSensorModel
@@ -88,6 +95,9 @@ class SystemParams:
     laser: bool = True
     sound: bool = True
     use_filter: bool = True
+    camera_correlation_s: float = 0.5
+    laser_correlation_s: float = 0.0
+    sound_correlation_s: float = 0.0
     camera_params: CameraParams = field(default_factory=CameraParams)
     laser_model: LaserSensorModel = field(default_factory=system_laser_model)
     tracking: TrackingParams = field(default_factory=TrackingParams)
@@ -98,7 +108,8 @@ class SystemParams:
 
     def __post_init__(self) -> None:
         check_fields(self, cell_size_m=">0", wall_margin_m=">=0", sound_block_s=">0", output_period_s=">0",
-                     match_distance_m=">0")
+                     match_distance_m=">0", camera_correlation_s=">=0", laser_correlation_s=">=0",
+                     sound_correlation_s=">=0")
         # metres, not millimetres or centimetres: a cell is at most 5 m, a plane at most 10 m above the ground
         require(self.cell_size_m <= 5.0, self, "cell_size_m", f"must be at most 5 m, got {self.cell_size_m}")
         require(self.cameras or self.laser or self.sound, self, "cameras",
@@ -304,14 +315,21 @@ class SystemRun:
             raise ValueError(f"checkpoint has sources {sorted(consumed)}, this run has "
                              f"{sorted(s.name for s in sources)}")
         self.evidence = MergedEvidence(sources)
-        tp = replace(params.tracking, output_period_s=params.output_period_s)
+        tp = replace(params.tracking, output_period_s=params.output_period_s,
+                     evidence_correlation_s={**self._correlation_s(), **params.tracking.evidence_correlation_s})
         if not params.use_filter:
-            # "no filter" ablation: the grid forgets everything between fused steps
-            tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6))
+            # "no filter" ablation: the grid forgets everything between fused steps (and nothing is weighted)
+            tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={})
         self.tracker = EvidenceTracker(self.stack, tp)
         if checkpoint is not None:
             self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
         self.resumed_at_step = self.tracker.n_outputs
+
+    def _correlation_s(self) -> dict[str, float]:
+        """Error correlation time [s] per sensor name of the recording's evidence (cameras, lasers, heads)."""
+        p, rec = self.params, self.rec
+        return {"cameras": p.camera_correlation_s, **{n: p.laser_correlation_s for n in rec.lasers},
+                **{n: p.sound_correlation_s for n in rec.audio}}
 
     def _sources(self, consumed: Mapping[str, int]) -> list[EvidenceSource]:
         rec, params, stack, report = self.rec, self.params, self.stack, self.report

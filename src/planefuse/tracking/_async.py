@@ -7,6 +7,24 @@ processing latency). :class:`AsyncEvidenceBuffer` holds every message until the 
 sensors' log-odds (the product over sensors of seed eq. 7). A message older than what was already released
 cannot be used any more without re-running the filter: it is counted in :attr:`AsyncEvidenceBuffer.n_late`,
 kept in :attr:`AsyncEvidenceBuffer.late` and a :class:`LateEvidenceWarning` is issued.
+
+Temporally correlated sensor errors
+-----------------------------------
+The filter's update (seed eq. 7) takes every message as an observation independent of the sensor's previous
+one. A camera's errors are not: the ghost where silhouette rays of two standing people cross, a single
+view's ray through cells no other camera sees, a shadow, a camera that dropped out (fewer views to
+disagree) persist over many frames. Summing ``N`` such frames gives ``N`` times the log-odds of one, and a
+filter that remembers ``1 / decay_rate_hz`` seconds turns a persistent error of a 25 Hz camera into
+near-certainty, drowning the other sensors (a laser's free space). With a correlation time ``tau_s`` [s]
+per sensor ``s``, the buffer weighs the ``i``-th message of ``s``, time-stamped ``t_i``, by its share of that
+time::
+
+    w_i = min(1, (t_i - t_{i-1}) / tau_s)        (w_1 = 1; tau_s = 0: w_i = 1, independent messages)
+    Lambda(c) = sum_{messages i of the batch} w_i log P(Z_i | occ) / P(Z_i | free)
+
+so that, over a span ``T >> tau_s``, a sensor brings about ``T / tau_s`` observations' worth of log-odds
+whatever its frame rate (``T / dt`` unweighted), and a message after a gap (dropped frames, a slow
+sensor) counts more, up to one whole observation.
 """
 
 from __future__ import annotations
@@ -59,9 +77,14 @@ class AsyncEvidenceBuffer:
         Messages whose stamps differ by at most this [s] form one batch.
     shape : tuple of int, optional
         Expected ``(L, ny, nx)`` of every message's log-odds; checked on push if given.
+    correlation_s : mapping of str to float, optional
+        Error correlation time ``tau_s`` [s] >= 0 per sensor name (module docstring): each message's
+        log-odds are weighted by ``min(1, dt / tau_s)``, ``dt`` the time since that sensor's previous
+        message. Sensors not listed, and ``tau_s = 0``, are not weighted.
     """
 
-    def __init__(self, window_s: float = 0.2, merge_tolerance_s: float = 1e-6, shape=None) -> None:
+    def __init__(self, window_s: float = 0.2, merge_tolerance_s: float = 1e-6, shape=None,
+                 correlation_s: Mapping[str, float] | None = None) -> None:
         if not (np.isfinite(window_s) and window_s >= 0):
             raise ValueError(f"window_s must be finite and >= 0, got {window_s}")
         if not (np.isfinite(merge_tolerance_s) and merge_tolerance_s >= 0):
@@ -69,6 +92,12 @@ class AsyncEvidenceBuffer:
         self.window_s = float(window_s)
         self.merge_tolerance_s = float(merge_tolerance_s)
         self.shape = None if shape is None else tuple(int(s) for s in shape)
+        self.correlation_s = dict(correlation_s or {})
+        for name, tau in self.correlation_s.items():
+            if not (np.isfinite(tau) and tau >= 0):
+                raise ValueError(f"correlation_s[{name!r}] must be finite and >= 0 s, got {tau}")
+        #: time stamp [s] of each weighted sensor's last released message
+        self.last_time_s: dict[str, float] = {}
         self._heap: list[tuple[float, int, Evidence]] = []
         self._next_seq = 0
         self._newest_s = -np.inf
@@ -133,13 +162,30 @@ class AsyncEvidenceBuffer:
             group.append(heapq.heappop(self._heap)[2])
         # a message at the time already released is one more measurement of that instant (dt = 0)
         t_batch = max(t0, self.released_until_s)
-        log_odds = np.sum([e.log_odds for e in group], axis=0, dtype=np.float32)
+        weights = [self._weight(e) for e in group]
+        if all(w == 1.0 for w in weights):
+            log_odds = np.sum([e.log_odds for e in group], axis=0, dtype=np.float32)
+        else:
+            log_odds = np.zeros(group[0].log_odds.shape, np.float32)
+            for w, e in zip(weights, group):
+                log_odds += np.float32(w) * e.log_odds
         self.released_until_s = t_batch
         return EvidenceBatch(t_batch, tuple(e.sensor for e in group), log_odds)
 
+    def _weight(self, evidence: Evidence) -> float:
+        """``w_i = min(1, (t_i - t_{i-1}) / tau_s)`` of a released message (module docstring)."""
+        tau = self.correlation_s.get(evidence.sensor, 0.0)
+        if tau <= 0:
+            return 1.0
+        t = float(evidence.time_s)
+        prev = self.last_time_s.get(evidence.sensor)
+        self.last_time_s[evidence.sensor] = t if prev is None else max(prev, t)
+        return 1.0 if prev is None else min(1.0, max(t - prev, 0.0) / tau)
+
     # -- checkpoint ------------------------------------------------------------------------------------------------
     def state_dict(self) -> StateDict:
-        """Held and late messages and the clock, as arrays (see :mod:`planefuse._state`)."""
+        """Held and late messages, the clock and each weighted sensor's last time stamp, as arrays
+        (see :mod:`planefuse._state`)."""
         held = sorted(self._heap, key=lambda item: item[:2])
         return {
             **_pack_evidence("held", [e for _, _, e in held]),
@@ -148,6 +194,8 @@ class AsyncEvidenceBuffer:
             "next_seq": np.asarray(self._next_seq),
             "newest_s": np.asarray(self._newest_s),  # -inf before the first message
             "released_until_s": np.asarray(self.released_until_s),
+            "last_sensor": strings(list(self.last_time_s)),
+            "last_time_s": np.array(list(self.last_time_s.values()), dtype=float),
         }
 
     def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
@@ -162,6 +210,10 @@ class AsyncEvidenceBuffer:
         self._next_seq = int(get(state, "next_seq", "evidence buffer"))
         self._newest_s = float(get(state, "newest_s", "evidence buffer"))
         self.released_until_s = float(get(state, "released_until_s", "evidence buffer"))
+        names, times = get(state, "last_sensor", "evidence buffer"), get(state, "last_time_s", "evidence buffer")
+        if len(names) != len(times):
+            raise ValueError(f"evidence buffer state: {len(names)} sensors but {len(times)} last time stamps")
+        self.last_time_s = {str(n): float(t) for n, t in zip(names, times)}
 
 
 def _pack_evidence(name: str, items: list[Evidence]) -> StateDict:

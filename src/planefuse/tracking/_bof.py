@@ -93,7 +93,8 @@ result is the same, bit for bit, for any number of threads (``numba.set_num_thre
 Update with the sensors present at time t (seed eq. 7)
 ------------------------------------------------------
 With ``Lambda(c) = sum_i log P(Z_i|occ)/P(Z_i|free)`` (the sum of the sensors' log-odds, see
-:class:`~planefuse.grid.Evidence`)::
+:class:`~planefuse.grid.Evidence`; :class:`~planefuse.tracking.EvidenceTracker` weighs each message by its share
+of its sensor's error correlation time first, :mod:`planefuse.tracking._async`)::
 
     P(occ, v_k | Z) = P(occ, v_k) e^Lambda / (e^Lambda P(occ) + P(free)),
     P(free | Z)     = P(free) / (e^Lambda P(occ) + P(free)),

@@ -3,7 +3,8 @@
 ``track_evidence(stack, evidence, params)`` consumes :class:`~planefuse.grid.Evidence` from any sensors in
 any order within ``params.window_s`` (re-ordered by :class:`AsyncEvidenceBuffer`), fuses every batch of
 simultaneous messages into the filter (predict over the elapsed time, then one update with the summed
-log-odds) and, at each output step, clusters the filtered planes and advances the tracker.
+log-odds, each message weighted by its share of its sensor's error correlation time) and, at each output
+step, clusters the filtered planes and advances the tracker.
 """
 
 from __future__ import annotations
@@ -43,6 +44,10 @@ class TrackingParams:
     output_period_s : float or None
         None: one output after every fused batch. Otherwise an output at the first batch and then at the
         first batch at or after each further multiple of the period [s].
+    evidence_correlation_s : mapping of str to float
+        Error correlation time ``tau_s`` [s] per sensor name: each message's log-odds are weighted by
+        ``min(1, dt / tau_s)`` before the update, ``dt`` the time since that sensor's previous message
+        (:mod:`planefuse.tracking._async`, "Temporally correlated sensor errors"). Sensors not listed: 1.
     """
 
     bof: BOFParams = field(default_factory=BOFParams)
@@ -51,9 +56,13 @@ class TrackingParams:
     window_s: float = 0.2
     merge_tolerance_s: float = 0.05
     output_period_s: float | None = None
+    evidence_correlation_s: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         check_fields(self, window_s=">=0", merge_tolerance_s=">=0", output_period_s="?>0")
+        for name, tau in self.evidence_correlation_s.items():
+            if not (np.isfinite(tau) and tau >= 0):
+                raise ValueError(f"TrackingParams.evidence_correlation_s[{name!r}] must be >= 0 s, got {tau!r}")
 
 
 @dataclass(frozen=True)
@@ -110,7 +119,8 @@ class EvidenceTracker:
     def __init__(self, stack: PlaneStack, params: TrackingParams | None = None) -> None:
         self.stack = stack
         self.params = params if params is not None else TrackingParams()
-        self.buffer = AsyncEvidenceBuffer(self.params.window_s, self.params.merge_tolerance_s, shape=stack.shape)
+        self.buffer = AsyncEvidenceBuffer(self.params.window_s, self.params.merge_tolerance_s, shape=stack.shape,
+                                          correlation_s=self.params.evidence_correlation_s)
         self.bof = BayesianOccupancyFilter(stack, self.params.bof)
         self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m,
                                           velocity_prior_variance_m2_s2(self.params.bof))

@@ -119,7 +119,7 @@ CHANGED = {
     "models.detection.gate_chi2": 6.0,
     "models.detection.position_std_m": 0.2,
     "models.detection.velocity_std_m_s": 0.5,
-    "models.detection.acceleration_std_m_s2": 2.0,
+    "models.detection.acceleration_std_m_s2": 3.0,
     "models.detection.confirm_hits": 2,
     "models.detection.max_misses": 4,
     "models.detection.match_distance_m": 1.0,

@@ -64,8 +64,8 @@ def run_no_filter(evidence, params: TrackingParams):
 def main() -> None:
     evidence, gt = scene()
     configs = {
-        "BOF bilinear (default)": TrackingParams(),
-        "BOF accumulate": TrackingParams(bof=BOFParams(subcell="accumulate")),
+        "BOF (default: whole-cell motion)": TrackingParams(),
+        "BOF, bilinear sub-cell motion (before)": TrackingParams(bof=BOFParams(subcell="bilinear")),
     }
     print(f"{len(evidence)} frames, {len(gt[0][1])} people, grid {STACK.shape}, 7x7 velocities")
     print(f"{'method':<26}{'MOTA':>7}{'IDF1':>7}{'IDsw':>6}{'FP':>5}{'miss':>6}{'MOTP m':>8}{'ms/frame':>10}")

@@ -133,7 +133,7 @@ def test_modality_report_round_trips_through_a_checkpoint():
                            GroundDetections(0.04, [[1.0, 2.0], [3.0, 4.5]], [0.9, 0.7], [1.7, np.nan], "cameras")],
         n_laser_scans=41, n_laser_invalid_beams=7,
         laser_points_world=[np.arange(6.0).reshape(2, 3), np.zeros((0, 3))], laser_points_times_s=[0.0, 1.0],
-        n_sound_blocks=2, sound_times_s=[0.25, 0.75], sound_map_azimuth_rad=[0.1, np.nan],
+        laser_points_stride=80, n_sound_blocks=2, sound_times_s=[0.25, 0.75], sound_map_azimuth_rad=[0.1, np.nan],
         sound_saliency=[np.full(5, 0.2), np.arange(5.0)], sound_azimuth_grid_rad=np.linspace(-1, 1, 5),
         T_world_head=np.eye(4))
     back = ModalityReport()
@@ -146,6 +146,7 @@ def test_modality_report_round_trips_through_a_checkpoint():
         np.testing.assert_array_equal(a.height_m, b.height_m)
     for a, b in zip(rep.laser_points_world, back.laser_points_world, strict=True):
         np.testing.assert_array_equal(a, b)
+    assert back.laser_points_stride == 80
     np.testing.assert_array_equal(np.stack(back.sound_saliency), np.stack(rep.sound_saliency))
     np.testing.assert_array_equal(back.sound_map_azimuth_rad, rep.sound_map_azimuth_rad)
     assert (back.n_laser_scans, back.n_laser_invalid_beams, back.n_sound_blocks) == (41, 7, 2)
@@ -423,3 +424,29 @@ def test_resumed_rerun_recording_covers_the_whole_run(recording_dir, tmp_path, m
     for path in ("/planes/z_0.10m", "/planes/z_1.50m", "/world/detections", "/world/tracks"):
         assert steps[path] == set(range(n)), path
     assert min(steps["/world/laser/laser"]) < 8 and min(steps["/world/sound/front"]) < 8
+
+
+def test_laser_points_kept_for_the_figures_are_bounded_and_evenly_spaced():
+    """However long the run, the report keeps at most LASER_POINTS_KEPT scans' points, evenly spaced over all
+    scans seen (every 40th at first, the stride doubling), and a report restored mid-run keeps the same ones."""
+    from planefuse.pipeline import ModalityReport
+    from planefuse.pipeline._streams import LASER_POINTS_EVERY, LASER_POINTS_KEPT
+
+    def feed(rep, scans):
+        for i in scans:
+            rep.keep_laser_points(i, 0.025 * i, np.full((1, 3), float(i)))
+
+    short, long_ = ModalityReport(), ModalityReport()
+    feed(short, range(200))
+    assert [int(p[0, 0]) for p in short.laser_points_world] == list(range(0, 200, LASER_POINTS_EVERY))
+    n = 40 * LASER_POINTS_EVERY * LASER_POINTS_KEPT
+    feed(long_, range(n // 2))
+    back = ModalityReport()
+    back.load_state_dict(_through_file(long_.state_dict()))
+    feed(long_, range(n // 2, n))
+    feed(back, range(n // 2, n))
+    kept = [int(p[0, 0]) for p in long_.laser_points_world]
+    assert LASER_POINTS_KEPT // 2 <= len(kept) <= LASER_POINTS_KEPT
+    assert len(set(np.diff(kept))) == 1 and kept[0] == 0 and n - kept[-1] <= long_.laser_points_stride
+    assert [int(p[0, 0]) for p in back.laser_points_world] == kept
+    assert long_.laser_points_times_s == back.laser_points_times_s == [0.025 * k for k in kept]

@@ -30,6 +30,11 @@ __all__ = ["EvidenceSource", "MergedEvidence", "ModalityReport", "camera_evidenc
            "laser_evidence", "laser_sources", "merged_evidence", "sound_evidence", "sound_sources"]
 
 
+#: Laser scans whose points the report keeps for the figures: at first every ``LASER_POINTS_EVERY``-th, at most
+#: ``LASER_POINTS_KEPT`` of them, evenly spaced over the run (:meth:`ModalityReport.keep_laser_points`).
+LASER_POINTS_EVERY, LASER_POINTS_KEPT = 40, 64
+
+
 @dataclass
 class ModalityReport:
     """What each modality produced and what it had to report (missing frames, invalid returns...)."""
@@ -40,6 +45,8 @@ class ModalityReport:
     n_laser_invalid_beams: int = 0
     laser_points_world: list[np.ndarray] = field(default_factory=list)
     laser_points_times_s: list[float] = field(default_factory=list)
+    #: every ``laser_points_stride``-th scan's points are kept (see :meth:`keep_laser_points`)
+    laser_points_stride: int = LASER_POINTS_EVERY
     n_sound_blocks: int = 0
     sound_times_s: list[float] = field(default_factory=list)
     sound_map_azimuth_rad: list[float] = field(default_factory=list)
@@ -49,6 +56,19 @@ class ModalityReport:
     #: The cameras' registration (attitude sources, stabilising map rebuilds per camera); rebuilt, not checkpointed,
     #: by a resumed run (which replays the attitudes of the instants it skips).
     camera_registration: "CameraRegistration | None" = None
+
+    def keep_laser_points(self, scan_index: int, time_s: float, points_world: np.ndarray) -> None:
+        """Keep the points of laser scan ``scan_index`` (0-based, over all lasers) for the figures if it is on the
+        current stride; past :data:`LASER_POINTS_KEPT` kept scans every other one is dropped and the stride
+        doubles, so that the kept scans stay evenly spaced over the whole run and their memory bounded."""
+        if scan_index % self.laser_points_stride:
+            return
+        self.laser_points_world.append(points_world)
+        self.laser_points_times_s.append(float(time_s))
+        if len(self.laser_points_world) > LASER_POINTS_KEPT:
+            self.laser_points_world = self.laser_points_world[::2]
+            self.laser_points_times_s = self.laser_points_times_s[::2]
+            self.laser_points_stride *= 2
 
     @property
     def n_camera_frames(self) -> int:
@@ -84,6 +104,7 @@ class ModalityReport:
             "n_laser_invalid_beams": np.asarray(self.n_laser_invalid_beams, dtype=np.int64),
             "laser_points_count": n_pts, "laser_points_world": pts,
             "laser_points_times_s": np.array(self.laser_points_times_s, dtype=float),
+            "laser_points_stride": np.asarray(self.laser_points_stride, dtype=np.int64),
             "n_sound_blocks": np.asarray(self.n_sound_blocks, dtype=np.int64),
             "sound_times_s": np.array(self.sound_times_s, dtype=float),
             "sound_map_azimuth_rad": np.array(self.sound_map_azimuth_rad, dtype=float),
@@ -116,6 +137,7 @@ class ModalityReport:
         self.n_laser_invalid_beams = int(g("n_laser_invalid_beams"))
         self.laser_points_world = unpack_ragged(g("laser_points_world"), g("laser_points_count"))
         self.laser_points_times_s = [float(t) for t in g("laser_points_times_s")]
+        self.laser_points_stride = int(g("laser_points_stride"))
         self.n_sound_blocks = int(g("n_sound_blocks"))
         self.sound_times_s = [float(t) for t in g("sound_times_s")]
         self.sound_map_azimuth_rad = [float(a) for a in g("sound_map_azimuth_rad")]
@@ -268,22 +290,21 @@ def _background_or_none(stream) -> np.ndarray | None:
 
 
 def laser_sources(rec: Recording, stack: PlaneStack, model, report: ModalityReport,
-                  start: Mapping[str, int] | None = None, keep_points_every: int = 40) -> list[EvidenceSource]:
+                  start: Mapping[str, int] | None = None) -> list[EvidenceSource]:
     """One source per laser: every scan registered with free space on every plane (planefuse.laser).
 
     The recording format writes NaN for "no return within range"; such beams free space up to the
     maximum range (``scans_from_arrays(nan_is_no_return=True)``). ``start`` maps a source name to the
-    scans to skip. Every ``keep_points_every``-th scan's points are kept in ``report`` for the figures.
+    scans to skip. A bounded, evenly spaced sample of the scans' points is kept in ``report`` for the figures
+    (:meth:`ModalityReport.keep_laser_points`).
     """
     from ..laser import LaserRegistrar, scans_from_arrays, tilting_unit_from_device
 
     def register(registrar, scan) -> Evidence:
         reg = registrar.register(scan)
+        report.keep_laser_points(report.n_laser_scans, scan.time_s, reg.points_world)
         report.n_laser_scans += 1
         report.n_laser_invalid_beams += reg.n_invalid
-        if report.n_laser_scans % keep_points_every == 1:
-            report.laser_points_world.append(reg.points_world)
-            report.laser_points_times_s.append(scan.time_s)
         return reg.evidence
 
     def items(ls, registrar, first: int):
@@ -342,10 +363,9 @@ def camera_evidence(rec: Recording, stack: PlaneStack, params, report: ModalityR
     return camera_source(rec, stack, params, report).evidence()
 
 
-def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityReport,
-                   keep_points_every: int = 40) -> Iterator[Evidence]:
+def laser_evidence(rec: Recording, stack: PlaneStack, model, report: ModalityReport) -> Iterator[Evidence]:
     """Every laser's evidence (:func:`laser_sources`) as one time-ordered stream."""
-    return iter(MergedEvidence(laser_sources(rec, stack, model, report, keep_points_every=keep_points_every)))
+    return iter(MergedEvidence(laser_sources(rec, stack, model, report)))
 
 
 def sound_evidence(rec: Recording, stack: PlaneStack, report: ModalityReport, block_s: float = 0.5,

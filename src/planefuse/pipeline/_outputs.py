@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import time
 import warnings
 from pathlib import Path
@@ -188,6 +190,26 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
     return written
 
 
+@functools.cache
+def _malloc_trim():
+    """glibc's ``malloc_trim`` (None where the C library is not glibc)."""
+    try:
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+def return_freed_memory() -> None:
+    """Hand the C heap's free pages back to the operating system (glibc's ``malloc_trim(0)``; nothing elsewhere).
+
+    A run allocates and frees per step (frames, evidence grids, each chunk's checkpoint); glibc keeps freed
+    memory in its arenas, so without this the resident memory of a long run creeps up although nothing is kept
+    (docs/benchmarks.md, "Peak RSS"). Called after each committed chunk: a few ms per chunk."""
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
+
+
 def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                   client=None) -> tuple[SystemResult, dict]:
     """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
@@ -236,7 +258,8 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                 if step >= out.resume_step:
                     out.write_detections(step, o.detections)
                     out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_m_s)
-                    out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict)
+                    if out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict):
+                        return_freed_memory()  # a chunk committed
                 advance(1)
         result = SystemResult(stack, [], run.report, time.perf_counter() - t0)
         out.flush("running")  # the last, partial chunk: the tables below cover every step
@@ -255,6 +278,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                 advance(1)
             out.write_metrics(metrics)
         result.metrics = metrics
+        return_freed_memory()  # before the figures' transient
         out.finish("presenting")
         try:
             write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)

@@ -405,12 +405,6 @@ class CameraRegistration:
         self._maps = [None] * len(self.cameras)
         for c in self._following():
             self._maps[c] = self._stabilising_map(c, self._built[c])
-        return self.current_lookups()
-
-    def current_lookups(self) -> list[ImagePlaneLookup]:
-        """Every camera's lookup."""
-        if any(R is None for R in self._built):
-            raise ValueError("call lookups_at(first time) before current_lookups()")
         return [self.lookup_for(c) for c in range(len(self.cameras))]
 
     def stabilise(self, images: Sequence[np.ndarray | None], time_s: float) -> list[np.ndarray | None]:

@@ -154,16 +154,6 @@ class CameraFusion:
             warnings.warn(f"cameras {self.blind_cameras} see no cell of the plane stack; they add no evidence",
                           stacklevel=2)
 
-    def set_lookup(self, camera_index: int, lookup: ImagePlaneLookup) -> None:
-        """Replace camera ``camera_index``'s lookup (its attitude moved); same image size and plane stack."""
-        c = int(camera_index)
-        if lookup.stack != self.stack or (lookup.height_px, lookup.width_px) != self.sizes[c]:
-            raise ValueError(f"{self.names[c]}: new lookup must be for the same plane stack and a "
-                             f"{self.sizes[c][0]}x{self.sizes[c][1]} image")
-        idx = lookup.pixel_index.reshape(-1)
-        self._lut[c] = np.where(idx < lookup.sentinel, idx + self._offsets[c], -1)
-        self._views.clear()
-
     @property
     def n_cameras(self) -> int:
         """Number of cameras C."""

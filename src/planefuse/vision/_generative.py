@@ -177,17 +177,6 @@ class GenerativeCameraSensor:
         """Cameras in which no location has a silhouette."""
         return [n for n, v in zip(self.names, self.silhouettes.visible) if not v.any()]
 
-    def set_camera(self, camera_index: int, camera: PinholeCamera) -> None:
-        """Replace camera ``camera_index`` (its attitude moved): its silhouettes are projected again."""
-        c = int(camera_index)
-        one = silhouettes_from_cameras([camera], self.stack, self.person)
-        if one.image_sizes[0] != self.silhouettes.image_sizes[c]:
-            raise ValueError(f"{self.names[c]}: new camera must keep the {self.silhouettes.image_sizes[c]} image")
-        boxes = self.silhouettes.boxes_px.copy()
-        boxes[c] = one.boxes_px[0]
-        self.cameras[c] = camera
-        self._set_silhouettes(Silhouettes(boxes, self.silhouettes.image_sizes))
-
     def marginals(self, foregrounds: Sequence[np.ndarray | None]) -> np.ndarray:
         """Posterior marginals ``q`` (ny, nx) of one instant; a camera with no frame (None) gives no evidence."""
         if len(foregrounds) != self.n_cameras:

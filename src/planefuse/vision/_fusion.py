@@ -32,8 +32,8 @@ from ..grid import Evidence, PlaneStack
 from ..registration import ImagePlaneLookup
 from .._params import check_fields, require
 
-__all__ = ["CameraFusion", "FusionParams", "NEUTRAL_FOREGROUND", "log_odds_table", "max_log_ratio",
-           "quantise_foreground"]
+__all__ = ["CameraFusion", "FusionParams", "NEUTRAL_FOREGROUND", "NEUTRAL_LEVEL", "log_odds_table",
+           "max_log_ratio", "quantise_foreground"]
 
 _LEVELS = 256
 
@@ -42,6 +42,8 @@ _LEVELS = 256
 #: whose log-likelihood ratio is ``log((1 + (2 p_d - 1) / 255) / (1 + (2 p_fa - 1) / 255))`` (0.0055 at the
 #: defaults, against 1.5 for a certain foreground pixel).
 NEUTRAL_FOREGROUND = 0.5
+#: :data:`NEUTRAL_FOREGROUND` as a quantised level (:func:`quantise_foreground`'s rounding).
+NEUTRAL_LEVEL = int(np.rint((_LEVELS - 1) * NEUTRAL_FOREGROUND))
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
 from ._foreground import BackgroundSubtractor, ForegroundParams
-from ._fusion import NEUTRAL_FOREGROUND, CameraFusion, FusionParams, max_log_ratio, quantise_foreground
+from ._fusion import NEUTRAL_FOREGROUND, NEUTRAL_LEVEL, CameraFusion, FusionParams, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds
 
@@ -237,7 +237,7 @@ def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]
                 unseen = registration.unseen(c) if fg is not None else None
                 if unseen is not None:
                     fgs[c] = fg = fg.copy()
-                    fg[unseen] = 128 if fg.dtype == np.uint8 else NEUTRAL_FOREGROUND
+                    fg[unseen] = NEUTRAL_LEVEL if fg.dtype == np.uint8 else NEUTRAL_FOREGROUND
         yield time_s, fgs, status
 
 

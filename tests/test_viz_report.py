@@ -118,6 +118,10 @@ def test_animation_gif_and_mp4(tmp_path, stack, rng):
     mp4 = animate_stack(tmp_path / "a.mp4", stack, occ)
     cap = cv2.VideoCapture(str(mp4))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 9
+    ok, first = cap.read()  # the colours survive the lossy codec in the right channel order
+    rgb = cv2.cvtColor(first, cv2.COLOR_BGR2RGB).astype(float)
+    ref = expected[0, : rgb.shape[0], : rgb.shape[1]].astype(float)
+    assert ok and np.abs(rgb - ref).mean() < 10 < np.abs(rgb - ref[..., ::-1]).mean()
     with pytest.warns(UserWarning, match="shows 4 of 9"):
         animate_stack(tmp_path / "b.gif", stack, occ, max_frames=4)
     with pytest.raises(ValueError, match=".gif or .mp4"):

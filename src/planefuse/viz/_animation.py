@@ -161,7 +161,8 @@ def animate_stack(
         if suffix == ".gif":
             _write_gif(tmp, frames(), fps)
         else:
-            _write_mp4(tmp, (PALETTE[f[: f.shape[0] // 2 * 2, : f.shape[1] // 2 * 2]] for f in frames()), fps)
+            bgr = PALETTE[:, ::-1]  # OpenCV's channel order: no conversion per frame
+            _write_mp4(tmp, (bgr[f[: f.shape[0] // 2 * 2, : f.shape[1] // 2 * 2]] for f in frames()), fps)
         tmp.replace(path)
     finally:
         tmp.unlink(missing_ok=True)
@@ -172,10 +173,11 @@ def _write_gif(path: Path, frames, fps: float) -> None:
     """An animated GIF (looping, global :data:`PALETTE`), written one frame at a time: Pillow encodes each
     palette frame (``GifImagePlugin.getheader``/``getdata``), nothing is kept between frames."""
     duration_ms = int(round(1000.0 / fps))
+    palette = PALETTE.ravel().tolist()
     with open(path, "wb") as fp:
         for k, f in enumerate(frames):
             im = Image.fromarray(f, mode="P")
-            im.putpalette(PALETTE.ravel().tolist())
+            im.putpalette(palette)
             if k == 0:
                 header, _ = GifImagePlugin.getheader(im, None, {"loop": 0, "duration": duration_ms})
                 fp.write(b"".join(header))
@@ -184,7 +186,7 @@ def _write_gif(path: Path, frames, fps: float) -> None:
 
 
 def _write_mp4(path: Path, frames, fps: float) -> None:
-    """MPEG-4 through OpenCV's FFmpeg backend, one RGB frame at a time (codecs want even sizes)."""
+    """MPEG-4 through OpenCV's FFmpeg backend, one BGR frame at a time (codecs want even sizes)."""
     vw = None
     try:
         for f in frames:
@@ -193,7 +195,7 @@ def _write_mp4(path: Path, frames, fps: float) -> None:
                 vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
                 if not vw.isOpened():
                     raise OSError(f"cannot write MP4 {path}: OpenCV has no video encoder here")
-            vw.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+            vw.write(f)
     finally:
         if vw is not None:
             vw.release()

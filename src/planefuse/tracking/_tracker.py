@@ -314,8 +314,7 @@ class MultiPersonTracker:
                 position_only: bool = False, merged: bool = False) -> None:
         """Kalman update of a track that took cluster ``ci`` (a hit); ``merged``: the cluster is shared."""
         if position_only:
-            R_pos = R[:2, :2] + (self.params.merged_position_std_m**2 if merged else 0.0) * np.eye(2)
-            tr.x, tr.P = kf_update(tr.x, tr.P, z[:2], R_pos, _H_POS)
+            self._update_position(tr, z[:2], R[:2, :2], merged)
         else:
             tr.x, tr.P = kf_update(tr.x, tr.P, z, R, np.eye(4))
         if not merged:
@@ -352,10 +351,15 @@ class MultiPersonTracker:
 
     def _update_shared(self, tr: _Track, z_xy: np.ndarray, R_xy: np.ndarray, dt: float) -> None:
         """A sharer's update: the merged cluster's position only, with the extra merged variance; no hit."""
-        R_pos = R_xy + self.params.merged_position_std_m**2 * np.eye(2)
-        tr.x, tr.P = kf_update(tr.x, tr.P, z_xy, R_pos, _H_POS)
+        self._update_position(tr, z_xy, R_xy, merged=True)
         tr.shared_s += dt
         tr.misses = 0
+
+    def _update_position(self, tr: _Track, z_xy: np.ndarray, R_xy: np.ndarray, merged: bool) -> None:
+        """Kalman update with a cluster's position only; a merged cluster's centre lies between its people
+        (extra variance ``merged_position_std_m^2``)."""
+        R_pos = R_xy + self.params.merged_position_std_m**2 * np.eye(2) if merged else R_xy
+        tr.x, tr.P = kf_update(tr.x, tr.P, z_xy, R_pos, _H_POS)
 
     def _inside(self, xy: np.ndarray) -> bool:
         if self.extent_m is None:

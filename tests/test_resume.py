@@ -157,6 +157,32 @@ def test_modality_report_round_trips_through_a_checkpoint():
     assert empty.camera is None and empty.T_world_head is None and empty.sound_azimuth_grid_rad is None
 
 
+
+def test_detection_log_keeps_every_instant_exactly_past_its_buffers():
+    """The run's camera detections are kept as flat arrays that grow by doubling: every instant comes back
+    exactly (empty ones, NaN heights, several sources), in order, after the buffers have grown, and through a
+    checkpoint."""
+    from planefuse.grid import GroundDetections
+    from planefuse.pipeline import DetectionLog
+
+    rng = np.random.default_rng(3)
+    dets = [GroundDetections(0.04 * i, rng.normal(size=(k, 2)) * 5, rng.random(k),
+                             np.where(rng.random(k) < 0.3, np.nan, rng.uniform(1.5, 1.9, k)),
+                             "cameras" if i % 7 else "replayed")
+            for i, k in enumerate(rng.integers(0, 12, 400))]  # past 64 instants and 256 detections
+    log = DetectionLog()
+    for d in dets:
+        log.append(d)
+    back = DetectionLog.from_state_dict(_through_file(log.state_dict()))
+    assert len(log) == len(back) == 400
+    np.testing.assert_array_equal(log.times_s, [d.time_s for d in dets])
+    for a, b, c in zip(dets, log, back, strict=True):
+        assert a.time_s == b.time_s == c.time_s and a.source == b.source == c.source
+        for x in (b, c):
+            np.testing.assert_array_equal(x.xy_m, a.xy_m)
+            np.testing.assert_array_equal(x.confidence, a.confidence)
+            np.testing.assert_array_equal(x.height_m, a.height_m)
+
 # -- sources seek ----------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def sim():

@@ -76,10 +76,9 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
     if reg is not None and reg.tracks:  # cameras registered through their IMU: gaps bridged, maps rebuilt
         m["n_imu_gaps"] = sum(len(g) for g in reg.imu_gaps.values())
         m["n_attitude_map_rebuilds"] = sum(reg.n_rebuilds)
-    cams = [d for d in report.camera_detections if d.time_s >= warm]
-    if cams:
+    if np.any(np.asarray(report.camera_detections.times_s) >= warm):
         cd = detection_scores(((_present(d.time_s, gt.person_ids, gt.xy_m[gt.index_at(d.time_s)])[2], d.xy_m)
-                               for d in cams), match_distance_m)
+                               for d in report.camera_detections if d.time_s >= warm), match_distance_m)
         m.update(camera_only_moda=cd.moda, camera_only_modp=cd.modp)
     snd = rec.groundtruth.sound
     rep = report

@@ -3,6 +3,7 @@
 from ._outputs import run_plan, run_to_folder, write_presentation
 from ._plan import RunPlan, resume_key
 from ._streams import (
+    DetectionLog,
     EvidenceSource,
     MergedEvidence,
     ModalityReport,
@@ -29,6 +30,7 @@ from ._system import (
 )
 
 __all__ = [
+    "DetectionLog",
     "EvidenceSource",
     "MergedEvidence",
     "ModalityReport",

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from ..registration import CameraRegistration
     from ..vision import CameraReport
 
-__all__ = ["EvidenceSource", "MergedEvidence", "ModalityReport", "camera_evidence", "camera_source",
+__all__ = ["DetectionLog", "EvidenceSource", "MergedEvidence", "ModalityReport", "camera_evidence", "camera_source",
            "laser_evidence", "laser_sources", "merged_evidence", "sound_evidence", "sound_sources"]
 
 
@@ -35,12 +35,89 @@ __all__ = ["EvidenceSource", "MergedEvidence", "ModalityReport", "camera_evidenc
 LASER_POINTS_EVERY, LASER_POINTS_KEPT = 40, 64
 
 
+class DetectionLog:
+    """Every instant's :class:`~planefuse.grid.GroundDetections` of a run, kept as flat arrays.
+
+    A run keeps the camera detector's own detections of every instant (the camera-only score, the per-frame
+    rows of real-data experiments). One object per instant costs ~1 kB of Python and numpy headers; here an
+    instant costs its time stamp, count and source index (20 bytes) and each detection its world XY [m],
+    confidence and height [m] (32 bytes), in buffers that grow by doubling, so that a long run's memory and
+    checkpoints grow by little more than the data. Values are stored exactly (float64).
+    """
+
+    def __init__(self, detections: Iterable[GroundDetections] = ()) -> None:
+        self._n = self._n_det = 0
+        self._times_s = np.zeros(64)
+        self._counts = np.zeros(64, dtype=np.int64)
+        self._source_index = np.zeros(64, dtype=np.int32)
+        self._values = np.zeros((256, 4))  # x [m], y [m], confidence, height [m] per detection
+        self._sources: list[str] = []
+        for det in detections:
+            self.append(det)
+
+    def __len__(self) -> int:
+        return self._n
+
+    @property
+    def times_s(self) -> np.ndarray:
+        """Instants' time stamps [s], shape (T,) (a view: do not keep it across appends)."""
+        return self._times_s[:self._n]
+
+    def append(self, det: GroundDetections) -> None:
+        """Add one instant's detections."""
+        if self._n == len(self._times_s):
+            size = 2 * self._n
+            self._times_s = np.resize(self._times_s, size)
+            self._counts = np.resize(self._counts, size)
+            self._source_index = np.resize(self._source_index, size)
+        k = len(det)
+        if self._n_det + k > len(self._values):
+            self._values = np.resize(self._values, (max(2 * len(self._values), self._n_det + k), 4))
+        if det.source not in self._sources:
+            self._sources.append(det.source)
+        self._times_s[self._n] = det.time_s
+        self._counts[self._n] = k
+        self._source_index[self._n] = self._sources.index(det.source)
+        v = self._values[self._n_det:self._n_det + k]
+        v[:, :2], v[:, 2], v[:, 3] = det.xy_m, det.confidence, det.height_m
+        self._n += 1
+        self._n_det += k
+
+    def __iter__(self) -> Iterator[GroundDetections]:
+        """The instants in order, each a new :class:`~planefuse.grid.GroundDetections` (copies of the data)."""
+        ends = np.cumsum(self._counts[:self._n])
+        for i in range(self._n):
+            v = self._values[ends[i] - self._counts[i]:ends[i]]
+            yield GroundDetections(float(self._times_s[i]), v[:, :2].copy(), v[:, 2].copy(), v[:, 3].copy(),
+                                   self._sources[self._source_index[i]])
+
+    def state_dict(self) -> StateDict:
+        """The log as arrays (see :mod:`planefuse._state`)."""
+        n, v = self._n, self._values[:self._n_det]
+        return {"camera_det_time_s": self._times_s[:n].copy(),
+                "camera_det_source": strings([self._sources[i] for i in self._source_index[:n]]),
+                "camera_det_count": self._counts[:n].copy(), "camera_det_xy_m": v[:, :2].copy(),
+                "camera_det_confidence": v[:, 2].copy(), "camera_det_height_m": v[:, 3].copy()}
+
+    @classmethod
+    def from_state_dict(cls, state: Mapping[str, np.ndarray]) -> "DetectionLog":
+        """Restore what :meth:`state_dict` saved."""
+        def g(key):
+            return get(state, key, "modality report")
+
+        counts = g("camera_det_count")
+        return cls(GroundDetections(float(t), xy, c, h, str(s)) for t, s, xy, c, h in zip(
+            g("camera_det_time_s"), g("camera_det_source"), unpack_ragged(g("camera_det_xy_m"), counts),
+            unpack_ragged(g("camera_det_confidence"), counts), unpack_ragged(g("camera_det_height_m"), counts)))
+
+
 @dataclass
 class ModalityReport:
     """What each modality produced and what it had to report (missing frames, invalid returns...)."""
 
     camera: "CameraReport | None" = None
-    camera_detections: list[GroundDetections] = field(default_factory=list)
+    #: the camera detector's own detections of every instant (camera-only score, per-frame rows)
+    camera_detections: DetectionLog = field(default_factory=DetectionLog)
     n_laser_scans: int = 0
     n_laser_invalid_beams: int = 0
     laser_points_world: list[np.ndarray] = field(default_factory=list)
@@ -56,6 +133,10 @@ class ModalityReport:
     #: The cameras' registration (attitude sources, stabilising map rebuilds per camera); rebuilt, not checkpointed,
     #: by a resumed run (which replays the attitudes of the instants it skips).
     camera_registration: "CameraRegistration | None" = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.camera_detections, DetectionLog):  # any iterable of GroundDetections
+            self.camera_detections = DetectionLog(self.camera_detections)
 
     def keep_laser_points(self, scan_index: int, time_s: float, points_world: np.ndarray) -> None:
         """Keep the points of laser scan ``scan_index`` (0-based, over all lasers) for the figures if it is on the
@@ -82,10 +163,6 @@ class ModalityReport:
 
     def state_dict(self) -> StateDict:
         """Everything reported so far, as arrays (see :mod:`planefuse._state`)."""
-        cams = self.camera_detections
-        xy, n_det = pack_ragged([d.xy_m for d in cams], (2,))
-        conf, _ = pack_ragged([d.confidence for d in cams], ())
-        height, _ = pack_ragged([d.height_m for d in cams], ())
         pts, n_pts = pack_ragged(self.laser_points_world, (3,))
         cam = self.camera
         missing = [] if cam is None else [(n, t) for n, ts in cam.missing_frames.items() for t in ts]
@@ -96,10 +173,7 @@ class ModalityReport:
             "camera_missing_name": strings([n for n, _ in missing]),
             "camera_missing_time_s": np.array([t for _, t in missing], dtype=float),
             "camera_blind": strings([] if cam is None else cam.blind_cameras),
-            "camera_det_time_s": np.array([d.time_s for d in cams], dtype=float),
-            "camera_det_source": strings([d.source for d in cams]),
-            "camera_det_count": n_det, "camera_det_xy_m": xy, "camera_det_confidence": conf,
-            "camera_det_height_m": height,
+            **self.camera_detections.state_dict(),
             "n_laser_scans": np.asarray(self.n_laser_scans, dtype=np.int64),
             "n_laser_invalid_beams": np.asarray(self.n_laser_invalid_beams, dtype=np.int64),
             "laser_points_count": n_pts, "laser_points_world": pts,
@@ -127,12 +201,7 @@ class ModalityReport:
             for n, t in zip(g("camera_missing_name"), g("camera_missing_time_s")):
                 missing.setdefault(str(n), []).append(float(t))
             self.camera = CameraReport(int(g("camera_instants")), missing, [str(n) for n in g("camera_blind")])
-        counts = g("camera_det_count")
-        self.camera_detections = [
-            GroundDetections(float(t), xy, c, h, str(s)) for t, s, xy, c, h in zip(
-                g("camera_det_time_s"), g("camera_det_source"), unpack_ragged(g("camera_det_xy_m"), counts),
-                unpack_ragged(g("camera_det_confidence"), counts), unpack_ragged(g("camera_det_height_m"), counts))
-        ]
+        self.camera_detections = DetectionLog.from_state_dict(state)
         self.n_laser_scans = int(g("n_laser_scans"))
         self.n_laser_invalid_beams = int(g("n_laser_invalid_beams"))
         self.laser_points_world = unpack_ragged(g("laser_points_world"), g("laser_points_count"))

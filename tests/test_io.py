@@ -177,6 +177,20 @@ def test_streams_are_lazy_and_chunked(written):
         lazy.camera("a").frame(20)
 
 
+
+def test_frame_files_are_kept_compactly_and_exactly(written, tmp_path):
+    """A stream's frame files are one bytes array (no Path object per frame: memory would grow with the
+    recording), read back as the exact paths, non-ASCII names included."""
+    from planefuse.io._paths import PathArray
+
+    _, out = written
+    cs = read_recording(out).camera("a")
+    assert isinstance(cs.frame_files, PathArray) and len(cs.frame_files) == len(cs)
+    assert cs.frame_files[20] == (out / "cameras/a/frames/000020.png").resolve()
+    assert cs.frame_files[-1].is_file() and cs.frame_files[:2] == [cs.frame_files[0], cs.frame_files[1]]
+    names = [tmp_path / "caméra" / "000001.png", tmp_path / "b" / "x y.png"]
+    assert list(PathArray(names)) == names and len(PathArray([])) == 0
+
 def test_jpeg_frames_are_close_and_masks_exact(tmp_path):
     rec = simulate(_small_config(duration_s=0.2))
     rec.write(tmp_path / "j", image_format="jpg")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import csv
 import functools
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +22,7 @@ import soundfile as sf
 
 from ..geometry import CameraIntrinsics, PinholeCamera
 from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
-from ._paths import resolve_inside
+from ._paths import PathArray, resolve_inside
 from ._timestamps import Gap, TimeChecker, read_csv_chunks
 from ._video import VideoFrames
 
@@ -84,9 +84,9 @@ class CameraStream:
     ignore_mask : ndarray, shape (height_px, width_px), bool, or None
         Pixels that are not scene evidence (watermark, privacy zone...): the camera's sensor model treats
         the cells they see as unobserved. None when every pixel counts.
-    frame_files : list of Path
-        The image file of every frame of a stream recorded as images (empty for a video or a simulated
-        stream); ``planefuse check`` verifies them with :func:`image_file_problem` without decoding.
+    frame_files : sequence of Path
+        The image file of every frame of a stream recorded as images (a :class:`PathArray`; empty for a video or
+        a simulated stream); ``planefuse check`` verifies them with :func:`image_file_problem` without decoding.
     """
 
     def __init__(self, camera: PinholeCamera, times_s, get: Callable[[int], tuple], has_masks: bool,
@@ -101,7 +101,7 @@ class CameraStream:
         self._cache: tuple[int, tuple] | None = None
         self._get_background = get_background
         self.ignore_mask: np.ndarray | None = None
-        self.frame_files: list[Path] = []  # image files of a recorded stream (empty: video or in memory)
+        self.frame_files: Sequence[Path] = []  # image files of a recorded stream (empty: video or in memory)
 
     @property
     def has_background(self) -> bool:
@@ -147,7 +147,7 @@ class CameraStream:
     def from_files(cls, root: Path, entry: CameraEntry) -> CameraStream:
         """Open a recorded camera: reads ``times_file`` now (checking timestamps), images on demand
         (image files, or frames decoded from ``video_file``)."""
-        files: list[Path] = []
+        files: Sequence[Path] = []
         if entry.video_file is not None:
             times, get, has_masks, source = _video_frames(root, entry)
         else:
@@ -219,8 +219,8 @@ def _image_frames(root: Path, entry: CameraEntry):
     header, rows = _read_times(path, [["time_s", "image_file"], ["time_s", "image_file", "mask_file"]], entry.name)
     times = [_number(path, k + 2, "time_s", r[0]) for k, r in enumerate(rows)]
     rel = Path(entry.times_file).parent  # frame files are relative to the times file's folder
-    images = [resolve_inside(root, rel / r[1], f"{path}:{k + 2}: image_file") for k, r in enumerate(rows)]
-    masks = [resolve_inside(root, rel / r[2], f"{path}:{k + 2}: mask_file") for k, r in enumerate(rows)] \
+    images = PathArray(resolve_inside(root, rel / r[1], f"{path}:{k + 2}: image_file") for k, r in enumerate(rows))
+    masks = PathArray(resolve_inside(root, rel / r[2], f"{path}:{k + 2}: mask_file") for k, r in enumerate(rows)) \
         if len(header) > 2 else None
 
     def get(i: int) -> tuple:

@@ -92,6 +92,10 @@ class PathArray(Sequence[Path]):
     def __len__(self) -> int:
         return len(self._paths)
 
+    def fspath(self, i: int) -> str:
+        """Path ``i`` as a str (what file functions take; no :class:`~pathlib.Path` object made)."""
+        return os.fsdecode(self._paths[i])
+
     def __getitem__(self, i):  # type: ignore[override]
         if isinstance(i, slice):
             return [Path(os.fsdecode(b)) for b in self._paths[i]]

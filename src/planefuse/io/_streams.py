@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import csv
 import functools
+import os
+import stat
 import zipfile
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -224,9 +226,10 @@ def _image_frames(root: Path, entry: CameraEntry):
         if len(header) > 2 else None
 
     def get(i: int) -> tuple:
-        img = _read_png(images[i], cv2.IMREAD_COLOR)
+        # the path as a str: a Path per frame read would intern every file name
+        img = _read_png(images.fspath(i), cv2.IMREAD_COLOR)
         # masks are read only when asked for (the pipeline never needs them)
-        mask = functools.partial(_read_png, masks[i], cv2.IMREAD_UNCHANGED) if masks else None
+        mask = functools.partial(_read_png, masks.fspath(i), cv2.IMREAD_UNCHANGED) if masks else None
         return img, mask
 
     return times, get, masks is not None, str(path), images
@@ -261,13 +264,14 @@ _JPEG_START, _JPEG_END = b"\xff\xd8\xff", b"\xff\xd9"
 _PNG_START, _PNG_END = b"\x89PNG\r\n\x1a\n", b"IEND\xaeB`\x82"
 
 
-def image_file_problem(path: Path) -> str | None:
+def image_file_problem(path: str | os.PathLike) -> str | None:
     """What is wrong with an image file, without decoding it: missing, empty, or -- for JPEG and PNG -- not
     starting with the format's signature (garbage) or not ending with its end marker (truncated). None when
     nothing is (other formats are checked for existence and size only)."""
     try:
-        size = path.stat().st_size
-        if not path.is_file():
+        st = os.stat(path)
+        size = st.st_size
+        if not stat.S_ISREG(st.st_mode):
             return "not a file"
         if size == 0:
             return "empty file"
@@ -279,7 +283,7 @@ def image_file_problem(path: Path) -> str | None:
         return "file not found (missing frame)"
     except OSError as exc:
         return f"cannot read ({exc.strerror or exc})"
-    suffix = path.suffix.lower()
+    suffix = os.path.splitext(path)[1].lower()
     if suffix in (".jpg", ".jpeg"):
         if not head.startswith(_JPEG_START):
             return "not a JPEG file (corrupt file)"
@@ -293,11 +297,11 @@ def image_file_problem(path: Path) -> str | None:
     return None
 
 
-def _read_png(path: Path, flags: int) -> np.ndarray:
+def _read_png(path: str | os.PathLike, flags: int) -> np.ndarray:
     problem = image_file_problem(path)
     if problem is not None:
         raise ValueError(f"{path}: {problem}")
-    img = cv2.imread(str(path), flags)
+    img = cv2.imread(os.fspath(path), flags)
     if img is None:
         raise ValueError(f"{path}: cannot decode image (truncated or corrupt file)")
     return img

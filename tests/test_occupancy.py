@@ -168,3 +168,49 @@ def test_threads_give_the_same_marginals(rng):
     assert serial.n_iterations == parallel.n_iterations and serial.n_iterations > 1
     with pytest.raises(ValueError, match="threads must be an integer >= 1"):
         MeanFieldSolver(sil, threads=0)
+
+
+def test_box_corners_index_each_cameras_region(rng):
+    """The per-solver layout: every visible box's four corners, read in the integral image of its camera's region
+    (stored at the camera's offset), give the box's sum; unseen boxes have no corners."""
+    from planefuse.occupancy._meanfield import _box_layout
+
+    sizes = ((H, W), (30, 80))
+    boxes = np.full((2, 50, 4), -1, np.int32)
+    for c, (h, w) in enumerate(sizes):
+        x0, y0 = rng.integers(5, w // 2, 50), rng.integers(3, h // 2, 50)
+        boxes[c] = np.stack([x0, y0, x0 + rng.integers(0, w // 2 - 5, 50), y0 + rng.integers(0, h // 2 - 3, 50)], -1)
+    boxes[1, ::7] = -1
+    ii_off = np.array([0, (H + 1) * (W + 1)])
+    region, corners = _box_layout(Silhouettes(boxes, sizes).boxes_px, ii_off)
+    store = np.zeros(int(ii_off[-1]) + 31 * 81)
+    for c, (h, w) in enumerate(sizes):
+        vis = boxes[c, :, 0] >= 0
+        assert (region[c] == [boxes[c, vis, 0].min(), boxes[c, vis, 1].min(), boxes[c, vis, 2].max(),
+                              boxes[c, vis, 3].max()]).all()
+        img = rng.random((h, w))
+        x0, y0, x1, y1 = region[c]
+        ii = np.zeros((y1 - y0 + 2, x1 - x0 + 2))
+        ii[1:, 1:] = img[y0:y1 + 1, x0:x1 + 1].cumsum(0).cumsum(1)
+        store[ii_off[c]:ii_off[c] + ii.size] = ii.ravel()
+        for k in range(boxes.shape[1]):
+            if not vis[k]:
+                assert (corners[c, k] == -1).all()
+                continue
+            i00, i01, i10, i11 = corners[c, k]
+            a, b, e, d = boxes[c, k]
+            assert store[i11] - store[i01] - store[i10] + store[i00] == pytest.approx(img[b:d + 1, a:e + 1].sum())
+
+
+def test_marginals_do_not_depend_on_a_background_margin():
+    """Pixels that are background and outside every silhouette carry no evidence (``A = B = 0`` there): the ghost
+    scene shifted into a larger image (its region no longer at the image origin) gives the same marginals."""
+    sil, fg = _two_view_scene()
+    dy, dx = 7, 25
+    big_boxes = sil.boxes_px + np.array([dx, dy, dx, dy], np.int32)
+    big_fg = [np.pad(f, ((dy, 11), (dx, 3))) for f in fg]
+    big = Silhouettes(big_boxes, (big_fg[0].shape,) * 2)
+    a = occupancy_marginals(fg, sil).marginals
+    b = occupancy_marginals(big_fg, big).marginals
+    assert np.allclose(a, b, rtol=0, atol=1e-9)
+    assert a[0] > 0.9 and a[1] > 0.9 and a[2] < 0.1

@@ -274,9 +274,9 @@ class MeanFieldSolver:
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
-        args = (B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, self._region, self._corners, q, self._D, self._I2,
-                float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
-                float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
+        args = (B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, self._region, self._corners, q, self._D,
+                self._I2, float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations),
+                float(p.damping), float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
         if self.threads == 1:
             n_iter, converged = _solve(*args)
         else:
@@ -492,8 +492,8 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remo
         acc[c, k] = ((sb + a1 - 2.0 * ba1) * d0 - (sb + a0 - 2.0 * ba0) * d1) * inv_sigma / (d1 * d0)
 
 
-def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
-              ignored_below, q_max, prior):  # pragma: no cover - compiled
+def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_prior_ratio, inv_sigma, max_iter,
+              damping, tol, ignored_below, q_max, prior):  # pragma: no cover - compiled
     n_cam, K = boxes.shape[0], boxes.shape[1]
     ones = np.ones(B.shape[0])
     RW = np.zeros((n_cam, K))
@@ -507,8 +507,13 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_pr
     # a location whose last target marginal was below 1e-8 is dormant: damped towards 0 without evaluation,
     # evaluated again on every REFRESH-th iteration (and before convergence is declared)
     skip = np.zeros(K, dtype=np.bool_)
-    t_remove = np.ones(K)
     cut = max(ignored_below, Q_NEGLIGIBLE * prior)
+    # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it); kept up to date
+    # by the update below
+    t_remove = np.ones(K)
+    for k in range(K):
+        if q[k] >= cut:
+            t_remove[k] = 1.0 / (1.0 - q[k])
     converged = False
     full = True
     it = 0
@@ -518,36 +523,33 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_pr
             full = True
         if full:
             skip[:] = False
-        # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it)
-        for k in range(K):
-            t_remove[k] = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
         for c in prange(n_cam):
-            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
-                          inv_sigma, acc)
+            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remove, skip, cut, D, I2, prev,
+                          RW, RB, SB, inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
-        delta = 0.0
+        moved = False
         for k in range(K):
+            qk = q[k]
             if skip[k]:
-                q[k] *= damping  # its target is below 1e-8: the damped update without evaluating it
-                continue
-            s = 0.0
-            for c in range(n_cam):
-                s += acc[c, k]  # 0 where the location is not visible in camera c
-            e = log_prior_ratio + s
-            if e > 700.0:
-                e = 700.0
-            qn = 1.0 / (1.0 + np.exp(e))
-            qn = damping * q[k] + (1.0 - damping) * qn
-            if qn > q_max:
-                qn = q_max
-            d = abs(qn - q[k]) / max(q[k], prior)
-            if d > delta:
-                delta = d
+                qn = qk * damping  # its target is below 1e-8: the damped update without evaluating it
+            else:
+                s = 0.0
+                for c in range(n_cam):
+                    s += acc[c, k]  # 0 where the location is not visible in camera c
+                e = log_prior_ratio + s
+                if e > 700.0:
+                    e = 700.0
+                qn = damping * qk + (1.0 - damping) * (1.0 / (1.0 + np.exp(e)))
+                if qn > q_max:
+                    qn = q_max
+                if abs(qn - qk) > tol * max(qk, prior):
+                    moved = True
+                if e > E_DORMANT:
+                    skip[k] = True
             q[k] = qn
-            if e > E_DORMANT:
-                skip[k] = True
-        if delta <= tol:
+            t_remove[k] = 1.0 / (1.0 - qn) if qn >= cut else 1.0
+        if not moved:
             if full:
                 converged = True
                 break

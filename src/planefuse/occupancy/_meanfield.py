@@ -440,11 +440,16 @@ def _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB):  
 
 
 @njit(cache=True, boundscheck=False)
-def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remove, skip, cut, D, I2, prev, RW, RB,
-                  SB, inv_sigma, acc):  # pragma: no cover - compiled
-    K = boxes.shape[1]
+def _camera_terms(c, B, W, hw, px_off, ii_off, region, corners, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
+                  inv_sigma, acc):  # pragma: no cover - compiled
+    # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated
+    # this iteration. Reads q, t_remove and skip; writes only camera c's storage (D and I2 at its offsets,
+    # prev[c], acc[c]): the cameras can run in parallel.
+    K = corners.shape[1]
     w = hw[c, 1]
     o, po = ii_off[c], px_off[c]
+    # 1. difference array of prod_k (1 - q_k R_ck) over the camera's region (local, (hl + 1) x (wl + 1)): each box
+    # scales its four corners
     X0, Y0 = region[c, 0], region[c, 1]
     wl, hl = region[c, 2] - X0 + 1, region[c, 3] - Y0 + 1
     wl1 = wl + 1
@@ -460,9 +465,12 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remo
         D[corners[c, k, 1]] *= g
         D[corners[c, k, 2]] *= g
         D[corners[c, k, 3]] *= f
+    # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
+    # interleaved so that one box corner of both is one cache line
     _abar_pass(D, W, B, I2, prev[c], o, wl, hl, po + Y0 * w + X0, w)
     last = 2 * (o + (hl + 1) * wl1 - 1)
     SA, SBA, sb = I2[last], I2[last + 1], SB[c]
+    # 3. per location: pseudo-distance with the location present and absent (its box sums: four look-ups each)
     for k in range(K):
         i00 = corners[c, k, 0]
         if i00 < 0 or skip[k]:
@@ -487,6 +495,7 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remo
         ba1 = SBA - rBA + rB
         a0 = SA - rA + in0
         ba0 = SBA - rBA + inb0
+        # psi1 - psi0 = n1 / d1 - n0 / d0, over one division
         d1 = max(a1, 1.0)
         d0 = max(a0, 1.0)
         acc[c, k] = ((sb + a1 - 2.0 * ba1) * d0 - (sb + a0 - 2.0 * ba0) * d1) * inv_sigma / (d1 * d0)
@@ -524,8 +533,8 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_pr
         if full:
             skip[:] = False
         for c in prange(n_cam):
-            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, region, corners, q, t_remove, skip, cut, D, I2, prev,
-                          RW, RB, SB, inv_sigma, acc)
+            _camera_terms(c, B, W, hw, px_off, ii_off, region, corners, q, t_remove, skip, cut, D, I2, prev, RW,
+                          RB, SB, inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
         moved = False

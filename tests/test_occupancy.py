@@ -170,35 +170,32 @@ def test_threads_give_the_same_marginals(rng):
         MeanFieldSolver(sil, threads=0)
 
 
-def test_box_corners_index_each_cameras_region(rng):
-    """The per-solver layout: every visible box's four corners, read in the integral image of its camera's region
-    (stored at the camera's offset), give the box's sum; unseen boxes have no corners."""
-    from planefuse.occupancy._meanfield import _box_layout
+def test_box_corners_index_the_region_integral_image(rng):
+    """The corner positions the kernel keeps per region: read in the integral image of a region (stored at the
+    camera's offset), every visible box's four corners give its sum over an image that is 0 outside the region,
+    boxes reaching out of the region included (their corners are clamped into it); unseen boxes have none."""
+    from planefuse.occupancy._meanfield import _corner_indices
 
-    sizes = ((H, W), (30, 80))
-    boxes = np.full((2, 50, 4), -1, np.int32)
-    for c, (h, w) in enumerate(sizes):
-        x0, y0 = rng.integers(5, w // 2, 50), rng.integers(3, h // 2, 50)
-        boxes[c] = np.stack([x0, y0, x0 + rng.integers(0, w // 2 - 5, 50), y0 + rng.integers(0, h // 2 - 3, 50)], -1)
+    boxes = np.full((2, 60, 4), -1, np.int64)
+    x0, y0 = rng.integers(0, W - 10, 60), rng.integers(0, H - 10, 60)
+    boxes[1] = np.stack([x0, y0, x0 + rng.integers(0, 10, 60), y0 + rng.integers(0, 10, 60)], -1)
     boxes[1, ::7] = -1
-    ii_off = np.array([0, (H + 1) * (W + 1)])
-    region, corners = _box_layout(Silhouettes(boxes, sizes).boxes_px, ii_off)
-    store = np.zeros(int(ii_off[-1]) + 31 * 81)
-    for c, (h, w) in enumerate(sizes):
-        vis = boxes[c, :, 0] >= 0
-        assert (region[c] == [boxes[c, vis, 0].min(), boxes[c, vis, 1].min(), boxes[c, vis, 2].max(),
-                              boxes[c, vis, 3].max()]).all()
-        img = rng.random((h, w))
-        x0, y0, x1, y1 = region[c]
-        ii = np.zeros((y1 - y0 + 2, x1 - x0 + 2))
-        ii[1:, 1:] = img[y0:y1 + 1, x0:x1 + 1].cumsum(0).cumsum(1)
-        store[ii_off[c]:ii_off[c] + ii.size] = ii.ravel()
-        for k in range(boxes.shape[1]):
-            if not vis[k]:
-                assert (corners[c, k] == -1).all()
+    o = 123
+    corners = np.zeros((2, 60, 4), np.int64)
+    for X0, Y0, X1, Y1 in [(0, 0, W - 1, H - 1), (7, 4, 41, 30)]:
+        _corner_indices(1, boxes, o, X0, Y0, X1, Y1, corners)
+        img = np.zeros((H, W))
+        img[Y0:Y1 + 1, X0:X1 + 1] = rng.random((Y1 - Y0 + 1, X1 - X0 + 1))
+        store = np.zeros(o + (H + 1) * (W + 1))
+        ii = np.zeros((Y1 - Y0 + 2, X1 - X0 + 2))
+        ii[1:, 1:] = img[Y0:Y1 + 1, X0:X1 + 1].cumsum(0).cumsum(1)
+        store[o:o + ii.size] = ii.ravel()
+        for k in range(60):
+            if boxes[1, k, 0] < 0:
+                assert corners[1, k, 0] == -1
                 continue
-            i00, i01, i10, i11 = corners[c, k]
-            a, b, e, d = boxes[c, k]
+            i00, i01, i10, i11 = corners[1, k]
+            a, b, e, d = boxes[1, k]
             assert store[i11] - store[i01] - store[i10] + store[i00] == pytest.approx(img[b:d + 1, a:e + 1].sum())
 
 

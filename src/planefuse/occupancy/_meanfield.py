@@ -30,9 +30,10 @@ single numba kernel with no Python loop over locations or iterations; its camera
 threads. The damping 0.8 is POM's: its first iterate from the prior is ``0.8 eps + 0.2 target`` (measured on
 its program, docs/results.md). Three exact-or-bounded economies:
 
-* the pass covers only the region of the camera's visible boxes (``Abar = 0`` outside it); that region, and the
-  positions of every box's four corners in its integral image, are computed once per solver (they depend on the
-  silhouettes only), so an iteration neither searches for the region nor clamps a look-up;
+* the pass covers only the bounding region of the boxes in the synthetic image (``Abar = 0`` outside it, where
+  the integral images are its edge values: look-ups are clamped into it); every box's four corner positions in
+  that region's integral image are recomputed only on the iterations where the region changes (on fine grids it
+  stays the whole covered area while every location rises from the prior);
 * marginals below ``1e-3 eps`` (and below ``ignored_below``) are left out of ``Abar``;
 * a location whose last target marginal was below 1e-8 is *dormant*: damped towards 0 without evaluation,
   evaluated again every 5th iteration and before convergence is declared (its marginal differs from the full
@@ -235,7 +236,6 @@ class MeanFieldSolver:
         n_ii = int(self._ii_off[-1])
         self._D = np.zeros(n_ii, dtype=np.float64)        # difference array (and the constant integral images)
         self._I2 = np.zeros(2 * n_ii, dtype=np.float64)   # interleaved integral images of W Abar, W B Abar
-        self._region, self._corners = _box_layout(silhouettes.boxes_px, self._ii_off)
 
     def solve(self, foregrounds: Sequence[np.ndarray], observed: Sequence[np.ndarray | None] | None = None,
               initial=None) -> MeanFieldResult:
@@ -274,9 +274,9 @@ class MeanFieldSolver:
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
-        args = (B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, self._region, self._corners, q, self._D,
-                self._I2, float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations),
-                float(p.damping), float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
+        args = (B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
+                float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
+                float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
         if self.threads == 1:
             n_iter, converged = _solve(*args)
         else:
@@ -287,27 +287,6 @@ class MeanFieldSolver:
             finally:
                 numba.set_num_threads(before)
         return MeanFieldResult(q, int(n_iter), bool(converged))
-
-
-def _box_layout(boxes: np.ndarray, ii_off: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per camera, the region (x0, y0, x1, y1) covered by its visible boxes, and per box the indices of its four
-    corners (top-left, top-right, bottom-left, bottom-right; exclusive right and bottom) in that region's
-    (h + 1) x (w + 1) local integral image stored at the camera's offset; -1 where not visible."""
-    C, K = boxes.shape[:2]
-    region = np.zeros((C, 4), np.int64)
-    corners = np.full((C, K, 4), -1, np.int64)
-    for c in range(C):
-        vis = boxes[c, :, 0] >= 0
-        if not vis.any():
-            region[c] = (0, 0, -1, -1)
-            continue
-        b = boxes[c, vis].astype(np.int64)
-        x0, y0 = b[:, 0].min(), b[:, 1].min()
-        region[c] = (x0, y0, b[:, 2].max(), b[:, 3].max())
-        wl1 = int(region[c, 2] - x0 + 2)
-        lx0, ly0, lx1, ly1 = b[:, 0] - x0, b[:, 1] - y0, b[:, 2] + 1 - x0, b[:, 3] + 1 - y0
-        corners[c, vis] = ii_off[c] + np.stack([ly0 * wl1 + lx0, ly0 * wl1 + lx1, ly1 * wl1 + lx0, ly1 * wl1 + lx1], 1)
-    return region, corners
 
 
 def occupancy_marginals(foregrounds: Sequence[np.ndarray], silhouettes: Silhouettes,
@@ -440,19 +419,56 @@ def _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB):  
 
 
 @njit(cache=True, boundscheck=False)
-def _camera_terms(c, B, W, hw, px_off, ii_off, region, corners, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
-                  inv_sigma, acc):  # pragma: no cover - compiled
+def _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners):  # pragma: no cover - compiled
+    # corners[c, k] = positions of box k's four corners (top-left, top-right, bottom-left, bottom-right; exclusive
+    # right and bottom) in the (Y1 - Y0 + 2) x (X1 - X0 + 2) integral image of the region [X0, X1] x [Y0, Y1]
+    # stored at o, clamped into it; -1 where the box is not visible
+    wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
+    wl1 = wl + 1
+    for k in range(boxes.shape[1]):
+        x0 = boxes[c, k, 0]
+        if x0 < 0:
+            corners[c, k, 0] = -1
+            continue
+        lx0 = min(max(x0 - X0, 0), wl)
+        lx1 = min(max(boxes[c, k, 2] + 1 - X0, 0), wl)
+        ly0 = min(max(boxes[c, k, 1] - Y0, 0), hl)
+        ly1 = min(max(boxes[c, k, 3] + 1 - Y0, 0), hl)
+        corners[c, k, 0] = o + ly0 * wl1 + lx0
+        corners[c, k, 1] = o + ly0 * wl1 + lx1
+        corners[c, k, 2] = o + ly1 * wl1 + lx0
+        corners[c, k, 3] = o + ly1 * wl1 + lx1
+
+
+@njit(cache=True, boundscheck=False)
+def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB, region,
+                  corners, inv_sigma, acc):  # pragma: no cover - compiled
     # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated
     # this iteration. Reads q, t_remove and skip; writes only camera c's storage (D and I2 at its offsets,
-    # prev[c], acc[c]): the cameras can run in parallel.
-    K = corners.shape[1]
-    w = hw[c, 1]
+    # prev[c], region[c], corners[c], acc[c]): the cameras can run in parallel.
+    K = boxes.shape[1]
+    h, w = hw[c, 0], hw[c, 1]
     o, po = ii_off[c], px_off[c]
-    # 1. difference array of prod_k (1 - q_k R_ck) over the camera's region (local, (hl + 1) x (wl + 1)): each box
-    # scales its four corners
-    X0, Y0 = region[c, 0], region[c, 1]
-    wl, hl = region[c, 2] - X0 + 1, region[c, 3] - Y0 + 1
+    # 1. the region [X0, X1] x [Y0, Y1] covered by some box in the synthetic image (Abar = 0 elsewhere, so the
+    # integral images need only cover it: outside, they are its values clamped to its edges); the corner
+    # positions are recomputed where it changed
+    X0, Y0, X1, Y1 = w, h, -1, -1
+    for k in range(K):
+        x0 = boxes[c, k, 0]
+        if x0 < 0 or q[k] < cut:
+            continue
+        X0 = min(X0, x0)
+        Y0 = min(Y0, boxes[c, k, 1])
+        X1 = max(X1, boxes[c, k, 2])
+        Y1 = max(Y1, boxes[c, k, 3])
+    if X1 < 0:
+        X0, Y0, X1, Y1 = 0, 0, -1, -1
+    if X0 != region[c, 0] or Y0 != region[c, 1] or X1 != region[c, 2] or Y1 != region[c, 3]:
+        region[c, 0], region[c, 1], region[c, 2], region[c, 3] = X0, Y0, X1, Y1
+        _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners)
+    wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
     wl1 = wl + 1
+    # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each box scales its four corners
     for i in range(o, o + (hl + 1) * wl1):
         D[i] = 1.0
     for k in range(K):
@@ -501,8 +517,8 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, region, corners, q, t_remove, ski
         acc[c, k] = ((sb + a1 - 2.0 * ba1) * d0 - (sb + a0 - 2.0 * ba0) * d1) * inv_sigma / (d1 * d0)
 
 
-def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_prior_ratio, inv_sigma, max_iter,
-              damping, tol, ignored_below, q_max, prior):  # pragma: no cover - compiled
+def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
+              ignored_below, q_max, prior):  # pragma: no cover - compiled
     n_cam, K = boxes.shape[0], boxes.shape[1]
     ones = np.ones(B.shape[0])
     RW = np.zeros((n_cam, K))
@@ -513,6 +529,9 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_pr
     # one row per camera, summed in camera order after the parallel loop: the same sums on any number of threads
     acc = np.zeros((n_cam, K))
     prev = np.empty((n_cam, hw[:, 1].max()))
+    # each camera's current region of the synthetic image and its boxes' corner positions in it (none yet)
+    region = np.full((n_cam, 4), -2, dtype=np.int64)
+    corners = np.empty((n_cam, K, 4), dtype=np.int64)
     # a location whose last target marginal was below 1e-8 is dormant: damped towards 0 without evaluation,
     # evaluated again on every REFRESH-th iteration (and before convergence is declared)
     skip = np.zeros(K, dtype=np.bool_)
@@ -533,8 +552,8 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, region, corners, q, D, I2, log_pr
         if full:
             skip[:] = False
         for c in prange(n_cam):
-            _camera_terms(c, B, W, hw, px_off, ii_off, region, corners, q, t_remove, skip, cut, D, I2, prev, RW,
-                          RB, SB, inv_sigma, acc)
+            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
+                          region, corners, inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
         moved = False

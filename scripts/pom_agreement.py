@@ -13,6 +13,11 @@ planefuse). Frames 160-174 are the tuning frames, 175-189 the held-out ones.
 3. **Held-out frames.** Per frame: Pearson of the marginals, POM's and planefuse's locations above 0.5, and
    planefuse started from POM's final marginals (if it stays there, POM's answer is also a fixed point of the
    paper's update and the two differ only in which fixed point their iterations reach).
+4. **Uniform views.** One 20x20 camera, two locations whose silhouette is the whole image, location 1 at the
+   prior eps, the top rows of the mask foreground (fraction beta). Every image sum is then a fraction of the
+   area, and the paper's evidence for location 0, ``Psi(B, A^{0,1}) - Psi(B, A^{0,0})`` with ``A^{0,1} = 1`` and
+   ``A^{0,0} = eps``, is ``(1 - beta) - (1 + beta (1 - 2 eps) / eps) = -beta (1 - eps) / eps``: linear in beta.
+   POM's, read off its first iterate (``q_1 = 0.8 eps + 0.2 target``, part 1), is compared with it.
 
 Run: ``python scripts/pom_agreement.py``.
 """
@@ -30,7 +35,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from _pom_reference import POM_TEST_DATA, build_pom, demo_pom_file, run_pom_program  # noqa: E402
 
-from planefuse.occupancy import MeanFieldSolver, read_pom, read_pom_masks  # noqa: E402
+from planefuse.occupancy import (  # noqa: E402
+    GenerativeParams,
+    MeanFieldSolver,
+    Silhouettes,
+    read_pom,
+    read_pom_masks,
+    write_pom,
+)
 
 TUNE = list(range(160, 175))
 HELD_OUT = list(range(175, 190))
@@ -101,6 +113,44 @@ def held_out(exe: Path, tmp: Path, cfg) -> None:
           f"from POM's marginals: {np.corrcoef(restarted.ravel(), pom.ravel())[0, 1]:.3f}")
 
 
+def _evidence(q1: float, prior: float, sigma: float) -> float:
+    """The evidence ``sum_c [Psi(B, A^{k,1}) - Psi(B, A^{k,0})]`` behind a first iterate ``q1`` from the prior."""
+    target = (q1 - 0.8 * prior) / 0.2
+    return sigma * (np.log((1.0 - target) / target) - np.log((1.0 - prior) / prior))
+
+
+def uniform_views(exe: Path, tmp: Path) -> None:
+    print("\n## 4. Uniform views: evidence for a location against the foreground fraction beta\n")
+    print("| prior eps | paper's evidence | planefuse's, max abs difference to the paper's | POM's: least-squares "
+          "a beta + b beta^2 over beta = 0.1 .. 1 | its largest residual |")
+    print("|---|---|---|---|---|")
+    n = 20
+    sil = Silhouettes(np.array([[[0, 0, n - 1, n - 1]] * 2], np.int32), ((n, n),))
+    betas = np.array([0.1, 0.25, 0.5, 0.75, 1.0])
+    for prior in (0.05, 0.1, 0.3, 0.5):
+        work = tmp / f"uniform-{prior}"
+        (work / "masks").mkdir(parents=True)
+        (work / "out").mkdir()
+        ours, pom = [], []
+        for beta in betas:
+            # sigma of the order of the evidence: the first iterate stays far from 0 and 1 (POM prints 6 digits)
+            sigma = float(2.0 * beta * (1.0 - prior) / prior + 0.2)
+            mask = np.zeros((n, n), np.uint8)
+            mask[:round(beta * n)] = 255
+            cv2.imwrite(str(work / "masks" / "f0-c0.png"), cv2.merge([mask] * 3))  # POM reads RGB
+            params = GenerativeParams(prior=prior, sigma=sigma, max_iterations=1, tolerance=0.0)
+            pom_file = work / "u.pom"
+            write_pom(pom_file, sil, params, input_view_format="masks/f%f-c%c.png", result_format="out/proba-f%f.dat",
+                      process=(0, 1))
+            pom.append(_evidence(run_pom_program(exe, pom_file, 2, [0], work / "out")[0][0, 0], prior, sigma))
+            ours.append(_evidence(MeanFieldSolver(sil, params).solve([mask]).marginals[0], prior, sigma))
+        slope = -(1.0 - prior) / prior
+        design = np.stack([betas, betas ** 2], 1)
+        fit = np.linalg.lstsq(design, np.array(pom), rcond=None)[0]
+        print(f"| {prior} | {slope:.3f} beta | {np.abs(np.array(ours) - slope * betas).max():.1e} | "
+              f"{fit[0]:.3f} beta {fit[1]:+.3f} beta^2 | {np.abs(design @ fit - pom).max():.1e} |")
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory(prefix="pom-agreement-") as tmp:
         tmp = Path(tmp)
@@ -114,6 +164,7 @@ def main() -> None:
         first_iterates(exe, tmp, cfg)
         image_area(exe, tmp, cfg)
         held_out(exe, tmp, cfg)
+        uniform_views(exe, tmp)
 
 
 if __name__ == "__main__":

@@ -168,3 +168,46 @@ def test_threads_give_the_same_marginals(rng):
     assert serial.n_iterations == parallel.n_iterations and serial.n_iterations > 1
     with pytest.raises(ValueError, match="threads must be an integer >= 1"):
         MeanFieldSolver(sil, threads=0)
+
+
+def test_box_corners_index_the_region_integral_image(rng):
+    """The corner positions the kernel keeps per region: read in the integral image of a region (stored at the
+    camera's offset), every visible box's four corners give its sum over an image that is 0 outside the region,
+    boxes reaching out of the region included (their corners are clamped into it); unseen boxes have none."""
+    from planefuse.occupancy._meanfield import _corner_indices
+
+    boxes = np.full((2, 60, 4), -1, np.int64)
+    x0, y0 = rng.integers(0, W - 10, 60), rng.integers(0, H - 10, 60)
+    boxes[1] = np.stack([x0, y0, x0 + rng.integers(0, 10, 60), y0 + rng.integers(0, 10, 60)], -1)
+    boxes[1, ::7] = -1
+    o = 123
+    corners = np.zeros((2, 60, 4), np.int64)
+    for X0, Y0, X1, Y1 in [(0, 0, W - 1, H - 1), (7, 4, 41, 30)]:
+        _corner_indices(1, boxes, o, X0, Y0, X1, Y1, corners)
+        img = np.zeros((H, W))
+        img[Y0:Y1 + 1, X0:X1 + 1] = rng.random((Y1 - Y0 + 1, X1 - X0 + 1))
+        store = np.zeros(o + (H + 1) * (W + 1))
+        ii = np.zeros((Y1 - Y0 + 2, X1 - X0 + 2))
+        ii[1:, 1:] = img[Y0:Y1 + 1, X0:X1 + 1].cumsum(0).cumsum(1)
+        store[o:o + ii.size] = ii.ravel()
+        for k in range(60):
+            if boxes[1, k, 0] < 0:
+                assert corners[1, k, 0] == -1
+                continue
+            i00, i01, i10, i11 = corners[1, k]
+            a, b, e, d = boxes[1, k]
+            assert store[i11] - store[i01] - store[i10] + store[i00] == pytest.approx(img[b:d + 1, a:e + 1].sum())
+
+
+def test_marginals_do_not_depend_on_a_background_margin():
+    """Pixels that are background and outside every silhouette carry no evidence (``A = B = 0`` there): the ghost
+    scene shifted into a larger image (its region no longer at the image origin) gives the same marginals."""
+    sil, fg = _two_view_scene()
+    dy, dx = 7, 25
+    big_boxes = sil.boxes_px + np.array([dx, dy, dx, dy], np.int32)
+    big_fg = [np.pad(f, ((dy, 11), (dx, 3))) for f in fg]
+    big = Silhouettes(big_boxes, (big_fg[0].shape,) * 2)
+    a = occupancy_marginals(fg, sil).marginals
+    b = occupancy_marginals(big_fg, big).marginals
+    assert np.allclose(a, b, rtol=0, atol=1e-9)
+    assert a[0] > 0.9 and a[1] > 0.9 and a[2] < 0.1

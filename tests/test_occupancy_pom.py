@@ -133,6 +133,16 @@ def test_write_read_round_trip(tmp_path, rng):
     assert cfg.params.ignored_below == pytest.approx(0.01) and cfg.frames == [3, 4, 5, 6]
 
 
+def test_write_pom_numpy_scalar_parameters_are_plain_numbers(tmp_path):
+    """Regression: a numpy scalar PRIOR / SIGMA was written as its repr ("np.float64(0.3)"), which POM cannot read."""
+    sil = Silhouettes(np.array([[[0, 0, 9, 9]]], np.int32), ((10, 10),))
+    p = tmp_path / "np.pom"
+    write_pom(p, sil, GenerativeParams(prior=np.float64(0.3), sigma=np.float32(0.5), ignored_below=np.float64(0.25)))
+    text = p.read_text()
+    assert "PRIOR 0.3\n" in text and "SIGMA_IMAGE_DENSITY 0.5\n" in text and "PROBA_IGNORED 0.75\n" in text
+    assert read_pom(p).params.prior == 0.3
+
+
 def test_run_writes_pom_result_files(tmp_path):
     cfg = read_pom(_write(tmp_path, GOOD))
     _masks(tmp_path, cfg, [7, 8], people=(0,))

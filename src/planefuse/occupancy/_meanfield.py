@@ -31,7 +31,9 @@ threads. The damping 0.8 is POM's: its first iterate from the prior is ``0.8 eps
 its program, docs/results.md). Three exact-or-bounded economies:
 
 * the pass covers only the bounding region of the boxes in the synthetic image (``Abar = 0`` outside it, where
-  the integral images are its edge values: look-ups are clamped into it);
+  the integral images are its edge values: look-ups are clamped into it); every box's four corner positions in
+  that region's integral image are recomputed only on the iterations where the region changes (on fine grids it
+  stays the whole covered area while every location rises from the prior);
 * marginals below ``1e-3 eps`` (and below ``ignored_below``) are left out of ``Abar``;
 * a location whose last target marginal was below 1e-8 is *dormant*: damped towards 0 without evaluation,
   evaluated again every 5th iteration and before convergence is declared (its marginal differs from the full
@@ -417,16 +419,39 @@ def _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB):  
 
 
 @njit(cache=True, boundscheck=False)
-def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
-                  inv_sigma, acc):  # pragma: no cover - compiled
+def _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners):  # pragma: no cover - compiled
+    # corners[c, k] = positions of box k's four corners (top-left, top-right, bottom-left, bottom-right; exclusive
+    # right and bottom) in the (Y1 - Y0 + 2) x (X1 - X0 + 2) integral image of the region [X0, X1] x [Y0, Y1]
+    # stored at o, clamped into it; -1 where the box is not visible
+    wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
+    wl1 = wl + 1
+    for k in range(boxes.shape[1]):
+        x0 = boxes[c, k, 0]
+        if x0 < 0:
+            corners[c, k, 0] = -1
+            continue
+        lx0 = min(max(x0 - X0, 0), wl)
+        lx1 = min(max(boxes[c, k, 2] + 1 - X0, 0), wl)
+        ly0 = min(max(boxes[c, k, 1] - Y0, 0), hl)
+        ly1 = min(max(boxes[c, k, 3] + 1 - Y0, 0), hl)
+        corners[c, k, 0] = o + ly0 * wl1 + lx0
+        corners[c, k, 1] = o + ly0 * wl1 + lx1
+        corners[c, k, 2] = o + ly1 * wl1 + lx0
+        corners[c, k, 3] = o + ly1 * wl1 + lx1
+
+
+@njit(cache=True, boundscheck=False)
+def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB, region,
+                  corners, inv_sigma, acc):  # pragma: no cover - compiled
     # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated
     # this iteration. Reads q, t_remove and skip; writes only camera c's storage (D and I2 at its offsets,
-    # prev[c], acc[c]): the cameras can run in parallel.
+    # prev[c], region[c], corners[c], acc[c]): the cameras can run in parallel.
     K = boxes.shape[1]
     h, w = hw[c, 0], hw[c, 1]
     o, po = ii_off[c], px_off[c]
     # 1. the region [X0, X1] x [Y0, Y1] covered by some box in the synthetic image (Abar = 0 elsewhere, so the
-    # integral images need only cover it: outside, they are its values clamped to its edges)
+    # integral images need only cover it: outside, they are its values clamped to its edges); the corner
+    # positions are recomputed where it changed
     X0, Y0, X1, Y1 = w, h, -1, -1
     for k in range(K):
         x0 = boxes[c, k, 0]
@@ -438,42 +463,38 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D,
         Y1 = max(Y1, boxes[c, k, 3])
     if X1 < 0:
         X0, Y0, X1, Y1 = 0, 0, -1, -1
+    if X0 != region[c, 0] or Y0 != region[c, 1] or X1 != region[c, 2] or Y1 != region[c, 3]:
+        region[c, 0], region[c, 1], region[c, 2], region[c, 3] = X0, Y0, X1, Y1
+        _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners)
     wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
     wl1 = wl + 1
     # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each box scales its four corners
     for i in range(o, o + (hl + 1) * wl1):
         D[i] = 1.0
     for k in range(K):
-        x0 = boxes[c, k, 0]
-        if x0 < 0 or q[k] < cut:
+        i00 = corners[c, k, 0]
+        if i00 < 0 or q[k] < cut:
             continue
-        y0, x1, y1 = boxes[c, k, 1] - Y0, boxes[c, k, 2] - X0, boxes[c, k, 3] - Y0
-        x0 -= X0
         f = 1.0 - q[k]
         g = t_remove[k]  # 1 / f
-        D[o + y0 * wl1 + x0] *= f
-        D[o + y0 * wl1 + x1 + 1] *= g
-        D[o + (y1 + 1) * wl1 + x0] *= g
-        D[o + (y1 + 1) * wl1 + x1 + 1] *= f
+        D[i00] *= f
+        D[corners[c, k, 1]] *= g
+        D[corners[c, k, 2]] *= g
+        D[corners[c, k, 3]] *= f
     # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
     # interleaved so that one box corner of both is one cache line
     _abar_pass(D, W, B, I2, prev[c], o, wl, hl, po + Y0 * w + X0, w)
     last = 2 * (o + (hl + 1) * wl1 - 1)
     SA, SBA, sb = I2[last], I2[last + 1], SB[c]
-    # 3. per location: pseudo-distance with the location present and absent
+    # 3. per location: pseudo-distance with the location present and absent (its box sums: four look-ups each)
     for k in range(K):
-        x0 = boxes[c, k, 0]
-        if x0 < 0 or skip[k]:
+        i00 = corners[c, k, 0]
+        if i00 < 0 or skip[k]:
             continue
-        # box corners in the local integral image, clamped to it
-        lx0 = min(max(x0 - X0, 0), wl)
-        lx1 = min(max(boxes[c, k, 2] + 1 - X0, 0), wl)
-        ly0 = min(max(boxes[c, k, 1] - Y0, 0), hl)
-        ly1 = min(max(boxes[c, k, 3] + 1 - Y0, 0), hl)
-        i00 = 2 * (o + ly0 * wl1 + lx0)
-        i01 = 2 * (o + ly0 * wl1 + lx1)
-        i10 = 2 * (o + ly1 * wl1 + lx0)
-        i11 = 2 * (o + ly1 * wl1 + lx1)
+        i00 *= 2
+        i01 = 2 * corners[c, k, 1]
+        i10 = 2 * corners[c, k, 2]
+        i11 = 2 * corners[c, k, 3]
         rA = I2[i11] - I2[i01] - I2[i10] + I2[i00]
         rBA = I2[i11 + 1] - I2[i01 + 1] - I2[i10 + 1] + I2[i00 + 1]
         rW, rB = RW[c, k], RB[c, k]
@@ -508,11 +529,19 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
     # one row per camera, summed in camera order after the parallel loop: the same sums on any number of threads
     acc = np.zeros((n_cam, K))
     prev = np.empty((n_cam, hw[:, 1].max()))
+    # each camera's current region of the synthetic image and its boxes' corner positions in it (none yet)
+    region = np.full((n_cam, 4), -2, dtype=np.int64)
+    corners = np.empty((n_cam, K, 4), dtype=np.int64)
     # a location whose last target marginal was below 1e-8 is dormant: damped towards 0 without evaluation,
     # evaluated again on every REFRESH-th iteration (and before convergence is declared)
     skip = np.zeros(K, dtype=np.bool_)
-    t_remove = np.ones(K)
     cut = max(ignored_below, Q_NEGLIGIBLE * prior)
+    # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it); kept up to date
+    # by the update below
+    t_remove = np.ones(K)
+    for k in range(K):
+        if q[k] >= cut:
+            t_remove[k] = 1.0 / (1.0 - q[k])
     converged = False
     full = True
     it = 0
@@ -522,36 +551,33 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
             full = True
         if full:
             skip[:] = False
-        # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it)
-        for k in range(K):
-            t_remove[k] = 1.0 / (1.0 - q[k]) if q[k] >= cut else 1.0
         for c in prange(n_cam):
             _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
-                          inv_sigma, acc)
+                          region, corners, inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
-        delta = 0.0
+        moved = False
         for k in range(K):
+            qk = q[k]
             if skip[k]:
-                q[k] *= damping  # its target is below 1e-8: the damped update without evaluating it
-                continue
-            s = 0.0
-            for c in range(n_cam):
-                s += acc[c, k]  # 0 where the location is not visible in camera c
-            e = log_prior_ratio + s
-            if e > 700.0:
-                e = 700.0
-            qn = 1.0 / (1.0 + np.exp(e))
-            qn = damping * q[k] + (1.0 - damping) * qn
-            if qn > q_max:
-                qn = q_max
-            d = abs(qn - q[k]) / max(q[k], prior)
-            if d > delta:
-                delta = d
+                qn = qk * damping  # its target is below 1e-8: the damped update without evaluating it
+            else:
+                s = 0.0
+                for c in range(n_cam):
+                    s += acc[c, k]  # 0 where the location is not visible in camera c
+                e = log_prior_ratio + s
+                if e > 700.0:
+                    e = 700.0
+                qn = damping * qk + (1.0 - damping) * (1.0 / (1.0 + np.exp(e)))
+                if qn > q_max:
+                    qn = q_max
+                if abs(qn - qk) > tol * max(qk, prior):
+                    moved = True
+                if e > E_DORMANT:
+                    skip[k] = True
             q[k] = qn
-            if e > E_DORMANT:
-                skip[k] = True
-        if delta <= tol:
+            t_remove[k] = 1.0 / (1.0 - qn) if qn >= cut else 1.0
+        if not moved:
             if full:
                 converged = True
                 break

@@ -292,9 +292,10 @@ def write_pom(path: str | os.PathLike, silhouettes: Silhouettes, params: Generat
     lines = [f"# {c}" for c in comment.splitlines()] if comment else []
     lines.append(f"ROOM -1 -1 {C} {K}")
     lines += [f"CAMERA {cid} {w} {h}" for cid, (h, w) in zip(ids, silhouettes.image_sizes)]
-    lines += [f"PRIOR {params.prior!r}", f"SIGMA_IMAGE_DENSITY {params.sigma!r}",
+    # float(): the repr of a numpy scalar ("np.float64(0.01)") is no number to POM
+    lines += [f"PRIOR {float(params.prior)!r}", f"SIGMA_IMAGE_DENSITY {float(params.sigma)!r}",
               f"MAX_NB_SOLVER_ITERATIONS {int(params.max_iterations)}",
-              f"PROBA_IGNORED {round(1.0 - params.ignored_below, 12)!r}"]
+              f"PROBA_IGNORED {round(1.0 - float(params.ignored_below), 12)!r}"]
     if input_view_format:
         lines.append(f"INPUT_VIEW_FORMAT {input_view_format}")
     if result_format:

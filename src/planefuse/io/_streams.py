@@ -22,7 +22,7 @@ import soundfile as sf
 
 from ..geometry import CameraIntrinsics, PinholeCamera
 from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
-from ._paths import resolve_inside
+from ._paths import resolve_all_inside, resolve_inside
 from ._timestamps import Gap, TimeChecker, read_csv_chunks
 from ._video import VideoFrames
 
@@ -219,9 +219,10 @@ def _image_frames(root: Path, entry: CameraEntry):
     header, rows = _read_times(path, [["time_s", "image_file"], ["time_s", "image_file", "mask_file"]], entry.name)
     times = [_number(path, k + 2, "time_s", r[0]) for k, r in enumerate(rows)]
     rel = Path(entry.times_file).parent  # frame files are relative to the times file's folder
-    images = [resolve_inside(root, rel / r[1], f"{path}:{k + 2}: image_file") for k, r in enumerate(rows)]
-    masks = [resolve_inside(root, rel / r[2], f"{path}:{k + 2}: mask_file") for k, r in enumerate(rows)] \
-        if len(header) > 2 else None
+    images = resolve_all_inside(root, [(rel / r[1]).as_posix() for r in rows],
+                                lambda k: f"{path}:{k + 2}: image_file")
+    masks = resolve_all_inside(root, [(rel / r[2]).as_posix() for r in rows],
+                               lambda k: f"{path}:{k + 2}: mask_file") if len(header) > 2 else None
 
     def get(i: int) -> tuple:
         img = _read_png(images[i], cv2.IMREAD_COLOR)

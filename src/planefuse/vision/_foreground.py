@@ -8,6 +8,7 @@ moving person (1) rather than the static background (0). The multi-view fusion
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +25,9 @@ __all__ = [
     "read_mot_detections",
 ]
 
+#: OpenCV's default KNN ``dist2Threshold`` (squared distance in grey levels); on frames reduced by ``downscale`` the
+#: default is this divided by ``downscale`` (ForegroundParams.threshold).
+_KNN_THRESHOLD = 400.0
 # Values written by OpenCV's MOG2/KNN subtractors into their masks.
 _CV_FOREGROUND = 255
 _CV_SHADOW = 127
@@ -42,7 +46,10 @@ class ForegroundParams:
     threshold : float
         MOG2 ``varThreshold`` (squared Mahalanobis distance) or KNN
         ``dist2Threshold`` (squared distance); ``None`` = OpenCV's default
-        (16 for MOG2, 400 for KNN).
+        (16 for MOG2, 400 for KNN), for KNN divided by ``downscale`` (an
+        average of ``downscale**2`` pixels is less noisy but blurs a person's
+        edges; 200 at ``downscale`` 2 was the best of 100-400 on the default
+        scene's tuning seeds 1-3, docs/results.md "Cameras").
     detect_shadows : bool
         Let OpenCV mark shadows (value 127) instead of foreground.
     shadow_likelihood : float
@@ -143,9 +150,10 @@ class BackgroundSubtractor:
                 detectShadows=params.detect_shadows,
             )
         else:
+            threshold = _KNN_THRESHOLD / params.downscale if params.threshold is None else float(params.threshold)
             self._model = cv2.createBackgroundSubtractorKNN(
                 history=params.history,
-                dist2Threshold=400.0 if params.threshold is None else float(params.threshold),
+                dist2Threshold=threshold,
                 detectShadows=params.detect_shadows,
             )
         # Mask value -> likelihood: 0 background, 127 shadow, 255 foreground.
@@ -347,9 +355,11 @@ def _block_medians(ratio: np.ndarray, blocks: tuple[int, int]) -> np.ndarray:
     return out.reshape((rows, cols) + chans)
 
 
+@functools.lru_cache(maxsize=4096)
 def _frame_seed(n: int) -> int:
     """A well-spread 31-bit seed for frame ``n`` (numpy's SeedSequence hash): OpenCV's multiply-with-carry
-    generator seeded with consecutive small integers gives correlated draws."""
+    generator seeded with consecutive small integers gives correlated draws. Cached: every camera asks for
+    the same frame numbers."""
     return int(np.random.SeedSequence(n).generate_state(1, np.uint32)[0]) & 0x7FFFFFFF
 
 

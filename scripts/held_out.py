@@ -46,7 +46,7 @@ DOWNSCALE = {
     "KNN at full resolution (default)": _BASE,
     **{f"KNN at 1/{d} resolution, threshold " + (f"{t:g}" if t is not None else f"400/{d} (default)"): replace(
         _BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, downscale=d, threshold=t)))
-       for d, t in ((2, None), (2, 400.0), (2, 300.0), (2, 250.0), (2, 100.0), (3, None), (3, 400.0), (3, 44.0))},
+       for d, t in ((2, None), (2, 400.0), (2, 300.0), (2, 250.0), (2, 100.0), (3, 400.0), (3, 44.0))},
 }
 KEYS = ("moda", "precision", "recall", "mota", "idf1")
 

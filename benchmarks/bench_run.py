@@ -20,8 +20,8 @@ interleaved (every configuration once, then again...) and the minimum is reporte
 
 Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 7a386ab] [--repeats 2]
 [--downscale 2] [--image-format png|jpg] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras
-c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, written as a
-recording by ``scripts/terrace.py``'s ``write_recording``, without its ground truth; default configuration, cameras
+c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
+``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
 only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
 run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
 --workers 2``): wall-clock time (the cluster started beforehand), and the two results compared.
@@ -110,25 +110,22 @@ def digest(out: Path) -> str:
 
 
 def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path:
-    """The EPFL terrace's c0 and c1 over frames ``first..last-1`` as a recording folder (scripts/terrace.py)."""
+    """The EPFL terrace's c0 and c1 over frames ``first..last-1`` as a recording folder (``planefuse import``, as
+    ``scripts/terrace.py`` makes it), without its ground truth (timing only)."""
     import numpy as np
+    import yaml
 
     sys.path.insert(0, str(ROOT / "scripts"))
-    from terrace import terrace_truth, write_recording
+    from terrace import import_terrace
 
     data = ROOT.parent / "shared" / "data"
     if not (data / "epfl_video" / "terrace1-c0.mp4").is_file():
         raise SystemExit(f"{data / 'epfl_video'}: the EPFL terrace videos are absent")
-    import yaml
-
-    frames = np.arange(first, last)
-    truth = terrace_truth(data / "epfl_pom" / "EPFL-Terrace", frames)
-    write_recording(folder, data / "epfl_video", truth, frames, 1)
-    # timing only: without its ground truth (some of its positions are NaN, which the evaluation refuses)
-    manifest = yaml.safe_load((folder / "scene.yaml").read_text())
-    manifest.pop("groundtruth")
-    (folder / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
-    return folder
+    rec = import_terrace(folder, data, np.arange(first, last))
+    manifest = yaml.safe_load((rec / "scene.yaml").read_text())
+    manifest.pop("groundtruth", None)
+    (rec / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
+    return rec
 
 
 def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1) -> dict:

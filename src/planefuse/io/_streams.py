@@ -280,6 +280,11 @@ def image_file_problem(path: Path) -> str | None:
         return "file not found (missing frame)"
     except OSError as exc:
         return f"cannot read ({exc.strerror or exc})"
+    return _content_problem(path, head, tail)
+
+
+def _content_problem(path: Path, head: bytes, tail: bytes) -> str | None:
+    """:func:`image_file_problem`'s check of a non-empty file's first 8 and last 32 bytes."""
     suffix = path.suffix.lower()
     if suffix in (".jpg", ".jpeg"):
         if not head.startswith(_JPEG_START):
@@ -295,10 +300,17 @@ def image_file_problem(path: Path) -> str | None:
 
 
 def _read_png(path: Path, flags: int) -> np.ndarray:
-    problem = image_file_problem(path)
+    """The image file decoded (any format OpenCV reads), after :func:`image_file_problem`'s checks; the file is
+    read once, checked in memory and decoded from there."""
+    try:
+        data = np.fromfile(path, np.uint8)
+    except OSError:  # missing, a folder, unreadable: the check names it
+        data = None
+    problem = image_file_problem(path) if data is None or data.size == 0 else \
+        _content_problem(path, data[:8].tobytes(), data[-32:].tobytes())
     if problem is not None:
         raise ValueError(f"{path}: {problem}")
-    img = cv2.imread(str(path), flags)
+    img = cv2.imdecode(data, flags)
     if img is None:
         raise ValueError(f"{path}: cannot decode image (truncated or corrupt file)")
     return img

@@ -88,7 +88,9 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int) -> None:
 
         prof.disable()
         pstats.Stats(prof, stream=sys.stderr).sort_stats("tottime").print_stats(25)
-    print(json.dumps({"cpu_s": used, "duration_s": rec.duration_s,
+    # seconds recorded: from the first camera frame (an imported video clip starts at its first frame's time)
+    start_s = min((float(rec.camera(c.name).times_s[0]) for c in rec.cameras if len(rec.camera(c.name))), default=0.0)
+    print(json.dumps({"cpu_s": used, "duration_s": rec.duration_s - start_s,
                       "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                       "digest": digest(Path(out_dir)), "scores": {k: metrics.get(k) for k in SCORES}}))
 

@@ -203,7 +203,7 @@ class CameraSensorConfig(_Model):
     )
     subtraction_downscale: int = _field(
         description="Subtract the background on frames reduced by this factor per direction (faster: 2 = a quarter "
-        "of the pixels), the likelihood interpolated back to full size; 1 = full resolution", unit="",
+        "of the pixels), the likelihood interpolated back to full size; 1 = full resolution",
         expected="an integer >= 1", library="system.camera_params.foreground.downscale",
     )
     # --- generative sensor model (sensor_model: generative; planefuse.vision.GenerativeSensorParams) ---

@@ -306,7 +306,7 @@ def _read_png(path: Path, flags: int) -> np.ndarray:
         data = np.fromfile(path, np.uint8)
     except OSError:  # missing, a folder, unreadable: the check names it
         data = None
-    problem = image_file_problem(path) if data is None or data.size == 0 else \
+    problem = (image_file_problem(path) or "cannot read") if data is None or data.size == 0 else \
         _content_problem(path, data[:8].tobytes(), data[-32:].tobytes())
     if problem is not None:
         raise ValueError(f"{path}: {problem}")

@@ -90,9 +90,10 @@ class ForegroundParams:
         Learning rate while relearning, in (0, 1].
     downscale : int
         Subtract the background on frames reduced by this factor in each direction (``cv2.INTER_AREA``; 2 = a
-        quarter of the pixels, about a quarter of the subtractor's time), then bring the likelihood back to the
+        quarter of the pixels, a sixth of KNN's time at 360x288), then bring the likelihood back to the
         camera's size by bilinear interpolation; the open/close sides are divided by it. 1 = full resolution.
-        A different detector, not a speed-only change: its accuracy is in docs/results.md ("Cameras").
+        A different detector, not a speed-only change: docs/results.md, "Background subtraction at reduced
+        resolution" (not the default: behind full resolution on the tuning seeds).
     """
 
     method: str = "knn"

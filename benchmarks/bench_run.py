@@ -1,28 +1,30 @@
 """Real-time factor of ``planefuse run``: CPU seconds per second of recording, before and after, in one run.
 
 The default scene (``planefuse demo``'s: 4 cameras at 25 Hz, nodding laser at 40 Hz, binaural head, 6 people) is
-simulated and written to disk as ``planefuse simulate`` writes it (PNG frames by default), then run as
-``planefuse run`` runs it (:func:`planefuse.pipeline.run_plan`: reading the recording, decoding every frame,
-background subtraction, registration, filter, tracker, tables and metrics; figures, animation and report off)
-by two source trees in turn, each in its own process pinned to one core with one thread per library (numba,
-OpenMP, BLAS, OpenCV):
+simulated and written to disk twice as ``planefuse simulate`` writes it: PNG frames at zlib level 1 (what it wrote
+before, ``--png-compression 1``) and stored uncompressed (level 0, its default now; the same pixels). Then it is run
+as ``planefuse run`` runs it (:func:`planefuse.pipeline.run_plan`: reading the recording, decoding every frame,
+background subtraction, registration, filter, tracker, tables and metrics; figures, animation and report off), each
+run in its own process pinned to one core with one thread per library (numba, OpenMP, BLAS, OpenCV):
 
-* ``before``: the tree of ``--before`` (a commit, exported with ``git archive`` into a temporary folder);
-* ``after``: this checkout's ``src``.
+* ``before``: the tree of ``--before`` (a commit, exported with ``git archive`` into a temporary folder), on the
+  level-1 recording;
+* ``after``: this checkout's ``src`` on the level-1 recording (code only), on the stored recording, and on the stored
+  recording with the cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its
+  scores are printed beside it).
 
-Each process first runs a 1 s simulated scene (numba compilation, caches), then times the run. CPU time is the
+Each process first runs a 1.5 s simulated scene (numba compilation, caches), then times the run. CPU time is the
 process's user + system time (``resource.getrusage``), the honest measure on a shared machine; repeats are
-interleaved (before, after, before, after...) and the minimum is reported. The two trees' tables
-(detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared.
+interleaved (every configuration once, then again...) and the minimum is reported. The runs' tables
+(detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared by a digest.
 
-Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 1dc1878] [--repeats 2]
-[--image-format png] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras c0 and c1,
-360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, written as a recording by
-``scripts/terrace.py``'s ``write_recording``, without its ground truth; default configuration, cameras only);
-``--recording DIR`` times
-any recording folder. ``--streams`` also times, in this process (all cores), the run in one process against the
-run with each camera's front end on a LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time
-(the cluster started beforehand), and the two results compared.
+Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 7a386ab] [--repeats 2]
+[--downscale 2] [--image-format png|jpg] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras
+c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
+``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
+only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
+run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
+--workers 2``): wall-clock time (the cluster started beforehand), and the two results compared.
 """
 
 from __future__ import annotations
@@ -36,14 +38,16 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main before issue 19's speed work (2026-12-02)
-BEFORE = "1dc1878"
+#: main when this branch started (2026-12-03)
+BEFORE = "7a386ab"
 ROOT = Path(__file__).resolve().parents[1]
+SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
 
 
-def child(rec_dir: str, out_dir: str, profile: bool) -> None:
-    """One timed run in this process (pinned to one core); prints a JSON line."""
+def child(rec_dir: str, out_dir: str, profile: bool, downscale: int) -> None:
+    """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
+    resolution where above 1; prints a JSON line."""
     import resource
 
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
@@ -69,18 +73,26 @@ def child(rec_dir: str, out_dir: str, profile: bool) -> None:
 
         prof = cProfile.Profile()
         prof.enable()
+    params = SystemParams()
+    if downscale > 1:
+        from dataclasses import replace
+
+        cam = params.camera_params
+        params = replace(params, camera_params=replace(cam, foreground=replace(cam.foreground, downscale=downscale)))
     c0 = cpu()
     rec = read_recording(rec_dir)
-    _, metrics = run_plan(rec, RunPlan(SystemParams(), Path(out_dir), settings), progress_mode="quiet")
+    _, metrics = run_plan(rec, RunPlan(params, Path(out_dir), settings), progress_mode="quiet")
     used = cpu() - c0
     if prof is not None:
         import pstats
 
         prof.disable()
         pstats.Stats(prof, stream=sys.stderr).sort_stats("tottime").print_stats(25)
-    print(json.dumps({"cpu_s": used, "duration_s": rec.duration_s,
+    # seconds recorded: from the first camera frame (an imported video clip starts at its first frame's time)
+    start_s = min((float(rec.camera(c.name).times_s[0]) for c in rec.cameras if len(rec.camera(c.name))), default=0.0)
+    print(json.dumps({"cpu_s": used, "duration_s": rec.duration_s - start_s,
                       "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                      "digest": digest(Path(out_dir))}))
+                      "digest": digest(Path(out_dir)), "scores": {k: metrics.get(k) for k in SCORES}}))
 
 
 def digest(out: Path) -> str:
@@ -100,31 +112,28 @@ def digest(out: Path) -> str:
 
 
 def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path:
-    """The EPFL terrace's c0 and c1 over frames ``first..last-1`` as a recording folder (scripts/terrace.py)."""
+    """The EPFL terrace's c0 and c1 over frames ``first..last-1`` as a recording folder (``planefuse import``, as
+    ``scripts/terrace.py`` makes it), without its ground truth (timing only)."""
     import numpy as np
+    import yaml
 
     sys.path.insert(0, str(ROOT / "scripts"))
-    from terrace import terrace_truth, write_recording
+    from terrace import import_terrace
 
     data = ROOT.parent / "shared" / "data"
     if not (data / "epfl_video" / "terrace1-c0.mp4").is_file():
         raise SystemExit(f"{data / 'epfl_video'}: the EPFL terrace videos are absent")
-    import yaml
-
-    frames = np.arange(first, last)
-    truth = terrace_truth(data / "epfl_pom" / "EPFL-Terrace", frames)
-    write_recording(folder, data / "epfl_video", truth, frames, 1)
-    # timing only: without its ground truth (some of its positions are NaN, which the evaluation refuses)
-    manifest = yaml.safe_load((folder / "scene.yaml").read_text())
-    manifest.pop("groundtruth")
-    (folder / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
-    return folder
+    rec = import_terrace(folder, data, np.arange(first, last))
+    manifest = yaml.safe_load((rec / "scene.yaml").read_text())
+    manifest.pop("groundtruth", None)
+    (rec / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
+    return rec
 
 
-def run_tree(src: Path, rec: Path, out: Path, profile: bool) -> dict:
+def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1) -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
-    p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out)] + (["--profile"] if profile else []),
-                       env=env, capture_output=True, text=True)
+    p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
+                       + (["--profile"] if profile else []), env=env, capture_output=True, text=True)
     if p.returncode:
         raise RuntimeError(f"{src}: run failed\n{p.stderr[-3000:]}")
     if profile:
@@ -141,50 +150,67 @@ def main() -> None:
     ap.add_argument("--terrace", action="store_true", help="time the EPFL terrace video (frames 1500-1999)")
     ap.add_argument("--before", default=BEFORE, help="commit of the 'before' tree ('' to skip it)")
     ap.add_argument("--repeats", type=int, default=2)
-    ap.add_argument("--profile", action="store_true", help="print the 'after' run's profile (slower)")
+    ap.add_argument("--downscale", type=int, default=2,
+                    help="also time background subtraction at 1/N resolution (1: skip)")
+    ap.add_argument("--profile", action="store_true", help="print the last 'after' run's profile (slower)")
     ap.add_argument("--streams", action="store_true", help="also: serial vs per-camera streams on 2 workers")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.profile)
+        child(*args.child, args.profile, args.downscale)
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
-    rec = args.recording
+    recs: dict[str, Path] = {}
     if args.terrace:
-        rec = terrace_recording(tmp / "terrace")
-    elif rec is None:
+        recs["terrace"] = terrace_recording(tmp / "terrace")
+    elif args.recording is not None:
+        recs["recording"] = args.recording
+    else:
         from planefuse.sim import default_scene_config, simulate
 
-        rec = tmp / "rec"
-        simulate(default_scene_config(duration_s=args.duration_s, seed=args.seed)).write(
-            rec, image_format=args.image_format)
-    trees = {"after": ROOT / "src"}
+        rec = simulate(default_scene_config(duration_s=args.duration_s, seed=args.seed))
+        if args.image_format == "png":
+            for level, name in ((1, "PNG level 1"), (0, "PNG stored")):
+                recs[name] = tmp / f"rec-png{level}"
+                rec.write(recs[name], png_compression=level)
+        else:
+            recs["JPEG"] = tmp / "rec-jpg"
+            rec.write(recs["JPEG"], image_format="jpg")
+    first, last = next(iter(recs)), list(recs)[-1]
+    after = ROOT / "src"
+    runs: list[tuple[str, Path, Path, int]] = []  # label, source tree, recording, downscale
     if args.before:
         (tmp / "before").mkdir()
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, "src"], check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(tmp / "before")], input=archive, check=True)
-        trees = {"before": tmp / "before" / "src", **trees}
-    runs: dict[str, list[dict]] = {k: [] for k in trees}
+        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1))
+    runs += [(f"after (this checkout), {name}", after, path, 1) for name, path in recs.items()]
+    if args.downscale > 1:
+        runs.append((f"after, {last}, KNN at 1/{args.downscale} resolution", after, recs[last], args.downscale))
+    results: dict[str, list[dict]] = {label: [] for label, *_ in runs}
     for r in range(args.repeats):
-        for name, src in trees.items():
-            runs[name].append(run_tree(src, rec, tmp / f"out-{name}-{r}", args.profile and name == "after"
-                                       and r == args.repeats - 1))
-    print(f"recording: {rec} ({runs['after'][0]['duration_s']:g} s); one core, one thread per library; "
-          f"min of {args.repeats} interleaved runs")
-    print("| code | CPU s | real-time factor (CPU s per s) | peak RSS [MB] | results digest |")
-    print("|---|---|---|---|---|")
-    for name, rs in runs.items():
+        for k, (label, src, rec_dir, downscale) in enumerate(runs):
+            profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
+            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale))
+    some = next(iter(results.values()))[0]
+    print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
+          f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")
+    print("| code, recording | CPU s | real-time factor (CPU s per s) | vs first row | peak RSS [MB] | results digest "
+          "| MODA | MOTA | IDF1 | cameras-only MODA |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    base = None
+    for label, rs in results.items():
         best = min(rs, key=lambda x: x["cpu_s"])
-        label = f"before ({args.before})" if name == "before" else "after (this checkout)"
+        base = base or best["cpu_s"]
+        sc = best.get("scores") or {}
+        cells = " | ".join("-" if sc.get(k) is None else f"{sc[k]:.3f}" for k in SCORES)
         print(f"| {label} | {best['cpu_s']:.2f} | {best['cpu_s'] / best['duration_s']:.3f} | "
-              f"{best['peak_rss_mb']:.0f} | {best['digest']} |")
-    digests = {r["digest"] for rs in runs.values() for r in rs}
-    if "before" in runs:
-        b, a = (min(x["cpu_s"] for x in runs[k]) for k in ("before", "after"))
-        print(f"speed-up {b / a:.2f}x; identical results: {len(digests) == 1}")
+              f"{base / best['cpu_s']:.2f}x | {best['peak_rss_mb']:.0f} | {best['digest']} | {cells} |")
+    same = {label: {r["digest"] for r in rs} for label, rs in results.items() if "KNN at" not in label}
+    print(f"identical results (every run at full resolution): {len(set().union(*same.values())) == 1}")
     if args.streams:
-        streams(rec, tmp)
+        streams(recs[last], tmp)
 
 
 def streams(rec_dir: Path, tmp: Path) -> None:

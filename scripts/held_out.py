@@ -1,14 +1,15 @@
 """The whole system on several seeds of the default scene: the defaults against the previous filter
 (bilinear sub-cell motion, dense grid) and no temporal filter. Prints a Markdown table.
 
-Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10] [--probe]
+Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10] [--probe | --downscale]
 [--workers N | --scheduler tcp://HOST:8786 | --serial]``
 
 Every (seed, configuration) run is one task of :func:`planefuse.batch.run_batch` (a dask LocalCluster of one
 worker per core by default, or a running scheduler); the metrics are the serial runs' (``--serial`` runs them in
 this process).
 
-``--probe`` scores instead the clustering / tracker variants of the probe in docs/results.md.
+``--probe`` scores instead the clustering / tracker variants of the probe in docs/results.md; ``--downscale`` the
+cameras' background subtraction at full, half and third resolution (``ForegroundParams.downscale``).
 
 The filter's defaults were chosen on seeds 1-3 (tuning); seeds 4 and above are held out. Scores as in
 :func:`planefuse.eval.system_metrics` (first second skipped, 0.5 m match distance).
@@ -39,6 +40,14 @@ PROBE = {
     "min_separation_m 0.6": replace(_BASE, tracking=replace(_T, cluster=replace(_T.cluster, min_separation_m=0.6))),
     "column threshold 2.5": replace(_BASE, tracking=replace(_T, cluster=replace(_T.cluster, threshold=2.5))),
 }
+_F = _BASE.camera_params.foreground
+#: the cameras' background subtraction at full and reduced resolution (``--downscale``)
+DOWNSCALE = {
+    "KNN at full resolution (default)": _BASE,
+    **{f"KNN at 1/{d} resolution, threshold " + (f"{t:g}" if t is not None else f"400/{d} (default)"): replace(
+        _BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, downscale=d, threshold=t)))
+       for d, t in ((2, None), (2, 400.0), (2, 300.0), (2, 250.0), (2, 100.0), (3, 400.0), (3, 44.0))},
+}
 KEYS = ("moda", "precision", "recall", "mota", "idf1")
 
 
@@ -47,12 +56,14 @@ def main() -> None:
     ap.add_argument("--seeds", default="1,2,3,4,5,6")
     ap.add_argument("--duration-s", type=float, default=10.0)
     ap.add_argument("--probe", action="store_true", help="the clustering / tracker variants instead")
+    ap.add_argument("--downscale", action="store_true",
+                    help="the cameras' background subtraction at full and reduced resolution instead")
     ap.add_argument("--workers", type=int, default=None, help="local dask workers (default: one per core)")
     ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
     ap.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
     ap.add_argument("--only", default=None, help="only the configurations whose name contains this")
     args = ap.parse_args()
-    configs = PROBE if args.probe else CONFIGS
+    configs = PROBE if args.probe else DOWNSCALE if args.downscale else CONFIGS
     if args.only is not None:
         configs = {name: p for name, p in configs.items() if args.only in name}
     seeds = [int(s) for s in args.seeds.split(",")]
@@ -63,25 +74,26 @@ def main() -> None:
     failed = [r.error for r in results if not r.ok]
     if failed:
         raise SystemExit("\n".join(failed))
-    print("| seed | configuration | MODA | precision | recall | MOTA | IDF1 | ID switches |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| seed | configuration | MODA | precision | recall | MOTA | IDF1 | ID switches | cameras-only MODA |")
+    print("|---|---|---|---|---|---|---|---|---|")
     scores: dict[str, list[dict]] = {name: [] for name in configs}
     for r in results:
         m = r.metrics
         scores[r.tags["config"]].append(m)
         print(f"| {r.tags['seed']} | {r.tags['config']} | " + " | ".join(f"{m[k]:.3f}" for k in KEYS)
-              + f" | {m['id_switches']} |")
+              + f" | {m['id_switches']} | {m.get('camera_only_moda', float('nan')):.3f} |")
     for title, rows in (("tuning seeds 1-3", [i for i, s in enumerate(seeds) if s <= 3]),
                         ("held-out seeds (4 and above)", [i for i, s in enumerate(seeds) if s > 3])):
         if not rows:
             continue
         print(f"\nMeans over the {title}:\n")
-        print("| configuration | MODA | MOTA | IDF1 | worst MOTA | worst IDF1 |")
-        print("|---|---|---|---|---|---|")
+        print("| configuration | MODA | MOTA | IDF1 | worst MOTA | worst IDF1 | cameras-only MODA |")
+        print("|---|---|---|---|---|---|---|")
         for name, ms in scores.items():
-            col = {k: np.array([ms[i][k] for i in rows]) for k in ("moda", "mota", "idf1")}
+            col = {k: np.array([ms[i].get(k, np.nan) for i in rows])
+                   for k in ("moda", "mota", "idf1", "camera_only_moda")}
             print(f"| {name} | {col['moda'].mean():.3f} | {col['mota'].mean():.3f} | {col['idf1'].mean():.3f} | "
-                  f"{col['mota'].min():.3f} | {col['idf1'].min():.3f} |")
+                  f"{col['mota'].min():.3f} | {col['idf1'].min():.3f} | {col['camera_only_moda'].mean():.3f} |")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 bad frames, geometry, grid sizes and output folders are clear errors; the run state is written last."""
 
 import json
+import re
 import shutil
 import sys
 import tracemalloc
@@ -18,7 +19,7 @@ from planefuse.cli import app
 from planefuse.config import example_yaml
 from planefuse.geometry import apply_homography
 from planefuse.io import image_file_problem, read_recording
-from planefuse.io._paths import check_name, resolve_inside
+from planefuse.io._paths import check_name, resolve_all_inside, resolve_inside
 from planefuse.outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, out_dir_problem
 from planefuse.pipeline import RunPlan, SystemParams, _system, filter_memory_bytes, run_to_folder, stack_for_recording
 from planefuse.sim import default_scene_config, simulate
@@ -259,3 +260,25 @@ def test_a_point_mapped_to_infinity_is_nan_not_inf():
         warnings.simplefilter("error")
         out = apply_homography(H, [[0.0, 2.0], [1.0, 2.0]])
     assert np.isnan(out[0]).all() and np.allclose(out[1], [1.0, 2.0])
+
+
+def test_resolve_all_inside_is_resolve_inside(tmp_path):
+    """The bulk resolution of frame files gives resolve_inside's paths and errors: plain names, links inside and
+    out (folder and file), absent files and folders, '..' and absolute paths."""
+    rec = tmp_path / "rec"
+    (rec / "cam" / "frames").mkdir(parents=True)
+    (rec / "cam" / "frames" / "0.png").write_bytes(b"x")
+    (rec / "cam" / "frames" / "in.png").symlink_to(rec / "cam" / "frames" / "0.png")
+    (rec / "cam" / "frames" / "out.png").symlink_to(tmp_path / "elsewhere.png")
+    (rec / "cam" / "linked").symlink_to(rec / "cam" / "frames")
+    (rec / "cam" / "away").symlink_to(tmp_path)
+    rels = ["cam/frames/0.png", "cam/frames/in.png", "cam/frames/absent.png", "cam/linked/0.png", "cam/nowhere/0.png",
+            "cam/frames/../frames/0.png", "cam/frames/out.png", "cam/away/x.png", "../x.png", "/etc/passwd", "C:\\x"]
+    for rel in rels:
+        try:
+            expected = resolve_inside(rec, rel, f"file {rel}")
+        except ValueError as exc:
+            with pytest.raises(ValueError, match=re.escape(str(exc))):
+                resolve_all_inside(rec, ["cam/frames/0.png", rel], lambda k: f"file {rel}")
+        else:
+            assert resolve_all_inside(rec, ["cam/frames/0.png", rel], lambda k: f"file {rel}")[1] == str(expected)

@@ -203,6 +203,22 @@ def test_jpeg_frames_are_close_and_masks_exact(tmp_path):
         rec.write(tmp_path / "x", image_format="bmp")
 
 
+def test_png_frames_are_exact_at_every_compression_level(tmp_path):
+    rec = simulate(_small_config(duration_s=0.12))
+    sizes = {}
+    for level in (0, 1, 9):
+        rec.write(tmp_path / f"p{level}", png_compression=level)
+        back = read_recording(tmp_path / f"p{level}")
+        for fa, fb in zip(rec.camera("a"), back.camera("a"), strict=True):
+            np.testing.assert_array_equal(fa.image, fb.image)
+        sizes[level] = sum(f.stat().st_size for f in (tmp_path / f"p{level}" / "cameras" / "a" / "frames").iterdir())
+    h, w = rec.camera("a").frame(0).shape[:2]
+    assert sizes[0] >= len(rec.camera("a")) * h * w * 3 > sizes[1] >= sizes[9]  # level 0: stored, not deflated
+    for bad in (-1, 10, 1.5):
+        with pytest.raises(ValueError, match="png_compression must be an integer in 0..9"):
+            rec.write(tmp_path / "bad", png_compression=bad)
+
+
 def _copy(written, tmp_path, name="broken"):
     dst = tmp_path / name
     shutil.copytree(written[1], dst)

@@ -52,11 +52,12 @@ def _separated(rng, n, lo=1.0, hi=9.0, min_d=0.7):
 
 
 # -- foreground ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("downscale", [1, 2])
 @pytest.mark.parametrize("method", ["mog2", "knn"])
-def test_background_subtraction_likelihood(method, rng):
+def test_background_subtraction_likelihood(method, downscale, rng):
     h, w = 96, 128
     bg = cv2.GaussianBlur(rng.uniform(60, 200, (h, w)).astype(np.float32), (0, 0), 3)
-    params = ForegroundParams(method=method, history=50)
+    params = ForegroundParams(method=method, history=50, downscale=downscale)
     bs = BackgroundSubtractor(w, h, params, "camX")
     for _ in range(40):
         like = bs.apply(np.clip(bg + rng.normal(0, 2, bg.shape), 0, 255).astype(np.uint8))
@@ -71,6 +72,21 @@ def test_background_subtraction_likelihood(method, rng):
     assert like[78:88, 25:55].mean() < 0.5  # shadows are not people
     with pytest.raises(ValueError, match="camX.*96x128"):
         bs.apply(np.zeros((h, w + 1), np.uint8))
+
+
+def test_reduced_resolution_subtractor_sees_the_frame_reduced_and_answers_at_full_size(rng):
+    h, w = 96, 128
+    full, half = (BackgroundSubtractor(w, h, ForegroundParams(downscale=d, relearn_fraction=0.5)) for d in (1, 2))
+    assert full._model.getDist2Threshold() == 400 and half._model.getDist2Threshold() == 200  # 400 / downscale
+    assert BackgroundSubtractor(w, h, ForegroundParams(downscale=2, threshold=300))._model.getDist2Threshold() == 300
+    bg = np.clip(cv2.GaussianBlur(rng.uniform(60, 200, (h, w)).astype(np.float32), (0, 0), 3), 0, 255)
+    half.prime(bg.astype(np.uint8))
+    like = half.apply(bg.astype(np.uint8))
+    assert like.shape == (h, w) and like.max() == pytest.approx(0.02)
+    relearn = half.apply(np.full((h, w), 255, np.uint8))  # everything changed: no evidence, at the camera's size
+    assert relearn.shape == (h, w) and np.all(relearn == 0.5)
+    with pytest.raises(ValueError, match="downscale"):
+        ForegroundParams(downscale=0)
 
 
 @pytest.mark.parametrize("method", ["mog2", "knn"])

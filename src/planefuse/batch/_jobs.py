@@ -98,11 +98,27 @@ class JobResult:
         return self.error is None
 
 
+def _numba_config_from_environment() -> None:
+    """Make numba read the environment now, before any kernel starts its thread pool.
+
+    A dask worker process is spawned, imports the batch's main module (and numba, which reads
+    ``NUMBA_NUM_THREADS`` then: unset, so one per core), and only afterwards gets the cluster's environment
+    (``NUMBA_NUM_THREADS=1``). If a kernel started the pool before numba re-read its environment, the next
+    re-read raised "Cannot set NUMBA_NUM_THREADS to a different value once the threads have been launched"
+    (seen once in an 18-run sweep). Re-reading first, in every task, starts the pool with the cluster's value;
+    where nothing changed it is a no-op.
+    """
+    import numba
+
+    numba.config.reload_config()
+
+
 def run_job(job: BatchJob) -> JobResult:
     """Run one job in this process (what a dask worker calls); failures are returned, not raised."""
     from ..io import read_recording
     from ..pipeline import run_plan
 
+    _numba_config_from_environment()
     try:
         rec = job.recording.recording() if isinstance(job.recording, SceneSpec) else read_recording(job.recording)
         _, metrics = run_plan(rec, job.plan, progress_mode="quiet")

@@ -16,7 +16,9 @@ def simulate(
     out: Path = typer.Option(..., "--out", help="Output recording folder."),
     duration_s: float = typer.Option(None, "--duration-s", help="Override the scene's duration [s]."),
     seed: int = typer.Option(None, "--seed", help="Override the scene's random seed."),
-    image_format: str = typer.Option("png", "--image-format", help="png (lossless) or jpg (fast, small)."),
+    image_format: str = typer.Option("png", "--image-format", help="png (lossless) or jpg (lossy, small)."),
+    png_compression: int = typer.Option(0, "--png-compression", help="zlib level 0-9 of PNG frames: 0 = stored "
+                                        "(about 1.7x the bytes of level 1 on simulated frames, read 9x faster)."),
     masks: bool = typer.Option(True, "--masks/--no-masks", help="Write ground-truth foreground masks."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Allow a non-empty output folder."),
 ) -> None:
@@ -32,7 +34,8 @@ def simulate(
             cfg = type(cfg).model_validate({**cfg.model_dump(exclude_unset=True), **over})
         t0 = time.perf_counter()
         rec = run(cfg)
-        manifest = rec.write(out, overwrite=overwrite, masks=masks, image_format=image_format)
+        manifest = rec.write(out, overwrite=overwrite, masks=masks, image_format=image_format,
+                             png_compression=png_compression)
     except ValueError as exc:
         exit_with_error(str(exc))
     kinds = ", ".join(f"{s.type} {s.name}" for s in manifest.sensors)

@@ -201,6 +201,11 @@ class CameraSensorConfig(_Model):
         description="Foreground likelihood of a foreground pixel", expected="in [0, 1]",
         library="system.camera_params.foreground.ceiling",
     )
+    subtraction_downscale: int = _field(
+        description="Subtract the background on frames reduced by this factor per direction (faster: 2 = a quarter "
+        "of the pixels), the likelihood interpolated back to full size; 1 = full resolution",
+        expected="an integer >= 1", library="system.camera_params.foreground.downscale",
+    )
     # --- generative sensor model (sensor_model: generative; planefuse.vision.GenerativeSensorParams) ---
     generative_people_per_m2: float = _field(
         description="Generative model: prior density of people", unit="1/m^2", expected="> 0",

@@ -37,6 +37,17 @@ _PNG = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PN
 _IMAGE_PARAMS = {"png": _PNG, "jpg": [cv2.IMWRITE_JPEG_QUALITY, 95]}
 
 
+def _png_params(compression: int) -> list[int]:
+    """``cv2.imwrite`` parameters of a PNG frame at zlib level ``compression`` (0-9). Level 0 is stored: no
+    deflate and no row filter (where OpenCV can be told), so reading a frame is a copy of its pixels."""
+    if not (isinstance(compression, int) and 0 <= compression <= 9):
+        raise ValueError(f"png_compression must be an integer in 0..9, got {compression!r}")
+    if compression == 0:
+        none = [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE] if hasattr(cv2, "IMWRITE_PNG_FILTER") else []
+        return [cv2.IMWRITE_PNG_COMPRESSION, 0, *none]
+    return [cv2.IMWRITE_PNG_COMPRESSION, compression, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE]
+
+
 @dataclass
 class Recording:
     """Synchronised sensor streams and ground truth, in memory (simulated) or backed by files (read).
@@ -129,9 +140,10 @@ class Recording:
             yield ev
 
     def write(self, out_dir: str | Path, *, overwrite: bool = False, masks: bool = True,
-              image_format: str = "png") -> RecordingManifest:
+              image_format: str = "png", png_compression: int = 0) -> RecordingManifest:
         """Write every stream, the ground truth and ``scene.yaml`` to ``out_dir``; see :func:`write_recording`."""
-        return write_recording(self, out_dir, overwrite=overwrite, masks=masks, image_format=image_format)
+        return write_recording(self, out_dir, overwrite=overwrite, masks=masks, image_format=image_format,
+                               png_compression=png_compression)
 
 
 @dataclass(frozen=True)
@@ -185,7 +197,7 @@ def _matrix(a: np.ndarray) -> list[list[float]]:
 
 
 def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = False,
-                    masks: bool = True, image_format: str = "png") -> RecordingManifest:
+                    masks: bool = True, image_format: str = "png", png_compression: int = 0) -> RecordingManifest:
     """Write ``rec`` in the planefuse recording format (``docs/recording-format.md``).
 
     Parameters
@@ -198,8 +210,13 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
     masks : bool
         Also write the cameras' ground-truth label masks (always PNG, lossless).
     image_format : {"png", "jpg"}
-        Camera frames as lossless PNG (exact round trip) or JPEG quality 95 (about 10x faster to write and
-        5x smaller; the pixel noise of simulated frames makes PNG expensive).
+        Camera frames as lossless PNG (exact round trip) or JPEG quality 95 (lossy, about 10x smaller than a
+        stored PNG; the pixel noise of simulated frames makes PNG compression expensive and weak).
+    png_compression : int
+        zlib level of the PNG frames, 0-9. 0 (the default) stores them uncompressed: the same pixels, about
+        1.7x the bytes of level 1 on simulated frames, but written about 15x and read about 9x faster
+        (0.2 instead of 2 ms per 360x288 frame; docs/benchmarks.md, "Real-time factor"). Masks, background
+        and ignore images are always compressed (they compress well).
 
     Returns
     -------
@@ -208,6 +225,8 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
     """
     if image_format not in _IMAGE_PARAMS:
         raise ValueError(f"image_format must be one of {sorted(_IMAGE_PARAMS)}, got {image_format!r}")
+    png = _png_params(png_compression)
+    frame_params = png if image_format == "png" else _IMAGE_PARAMS[image_format]
     root = Path(out_dir)
     if root.exists() and any(root.iterdir()) and not overwrite:
         raise ValueError(f"{root}: output folder is not empty (pass overwrite=True / --overwrite)")
@@ -215,7 +234,7 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
     sensors: list = []
     with ThreadPoolExecutor(max_workers=2) as pool:
         for name, cs in rec.camera_streams.items():
-            sensors.append(_write_camera(root, name, cs, masks and cs.has_masks, image_format, pool))
+            sensors.append(_write_camera(root, name, cs, masks and cs.has_masks, image_format, frame_params, pool))
     for s in rec.imus.values():
         d = s.read()
         rel = f"imu/{s.name}.csv"
@@ -264,7 +283,7 @@ def _wait(path: Path, job) -> None:
 
 
 def _write_camera(root: Path, name: str, cs: CameraStream, masks: bool, image_format: str,
-                  pool: ThreadPoolExecutor) -> CameraEntry:
+                  frame_params: list[int], pool: ThreadPoolExecutor) -> CameraEntry:
     base = root / "cameras" / name
     (base / "frames").mkdir(parents=True, exist_ok=True)
     if masks:
@@ -280,7 +299,7 @@ def _write_camera(root: Path, name: str, cs: CameraStream, masks: bool, image_fo
 
     for fr in cs:
         img_rel = f"frames/{fr.index:06d}.{image_format}"
-        put(base / img_rel, fr.image, _IMAGE_PARAMS[image_format])
+        put(base / img_rel, fr.image, frame_params)
         row = [repr(float(fr.time_s)), img_rel]
         if masks:
             mask_rel = f"masks/{fr.index:06d}.png"

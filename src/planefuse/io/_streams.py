@@ -24,7 +24,7 @@ import soundfile as sf
 
 from ..geometry import CameraIntrinsics, PinholeCamera
 from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
-from ._paths import PathArray, resolve_inside
+from ._paths import PathArray, resolve_all_inside, resolve_inside
 from ._timestamps import Gap, TimeChecker, read_csv_chunks
 from ._video import VideoFrames
 
@@ -221,9 +221,10 @@ def _image_frames(root: Path, entry: CameraEntry):
     header, rows = _read_times(path, [["time_s", "image_file"], ["time_s", "image_file", "mask_file"]], entry.name)
     times = [_number(path, k + 2, "time_s", r[0]) for k, r in enumerate(rows)]
     rel = Path(entry.times_file).parent  # frame files are relative to the times file's folder
-    images = PathArray(resolve_inside(root, rel / r[1], f"{path}:{k + 2}: image_file") for k, r in enumerate(rows))
-    masks = PathArray(resolve_inside(root, rel / r[2], f"{path}:{k + 2}: mask_file") for k, r in enumerate(rows)) \
-        if len(header) > 2 else None
+    images = PathArray(resolve_all_inside(root, [(rel / r[1]).as_posix() for r in rows],
+                                          lambda k: f"{path}:{k + 2}: image_file"))
+    masks = PathArray(resolve_all_inside(root, [(rel / r[2]).as_posix() for r in rows],
+                                         lambda k: f"{path}:{k + 2}: mask_file")) if len(header) > 2 else None
 
     def get(i: int) -> tuple:
         # the path as a str: a Path per frame read would intern every file name
@@ -283,6 +284,11 @@ def image_file_problem(path: str | os.PathLike) -> str | None:
         return "file not found (missing frame)"
     except OSError as exc:
         return f"cannot read ({exc.strerror or exc})"
+    return _content_problem(path, head, tail)
+
+
+def _content_problem(path: str | os.PathLike, head: bytes, tail: bytes) -> str | None:
+    """:func:`image_file_problem`'s check of a non-empty file's first 8 and last 32 bytes."""
     suffix = os.path.splitext(path)[1].lower()
     if suffix in (".jpg", ".jpeg"):
         if not head.startswith(_JPEG_START):
@@ -298,10 +304,17 @@ def image_file_problem(path: str | os.PathLike) -> str | None:
 
 
 def _read_png(path: str | os.PathLike, flags: int) -> np.ndarray:
-    problem = image_file_problem(path)
+    """The image file decoded (any format OpenCV reads), after :func:`image_file_problem`'s checks; the file is
+    read once, checked in memory and decoded from there."""
+    try:
+        data = np.fromfile(path, np.uint8)
+    except OSError:  # missing, a folder, unreadable: the check names it
+        data = None
+    problem = (image_file_problem(path) or "cannot read") if data is None or data.size == 0 else \
+        _content_problem(path, data[:8].tobytes(), data[-32:].tobytes())
     if problem is not None:
         raise ValueError(f"{path}: {problem}")
-    img = cv2.imread(os.fspath(path), flags)
+    img = cv2.imdecode(data, flags)
     if img is None:
         raise ValueError(f"{path}: cannot decode image (truncated or corrupt file)")
     return img

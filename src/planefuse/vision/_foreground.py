@@ -8,6 +8,7 @@ moving person (1) rather than the static background (0). The multi-view fusion
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,6 +25,9 @@ __all__ = [
     "read_mot_detections",
 ]
 
+#: OpenCV's default KNN ``dist2Threshold`` (squared distance in grey levels); on frames reduced by ``downscale`` the
+#: default is this divided by ``downscale`` (ForegroundParams.threshold).
+_KNN_THRESHOLD = 400.0
 # Values written by OpenCV's MOG2/KNN subtractors into their masks.
 _CV_FOREGROUND = 255
 _CV_SHADOW = 127
@@ -42,7 +46,10 @@ class ForegroundParams:
     threshold : float
         MOG2 ``varThreshold`` (squared Mahalanobis distance) or KNN
         ``dist2Threshold`` (squared distance); ``None`` = OpenCV's default
-        (16 for MOG2, 400 for KNN).
+        (16 for MOG2, 400 for KNN), for KNN divided by ``downscale`` (an
+        average of ``downscale**2`` pixels is less noisy but blurs a person's
+        edges; 200 at ``downscale`` 2 was the best of 100-400 on the default
+        scene's tuning seeds 1-3, docs/results.md "Cameras").
     detect_shadows : bool
         Let OpenCV mark shadows (value 127) instead of foreground.
     shadow_likelihood : float
@@ -81,6 +88,12 @@ class ForegroundParams:
         Frames of fast relearning after a sudden change.
     relearn_rate : float
         Learning rate while relearning, in (0, 1].
+    downscale : int
+        Subtract the background on frames reduced by this factor in each direction (``cv2.INTER_AREA``; 2 = a
+        quarter of the pixels, a sixth of KNN's time at 360x288), then bring the likelihood back to the
+        camera's size by bilinear interpolation; the open/close sides are divided by it. 1 = full resolution.
+        A different detector, not a speed-only change: docs/results.md, "Background subtraction at reduced
+        resolution" (not the default: behind full resolution on the tuning seeds).
     """
 
     method: str = "knn"
@@ -100,6 +113,7 @@ class ForegroundParams:
     relearn_fraction: float | None = None
     relearn_frames: int = 5
     relearn_rate: float = 0.2
+    downscale: int = 1
 
     def __post_init__(self) -> None:
         require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
@@ -107,7 +121,7 @@ class ForegroundParams:
                      ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
         check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
-                     relearn_frames="int>=1")
+                     relearn_frames="int>=1", downscale="int>=1")
         require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
                 f"must be (rows, cols) >= 1, got {self.gain_blocks}")
 
@@ -137,9 +151,10 @@ class BackgroundSubtractor:
                 detectShadows=params.detect_shadows,
             )
         else:
+            threshold = _KNN_THRESHOLD / params.downscale if params.threshold is None else float(params.threshold)
             self._model = cv2.createBackgroundSubtractorKNN(
                 history=params.history,
-                dist2Threshold=400.0 if params.threshold is None else float(params.threshold),
+                dist2Threshold=threshold,
                 detectShadows=params.detect_shadows,
             )
         # Mask value -> likelihood: 0 background, 127 shadow, 255 foreground.
@@ -147,9 +162,12 @@ class BackgroundSubtractor:
         lut[_CV_SHADOW] = params.shadow_likelihood
         lut[_CV_FOREGROUND] = 1.0
         self._lut = lut
-        self._open = _kernel(params.open_px)
+        d = params.downscale
+        #: the subtractor's frame size (cols, rows) [px]: the camera's, reduced by ``params.downscale``
+        self._model_size = (max(1, round(self.width_px / d)), max(1, round(self.height_px / d)))
+        self._open = _kernel(int(params.open_px / d + 0.5))
         self._rate = params.learning_rate
-        self._close = _kernel(params.close_px)
+        self._close = _kernel(int(params.close_px / d + 0.5))
         self._n_learned = 0
         self._gain = GainCompensator(params.gain_blocks, params.gain_rate) if params.gain_compensation else None
         self._relearn_left = 0
@@ -208,6 +226,8 @@ class BackgroundSubtractor:
         # the frames alone (reproducible, and exactly replayed by a resumed run).
         cv2.setRNGSeed(_frame_seed(self._n_learned))
         self._n_learned += 1
+        if self.params.downscale > 1:
+            img = cv2.resize(img, self._model_size, interpolation=cv2.INTER_AREA)
         if self._relearn_left > 0:
             rate = self.params.relearn_rate
             self._relearn_left -= 1
@@ -244,7 +264,7 @@ class BackgroundSubtractor:
             self.n_sudden_changes += int(self._n_learned > p.relearn_frames)
             relearning = True
         if relearning:  # the model is being rebuilt: no evidence either way
-            return np.full(mask.shape, 0.5, dtype=np.float32)
+            return np.full((self.height_px, self.width_px), 0.5, dtype=np.float32)
         # Clean the hard decision (foreground only) before softening it.
         if self._open is not None:
             hard = cv2.morphologyEx(hard, cv2.MORPH_OPEN, self._open)
@@ -253,6 +273,8 @@ class BackgroundSubtractor:
         # 255 where the cleaned decision is foreground, else 127 where OpenCV saw a shadow, else 0
         shadow = cv2.bitwise_and(cv2.compare(mask, _CV_SHADOW, cv2.CMP_EQ), _CV_SHADOW)
         like = cv2.LUT(cv2.max(hard, shadow), self._lut)
+        if self.params.downscale > 1:
+            like = cv2.resize(like, (self.width_px, self.height_px), interpolation=cv2.INTER_LINEAR)
         return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling, own=True)
 
 
@@ -334,9 +356,11 @@ def _block_medians(ratio: np.ndarray, blocks: tuple[int, int]) -> np.ndarray:
     return out.reshape((rows, cols) + chans)
 
 
+@functools.lru_cache(maxsize=4096)
 def _frame_seed(n: int) -> int:
     """A well-spread 31-bit seed for frame ``n`` (numpy's SeedSequence hash): OpenCV's multiply-with-carry
-    generator seeded with consecutive small integers gives correlated draws."""
+    generator seeded with consecutive small integers gives correlated draws. Cached: every camera asks for
+    the same frame numbers."""
     return int(np.random.SeedSequence(n).generate_state(1, np.uint32)[0]) & 0x7FFFFFFF
 
 

@@ -22,6 +22,7 @@ from planefuse.cli._app import app
 from planefuse.config import config_from_dict, load_config
 from planefuse.io import read_recording
 from planefuse.pipeline import run_plan
+from planefuse.vision import detection_evidence_prior
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
@@ -46,10 +47,15 @@ def test_shipped_configuration_is_honoured():
     assert (fg.gain_compensation, fg.shadow_likelihood, fg.threshold, fg.close_px) == \
         (cams["gain_compensation"], cams["shadow_likelihood"], cams["var_threshold"], cams["close_px"])
     assert fg.gain_blocks == tuple(cams["gain_blocks"])
-    assert (gen.sigma, gen.people_per_m2, gen.evidence_prior, gen.detection_mass) == \
-        (cams["generative_sigma"], cams["generative_people_per_m2"], cams["generative_evidence_prior"],
-         cams["generative_detection_mass"])
+    assert (gen.sigma, gen.people_per_m2, gen.detection_mass) == \
+        (cams["generative_sigma"], cams["generative_people_per_m2"], cams["generative_detection_mass"])
     assert params.tracking.cluster.threshold == data["models"]["detection"]["column_threshold"]
+    # "detection": the evidence prior at which one frame of a just-detected person is a just-threshold cluster
+    assert cams["generative_evidence_prior"] == "detection"
+    assert gen.evidence_prior == pytest.approx(
+        detection_evidence_prior(gen.detection_mass, params.tracking.cluster.threshold))
+    assert gen.evidence_prior == pytest.approx(1 / (1 + np.exp(-(np.log(np.expm1(gen.detection_mass))
+                                                                   - params.tracking.cluster.threshold))))
     assert params.heights_m == tuple(data["planes"]["heights_m"])
     assert not params.laser and not params.sound
 

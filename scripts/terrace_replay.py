@@ -25,7 +25,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import terrace as T  # noqa: E402
@@ -39,20 +38,6 @@ from planefuse.vision import GenerativeCameraSensor  # noqa: E402
 
 #: Generative fields a replay may change (they map the kept marginals to evidence; the rest made the marginals).
 REPLAYABLE = {"generative_evidence_prior", "generative_max_log_odds", "generative_detection_mass"}
-
-
-def with_sets(config: dict, sets: list[str]) -> dict:
-    """``config`` with ``FIELD=YAML`` changes."""
-    for item in sets:
-        field, _, value = item.partition("=")
-        change: dict = {}
-        node = change
-        *heads, last = field.split(".")
-        for h in heads:
-            node = node.setdefault(h, {})
-        node[last] = yaml.safe_load(value)
-        config = T.merged(config, change)
-    return config
 
 
 def capture(rec, config: dict):
@@ -117,7 +102,7 @@ def main(argv=None) -> int:
         return 0
     frames = np.arange(args.first, args.last, args.step)
     truth = T.terrace_truth(pom_root, frames)
-    base = with_sets(T.load_base_config(args.config), args.set)
+    base = T.with_sets(T.load_base_config(args.config), args.set)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-replay-"))
     try:
         rec = read_recording(T.import_terrace(tmp, args.data, frames))
@@ -132,7 +117,7 @@ def main(argv=None) -> int:
             if cams_changed - REPLAYABLE:
                 print(f"{spec}: refused, {sorted(cams_changed - REPLAYABLE)} change the marginals (new capture)")
                 continue
-            cfg = with_sets(base, sets)
+            cfg = T.with_sets(base, sets)
             params = config_from_dict(T.merged(cfg, {"recording": str(rec.root)})).system_params()
             outs = replay(stack, messages, qs, sensor, params)
             by = {T._frame_of(o.time_s): o for o in outs}

@@ -130,7 +130,7 @@ def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
     messages, qs, sensor, _, params, stack = R.capture(rec, base)
     assert len(messages) == len(qs) == len(frames)
     for sets in ([], ["sensors.cameras.generative_evidence_prior=0.5"]):
-        cfg = R.with_sets(base, sets)
+        cfg = terrace.with_sets(base, sets)
         plan = replace(config_from_dict(terrace.merged(cfg, {"recording": str(rec.root)})).plan(), out_dir=None)
         res, _ = run_plan(rec, plan, progress_mode="quiet")
         outs = R.replay(stack, messages, qs, sensor, plan.params)

@@ -80,6 +80,20 @@ _NOFILTER = {"models": {"filter": {"enabled": False}}}
 #: generative model's, chosen on frames 0-1499).
 _CELL_THRESHOLD = {"models": {"detection": {"column_threshold": 1.5}}}
 
+def with_sets(config: dict, sets) -> dict:
+    """``config`` with the ``FIELD=YAML`` changes ``sets`` (``models.detection.column_threshold=2``) written over it."""
+    for item in sets:
+        field, _, value = item.partition("=")
+        change: dict = {}
+        node = change
+        *heads, last = field.split(".")
+        for h in heads:
+            node = node.setdefault(h, {})
+        node[last] = yaml.safe_load(value)
+        config = merged(config, change)
+    return config
+
+
 def _changes(*parts: dict) -> dict:
     """The nested configuration changes ``parts`` applied one after the other."""
     out: dict = {}
@@ -323,16 +337,7 @@ def main(argv=None) -> int:
     out = args.out or Path(tempfile.mkdtemp(prefix="terrace-"))
     out.mkdir(parents=True, exist_ok=True)
     truth = terrace_truth(pom_root, frames)
-    base = load_base_config(args.config)
-    for item in args.set:
-        field, _, value = item.partition("=")
-        change: dict = {}
-        node = change
-        *heads, last = field.split(".")
-        for h in heads:
-            node = node.setdefault(h, {})
-        node[last] = yaml.safe_load(value)
-        base = merged(base, change)
+    base = with_sets(load_base_config(args.config), args.set)
     rows = _rows(args.rows)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-rec-"))
     results = []

@@ -254,3 +254,21 @@ def test_check_recording_cameras_must_see_the_grid(small_stack):
                            T_world_cam_look_at([-20, -20, 2.5], [-30, -30, 0.0]), "corner")
     rep = check_recording([corner], small_stack, {})
     assert not rep.camera_visible_fraction["corner"].any()
+
+
+def test_generative_evidence_prior_detection_is_derived_from_mass_and_threshold(tmp_path):
+    """``generative_evidence_prior: detection`` sets the evidence prior from the detection mass and the column
+    threshold (:func:`planefuse.vision.detection_evidence_prior`), following both; other words are refused."""
+    from planefuse.vision import detection_evidence_prior
+
+    for mass, thr in ((0.4, 1.5), (0.5, 2.0)):
+        text = (example_yaml().replace("generative_evidence_prior: null", "generative_evidence_prior: detection")
+                .replace("generative_detection_mass: 0.4", f"generative_detection_mass: {mass}")
+                .replace("column_threshold: 1.5", f"column_threshold: {thr}"))
+        cfg = load_config(_write(tmp_path, text))
+        assert cfg.system_params().camera_params.generative.evidence_prior == pytest.approx(
+            detection_evidence_prior(mass, thr))
+    assert detection_evidence_prior(0.5, 2.0) == pytest.approx(0.0807, abs=1e-4)
+    err = _error(_edited(tmp_path, "generative_evidence_prior: null", "generative_evidence_prior: detector"))
+    assert err.issues and all(it.field_path.startswith("sensors.cameras.generative_evidence_prior")
+                              for it in err.issues)

@@ -22,6 +22,7 @@ from planefuse.cli._app import app
 from planefuse.config import config_from_dict, load_config
 from planefuse.io import read_recording
 from planefuse.pipeline import run_plan
+from planefuse.vision import detection_evidence_prior
 
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
@@ -46,10 +47,15 @@ def test_shipped_configuration_is_honoured():
     assert (fg.gain_compensation, fg.shadow_likelihood, fg.threshold, fg.close_px) == \
         (cams["gain_compensation"], cams["shadow_likelihood"], cams["var_threshold"], cams["close_px"])
     assert fg.gain_blocks == tuple(cams["gain_blocks"])
-    assert (gen.sigma, gen.people_per_m2, gen.evidence_prior, gen.detection_mass) == \
-        (cams["generative_sigma"], cams["generative_people_per_m2"], cams["generative_evidence_prior"],
-         cams["generative_detection_mass"])
+    assert (gen.sigma, gen.people_per_m2, gen.detection_mass) == \
+        (cams["generative_sigma"], cams["generative_people_per_m2"], cams["generative_detection_mass"])
     assert params.tracking.cluster.threshold == data["models"]["detection"]["column_threshold"]
+    # "detection": the evidence prior at which one frame of a just-detected person is a just-threshold cluster
+    assert cams["generative_evidence_prior"] == "detection"
+    assert gen.evidence_prior == pytest.approx(
+        detection_evidence_prior(gen.detection_mass, params.tracking.cluster.threshold))
+    assert gen.evidence_prior == pytest.approx(1 / (1 + np.exp(-(np.log(np.expm1(gen.detection_mass))
+                                                                   - params.tracking.cluster.threshold))))
     assert params.heights_m == tuple(data["planes"]["heights_m"])
     assert not params.laser and not params.sound
 
@@ -107,3 +113,30 @@ def test_system_metrics_leave_out_absent_people():
     m = system_metrics(rec, times, dets, tracks, ModalityReport(), 1.0)
     assert m["moda"] == pytest.approx(1.0) and m["recall"] == pytest.approx(1.0)
     assert m["mota"] == pytest.approx(1.0)
+
+
+@pytest.mark.realdata
+def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
+    """scripts/terrace_replay.py: the evidence rebuilt from the kept marginals, run through the filter,
+    clustering and tracker, gives exactly the outputs of the run itself (the same configuration), also with
+    another evidence prior; a variant of the front end cannot be replayed."""
+    import terrace_replay as R
+
+    data = shared_data("epfl_video").parent
+    shared_data("epfl_pom")
+    frames = FRAMES[:6]
+    rec = read_recording(terrace.import_terrace(tmp_path, data, frames))
+    base = terrace.load_base_config()
+    messages, qs, sensor, _, params, stack = R.capture(rec, base)
+    assert len(messages) == len(qs) == len(frames)
+    for sets in ([], ["sensors.cameras.generative_evidence_prior=0.5"]):
+        cfg = terrace.with_sets(base, sets)
+        plan = replace(config_from_dict(terrace.merged(cfg, {"recording": str(rec.root)})).plan(), out_dir=None)
+        res, _ = run_plan(rec, plan, progress_mode="quiet")
+        outs = R.replay(stack, messages, qs, sensor, plan.params)
+        assert len(outs) == len(res.outputs)
+        for a, b in zip(outs, res.outputs):
+            np.testing.assert_array_equal(a.occupancy, b.occupancy)
+            np.testing.assert_array_equal(a.detections.xy_m, b.detections.xy_m)
+            np.testing.assert_array_equal(a.tracks.ids, b.tracks.ids)
+    assert not R.REPLAYABLE & {"close_px", "var_threshold", "generative_sigma"}

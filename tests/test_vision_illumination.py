@@ -103,3 +103,45 @@ def test_generative_evidence_prior_makes_weak_marginals_evidence_against():
     assert ev[0.5][50, 50] < ev[0.5][ghost]  # an empty cell says "nobody" more firmly
     with pytest.raises(ValueError, match="evidence_prior"):
         GenerativeSensorParams(evidence_prior=1.0)
+
+
+# -- evidence consistent with the per-frame detector -----------------------------------------------------------
+@pytest.mark.parametrize("mass, threshold", [(0.5, 2.0), (0.4, 1.5), (1.0, 3.0)])
+def test_detection_evidence_prior_makes_one_frame_of_a_detected_person_a_cluster(mass, threshold):
+    """With ``evidence_prior = detection_evidence_prior(m, T)``, one frame of marginals holding just the detector's
+    mass ``m`` (spread over the disc) is reported by the detector *and*, through the filter on cells at its
+    prior, is a cluster with column evidence ``>= T``; 0.8 m is neither. Against even odds (0.5) the same frame is
+    evidence against (no cluster) although the detector reports the person."""
+    from planefuse.geometry import default_camera_ring
+    from planefuse.grid import PlaneStack, probability_from_log_odds, log_odds_from_probability
+    from planefuse.tracking import ClusterParams, column_log_odds
+    from planefuse.vision import GenerativeCameraSensor, GenerativeSensorParams, detection_evidence_prior
+    from planefuse.vision._persons import _disc
+
+    stack = PlaneStack.from_extent([0.1, 0.5, 1.0, 1.5], (0, 8), (0, 8), 0.1)
+    cams = [default_camera_ring(4)[i] for i in (0, 1)]
+    p0 = 0.05
+    cp = ClusterParams(threshold=threshold, smoothing_m=0.0)
+    disc = _disc(2.0)  # radius_m 0.2 on 10 cm cells
+    centre = (40, 40)
+
+    def frame(m):
+        q = np.zeros((stack.ny, stack.nx))
+        r = disc.shape[0] // 2
+        q[centre[0] - r:centre[0] + r + 1, centre[1] - r:centre[1] + r + 1][disc] = m / disc.sum()
+        return q
+
+    p_e = detection_evidence_prior(mass, threshold)
+    assert 0.0 < p_e < 0.5
+    for ref, expect_cluster in ((p_e, True), (0.5, False)):
+        sensor = GenerativeCameraSensor(cams, stack, GenerativeSensorParams(evidence_prior=ref, detection_mass=mass))
+        for m, present in ((mass * 1.0001, expect_cluster), (0.8 * mass, False)):
+            q = frame(m)
+            detected = len(sensor.detections(q, 0.0, 0.45)) == 1
+            assert detected == (m >= mass)
+            # the filter's posterior of one update from the prior: logit p0 + evidence
+            occ = probability_from_log_odds(log_odds_from_probability(p0) + sensor.log_odds_from_marginals(q))
+            S = column_log_odds(occ, stack, p0, cp)
+            assert (S[centre] >= threshold) == present, (ref, m, S[centre])
+    with pytest.raises(ValueError, match="detection_mass"):
+        detection_evidence_prior(0.0, 2.0)

@@ -236,9 +236,11 @@ class CameraSensorConfig(_Model):
         "keep the likelihoods", expected="null or in [0, 1]",
         library="system.camera_params.generative.foreground_threshold",
     )
-    generative_evidence_prior: float | None = _field(
+    generative_evidence_prior: float | Literal["detection"] | None = _field(
         description="Generative model: the filter's evidence is the marginal's log-odds against this probability; "
-        "null = against the model's prior", expected="null or in (0, 1)",
+        "null = against the model's prior; detection = the value at which one frame's evidence of a person the "
+        "per-frame detector just reports (generative_detection_mass) reaches models.detection.column_threshold "
+        "(planefuse.vision.detection_evidence_prior)", expected="null, detection or in (0, 1)",
         library="system.camera_params.generative.evidence_prior",
     )
 
@@ -497,6 +499,11 @@ class RunConfig(_Model):
             if head == root:
                 v = _config_value(self, field_path)
                 values[tuple(rest.split("."))] = tuple(v) if isinstance(v, list) else v
+        if root == "system" and self.sensors.cameras.generative_evidence_prior == "detection":
+            from ..vision import detection_evidence_prior
+
+            values[("camera_params", "generative", "evidence_prior")] = detection_evidence_prior(
+                self.sensors.cameras.generative_detection_mass, self.models.detection.column_threshold)
         return values
 
     def _library(self, root: str) -> Any:

@@ -23,7 +23,7 @@ from ._foreground import (
     read_mot_detections,
 )
 from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio, quantise_foreground
-from ._generative import GenerativeCameraSensor, GenerativeSensorParams
+from ._generative import GenerativeCameraSensor, GenerativeSensorParams, detection_evidence_prior
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
 from ._pipeline import (CameraFrontEnd, CameraParams, CameraReport, camera_detections, camera_foregrounds,
                         frame_is_dead, lookups_from_cameras)
@@ -42,6 +42,7 @@ __all__ = [
     "FusionParams",
     "GenerativeCameraSensor",
     "GenerativeSensorParams",
+    "detection_evidence_prior",
     "PersonParams",
     "camera_detections",
     "frame_is_dead",

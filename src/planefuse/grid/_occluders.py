@@ -19,7 +19,8 @@ An installation's static objects are declared as axis-aligned boxes in the world
 * **filled** (:func:`cells_filled_by_occluders`): the cell's square footprint overlaps the box and the
   plane's height is within ``[z_min, z_max]``. No person stands there; what a laser returns from the box's
   surface in such a cell, and any other sensor's evidence there, is about the occluder, not a person, so
-  the system gives those cells no evidence (:class:`planefuse.tracking.EvidenceTracker` ``static_cells``).
+  the system replaces the evidence there by certain free space for people (:class:`planefuse.tracking.
+  EvidenceTracker` ``static_cells``).
 """
 
 from __future__ import annotations

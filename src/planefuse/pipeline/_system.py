@@ -75,8 +75,9 @@ class SystemParams:
         Known static occluders of the installation (pillars, shelves, counters), axis-aligned boxes in the
         world frame [m] (:mod:`planefuse.grid._occluders`): each camera leaves the cells whose line of sight
         passes through one unobserved (no evidence either way, as an ignored image region), and the cells a
-        box fills get no evidence from any sensor (no person stands there; a laser's returns there are off
-        the box). Empty: none declared. Only with the cameras' per-cell sensor model (``"cell"``).
+        box fills are free of people whatever the sensors say there (a laser's returns there are off the
+        box; :class:`planefuse.tracking.EvidenceTracker` ``static_cells``). Empty: none declared. Only with the
+        cameras' per-cell sensor model (``"cell"``).
     camera_params : planefuse.vision.CameraParams
         Camera pipeline parameters (foreground, sensor model, person model, registration).
     laser_model : planefuse.laser.LaserSensorModel

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._state import StateDict, float_or_none, get, optional_float, strings, sub_state, with_prefix
-from ..grid import Evidence, GroundDetections, PlaneStack
+from ..grid import LOG_ODDS_CLIP, Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
@@ -115,8 +115,11 @@ class EvidenceTracker:
         The planes; every evidence must have ``log_odds.shape == stack.shape``.
     params : TrackingParams, optional
     static_cells : ndarray, shape (L, ny, nx), bool, optional
-        Cells filled by a known static occluder (:func:`planefuse.grid.cells_filled_by_occluders`): no person
-        stands there, so every batch's log-odds are set to 0 there (no evidence either way) before the update.
+        Cells filled by a known static occluder (:func:`planefuse.grid.cells_filled_by_occluders`). No person
+        stands there, and what the sensors say there is about the occluder (a laser's returns off its faces),
+        so every batch's log-odds are replaced there by ``-LOG_ODDS_CLIP`` (certainly free of people, the
+        strongest evidence the grid takes) before the update: the mass the prediction moves into them from
+        a person walking up to the occluder is not kept there either.
     """
 
     def __init__(self, stack: PlaneStack, params: TrackingParams | None = None,
@@ -159,8 +162,8 @@ class EvidenceTracker:
         params, stack = self.params, self.stack
         self.bof.predict_to(batch.time_s)
         log_odds = batch.log_odds
-        if self.static_cells is not None:  # the occluder's cells: what sensors say there is about the occluder
-            log_odds = np.where(self.static_cells, np.float32(0.0), log_odds)
+        if self.static_cells is not None:  # no person in an occluder: what sensors say there is about the occluder
+            log_odds = np.where(self.static_cells, np.float32(-LOG_ODDS_CLIP), log_odds)
         self.bof.update(log_odds)
         self.sensors.extend(s for s in batch.sensors if s not in self.sensors)
         period = params.output_period_s

@@ -106,3 +106,15 @@ def test_system_params_check_occluder_boxes():
         SystemParams(occluder_boxes_m=[[1, 2, 1, 2, 0, 1]], camera_params=CameraParams(sensor_model="generative"))
     with pytest.raises(ValueError, match="inside occluder box"):
         cells_hidden_by_occluders([1.5, 1.5, 0.5], STACK, [[1, 2, 1, 2, 0, 1]])
+
+
+def test_run_configuration_declares_the_occluders(tmp_path):
+    from planefuse.config import ConfigError, load_config
+
+    good = tmp_path / "run.yaml"
+    good.write_text("recording: rec\nscene:\n  occluder_boxes_m:\n    - [3.2, 3.8, 3.2, 3.8, 0.0, 2.8]\n")
+    assert load_config(good).system_params().occluder_boxes_m == ((3.2, 3.8, 3.2, 3.8, 0.0, 2.8),)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("recording: rec\nscene:\n  occluder_boxes_m:\n    - [3.8, 3.2, 3.2, 3.8, 0.0, 2.8]\n")
+    with pytest.raises(ConfigError, match=r"bad.yaml:3: scene.occluder_boxes_m: boxes\[0\]"):
+        load_config(bad)

@@ -24,6 +24,7 @@ from ..pipeline import RunPlan, SystemParams
 
 __all__ = [
     "PlanesConfig",
+    "SceneConfig",
     "CameraSensorConfig",
     "LaserSensorConfig",
     "SoundSensorConfig",
@@ -94,6 +95,17 @@ class PlanesConfig(_Model):
     )
     cell_size_m: float = _field(
         description="Side of a square grid cell", unit="m", expected="in (0, 5]", library="system.cell_size_m"
+    )
+
+
+class SceneConfig(_Model):
+    """What is known of the installation's static scene (issue 17): its occluders."""
+
+    occluder_boxes_m: list[tuple[float, float, float, float, float, float]] = _field(
+        [], description="Static occluders (pillars, shelves, counters), axis-aligned boxes [x_min, x_max, y_min, "
+        "y_max, z_min, z_max] in the world frame: each camera leaves the cells they hide from it unobserved, and "
+        "the cells they fill hold no person (planefuse.grid.cells_hidden_by_occluders); cameras' sensor_model cell",
+        unit="m", expected="each minimum below its maximum", library="system.occluder_boxes_m",
     )
 
 
@@ -465,6 +477,7 @@ class RunConfig(_Model):
         expected="a folder path",
     )
     planes: PlanesConfig = _field(PlanesConfig(), description="Plane stack and grid")
+    scene: SceneConfig = _field(SceneConfig(), description="Known static scene")
     sensors: SensorsConfig = _field(SensorsConfig(), description="Sensors")
     models: ModelsConfig = _field(ModelsConfig(), description="Models")
     outputs: OutputsConfig = _field(OutputsConfig(), description="Outputs")

@@ -25,8 +25,8 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 4  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
-#                       4: the report's laser-point stride
+CHECKPOINT_FORMAT = 5  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
+#                       4: the report's laser-point stride; 5: the tracks' supported time
 
 
 def system_laser_model() -> LaserSensorModel:

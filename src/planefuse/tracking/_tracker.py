@@ -40,7 +40,7 @@ Each step (``dt`` since the last one):
    apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
    row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
    (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
-6. support through weak evidence: a confirmed track still without a cluster looks at the column evidence
+6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the column evidence
    ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its predicted position, away (more than
    ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
    there below the clusters' threshold (partly hidden by an occluder, a camera gone: fewer views, weaker
@@ -303,6 +303,12 @@ class MultiPersonTracker:
                     owner[ci] = tr
                 else:
                     self._update(tr, z[ci], R[ci], clusters, ci, position_only=not has_v[ci])
+        taken = z[~free, :2]
+        for tr in self.tracks:  # step 6 before 5: a mode of its own is better evidence than a shared blob
+            if tr.id in matched:
+                tr.supported_s = 0.0
+            elif tr.confirmed and self._support(tr, clusters, taken, dt):
+                matched.add(tr.id)
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
@@ -311,12 +317,6 @@ class MultiPersonTracker:
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
                 matched.add(sharer.id)
-        taken = z[[ci for ci in range(len(clusters)) if not free[ci]], :2]
-        for tr in self.tracks:
-            if tr.id in matched:
-                tr.supported_s = 0.0
-            elif tr.confirmed and self._support(tr, clusters, taken, dt):
-                matched.add(tr.id)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:

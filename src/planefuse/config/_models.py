@@ -398,6 +398,11 @@ class DetectionModelConfig(_Model):
         description="White-noise acceleration of the tracks' constant-velocity model", unit="m/s^2",
         expected=">= 0", library="system.tracking.tracker.acceleration_std_m_s2",
     )
+    support_threshold: float | None = _field(
+        description="Column evidence near a confirmed track's prediction that keeps it reported without a cluster "
+        "(the filter still holds the person below column_threshold: partly hidden, a camera gone); null = none",
+        expected="null or finite", library="system.tracking.tracker.support_threshold",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

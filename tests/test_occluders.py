@@ -16,7 +16,8 @@ from planefuse.vision import CameraFusion, CameraParams
 
 STACK = PlaneStack.from_extent([0.1, 0.5, 1.0, 1.5], (0.0, 10.0), (0.0, 10.0), 0.1)
 #: a pillar (2.8 m high) and a counter (1.1 m high) [x_min, x_max, y_min, y_max, z_min, z_max] [m]
-BOXES = np.array([[3.213, 3.817, 3.191, 3.793, 0.0, 2.8], [6.107, 7.911, 2.653, 3.347, 0.0, 1.1]])  # no exact tangent rays
+# (not on the cell grid's lines: no ray exactly tangent to a box edge)
+BOXES = np.array([[3.213, 3.817, 3.191, 3.793, 0.0, 2.8], [6.107, 7.911, 2.653, 3.347, 0.0, 1.1]])
 
 
 @pytest.mark.parametrize("camera", range(4))

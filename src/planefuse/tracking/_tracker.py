@@ -40,15 +40,15 @@ Each step (``dt`` since the last one):
    apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
    row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
    (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
-6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the column evidence
-   ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its predicted position, away (more than
+6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the
+   column evidence ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its prediction, away (more than
    ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
    there below the clusters' threshold (partly hidden by an occluder, a camera gone: fewer views, weaker
    evidence), ``max S >= support_threshold``, the track is updated with that mode's position, the
    ``S``-weighted mean ``sum_c w_c p_c / sum_c w_c``, ``w_c = max(S_c, 0)``, over the cells ``c`` within
    ``person_radius_m`` of the strongest cell, as a position measurement of covariance
    ``(position_std_m^2 + merged_position_std_m^2) I``. Such a step is *supported*: the track is reported
-   and its miss count reset, for at most ``max_supported_s`` in a row (then it coasts as below);
+   and its miss count reset, for at most ``max_supported_s`` since its last cluster (then it coasts);
 7. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
@@ -59,8 +59,8 @@ Track management (states of a track)
   consecutive hits, deleted at its first miss;
 * **confirmed**: associated at this step (or sharing a merged cluster); reported;
 * **supported**: confirmed, without a cluster but held by the filter's weaker evidence (step 6); reported;
-* **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its prediction
-  and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
+* **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its
+  prediction and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
   ``last cluster confidence x 0.5^misses``;
 * **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
 
@@ -129,7 +129,7 @@ class TrackerParams:
     person_radius_m : float
         Radius [m] of the disc whose column evidence gives a supported track's position.
     max_supported_s : float
-        Longest time [s] a track is supported in a row.
+        Longest time [s] a track is supported since its last cluster.
     """
 
     gate_m: float = 0.75
@@ -204,7 +204,7 @@ class _Track:
     misses: int = 0
     confirmed: bool = False
     shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
-    supported_s: float = 0.0  # time [s] this track has been supported by weak evidence in a row (step 6)
+    supported_s: float = 0.0  # time [s] this track has been supported by weak evidence since its last cluster
 
 
 def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):

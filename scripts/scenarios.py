@@ -12,7 +12,8 @@ Each (scenario, seed, filter, modalities) is one system run (``planefuse.pipelin
 ``--n-workers`` processes, or a running scheduler). The trackers are then run on that run's clusters
 (the clusters do not depend on the tracker, so every tracker sees the same input): the Kalman tracker
 (:class:`planefuse.tracking.MultiPersonTracker`) and, with ``--previous-tracker``, the nearest-neighbour
-tracker it replaced (read from git, ``benchmarks/_previous_tracker.py``). Scores as in
+tracker it replaced (read from git, ``benchmarks/_previous_tracker.py``). A scene's static occluders are
+declared to the system (``SystemParams.occluder_boxes_m``), as an installation declares its floor plan. Scores as in
 :func:`planefuse.eval.system_metrics` (first second skipped, 0.5 m match distance).
 
 Hold-out: parameters are tuned on seeds 1-3 only (rows marked ``tuning``); every other seed is held out,
@@ -78,8 +79,11 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
     from planefuse.sim import scenario_config, simulate
     from planefuse.tracking import MultiPersonTracker, velocity_prior_variance_m2_s2
 
-    rec = simulate(scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s))
-    params = SystemParams(use_filter=case.use_filter, **MODALITIES[case.modalities])
+    scene = scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s)
+    rec = simulate(scene)
+    # the installation's static occluders are declared, as a user declares a floor plan
+    params = SystemParams(use_filter=case.use_filter, occluder_boxes_m=tuple(o.box_m() for o in scene.occluders),
+                          **MODALITIES[case.modalities])
     t0 = time.process_time()
     result = run_system(rec, params)
     run_cpu_s = time.process_time() - t0

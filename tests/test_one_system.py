@@ -61,6 +61,7 @@ CHANGED = {
     "planes.y_range_m": [0.5, 6.0],
     "planes.wall_margin_m": 0.4,
     "planes.cell_size_m": 0.2,
+    "scene.occluder_boxes_m": [(4.0, 4.6, 4.0, 4.6, 0.0, 2.5)],
     "sensors.cameras.enabled": False,
     "sensors.cameras.foreground_method": "mog2",
     "sensors.cameras.history_frames": 20,
@@ -123,6 +124,7 @@ CHANGED = {
     "models.detection.acceleration_std_m_s2": 3.0,
     "models.detection.confirm_hits": 2,
     "models.detection.max_misses": 4,
+    "models.detection.support_threshold": None,
     "models.detection.match_distance_m": 1.0,
     "outputs.zarr": False,
     "outputs.chunk_steps": 7,
@@ -193,7 +195,7 @@ RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cam
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
-              "models.filter.camera_correlation_s"]
+              "models.filter.camera_correlation_s", "scene.occluder_boxes_m"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)

@@ -326,3 +326,40 @@ def test_camera_dropout_of_2s_does_not_lose_a_person_the_others_see():
     for pid, ids in per_person.items():
         assert len(set(ids) - {-1}) == 1, f"person {pid}: track ids {ids}"
         assert ids.count(-1) <= 0.1 * len(ids), f"person {pid}: lost in {ids.count(-1)} of {len(ids)} steps"
+
+
+def _bump(xy, peak):
+    """Column evidence ``S`` (ny, nx) of one person at ``xy`` [m]: a bump of height ``peak`` and 0.15 m width."""
+    c = STACK.cell_centers_xy()
+    return peak * np.exp(-0.5 * np.sum((c - xy) ** 2, axis=-1) / 0.15**2)
+
+
+@pytest.mark.parametrize("support", [0.5, None])
+def test_a_person_the_filter_holds_below_the_threshold_keeps_its_track(support):
+    """A person walking at 0.8 m/s along x is partly hidden for 1.4 s: no cluster, but the filter's column
+    evidence still peaks at 1.0 (below the clusters' 1.5) where they are. With support the track follows that
+    evidence, is reported throughout within 0.1 m and keeps its id, and neither the evidence nor the cluster
+    of another person standing 0.7 m from the path is taken; without support, it does not follow."""
+    p = TrackerParams(support_threshold=support)
+    tr = MultiPersonTracker(p, STACK.extent_m)
+    dt = 0.2
+    ids, reported_in_gap = [], []
+    for t in np.arange(30) * dt:
+        a = np.array([0.8 + 0.8 * t, 2.0 + 0.1 * np.sin(t)])  # the hidden person wiggles: no straight coasting
+        b = np.array([3.2, 2.7])  # a standing person 0.7 m off the path, within the gate
+        S = np.maximum(_bump(a, 2.5 if not 2.0 <= t < 3.4 else 1.0), _bump(b, 2.5))
+        xy = [a, b] if not 2.0 <= t < 3.4 else [b]
+        c = Clusters(float(t), np.array(xy), np.zeros((len(xy), 2)), np.full(len(xy), 1.7), np.ones(len(xy)), S)
+        out = tr.step(c)
+        d = np.linalg.norm(out.xy_m - a, axis=1)
+        hit = np.flatnonzero(d < 0.3)
+        if 2.0 <= t < 3.4:
+            reported_in_gap.append(hit.size > 0 and d[hit[0]] < 0.1)
+        elif t >= 1.0:
+            ids.append(int(out.ids[hit[0]]) if hit.size else -1)
+    if support is None:
+        assert not all(reported_in_gap)
+        return
+    assert all(reported_in_gap)
+    assert len(set(ids)) == 1  # the same id before and after the gap
+    assert len(tr.reported()) == 2

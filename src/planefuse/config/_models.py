@@ -24,6 +24,7 @@ from ..pipeline import RunPlan, SystemParams
 
 __all__ = [
     "PlanesConfig",
+    "SceneConfig",
     "CameraSensorConfig",
     "LaserSensorConfig",
     "SoundSensorConfig",
@@ -94,6 +95,17 @@ class PlanesConfig(_Model):
     )
     cell_size_m: float = _field(
         description="Side of a square grid cell", unit="m", expected="in (0, 5]", library="system.cell_size_m"
+    )
+
+
+class SceneConfig(_Model):
+    """What is known of the installation's static scene (issue 17): its occluders."""
+
+    occluder_boxes_m: list[tuple[float, float, float, float, float, float]] = _field(
+        [], description="Static occluders (pillars, shelves, counters), axis-aligned boxes [x_min, x_max, y_min, "
+        "y_max, z_min, z_max] in the world frame: each camera leaves the cells they hide from it unobserved, and "
+        "the cells they fill hold no person (planefuse.grid.cells_hidden_by_occluders); cameras' sensor_model cell",
+        unit="m", expected="each minimum below its maximum", library="system.occluder_boxes_m",
     )
 
 
@@ -393,6 +405,11 @@ class DetectionModelConfig(_Model):
         description="White-noise acceleration of the tracks' constant-velocity model", unit="m/s^2",
         expected=">= 0", library="system.tracking.tracker.acceleration_std_m_s2",
     )
+    support_threshold: float | None = _field(
+        description="Column evidence near a confirmed track's prediction that keeps it reported without a cluster "
+        "(the filter still holds the person below column_threshold: partly hidden, a camera gone); null = none",
+        expected="null or finite", library="system.tracking.tracker.support_threshold",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",
@@ -472,6 +489,7 @@ class RunConfig(_Model):
         expected="a folder path",
     )
     planes: PlanesConfig = _field(PlanesConfig(), description="Plane stack and grid")
+    scene: SceneConfig = _field(SceneConfig(), description="Known static scene")
     sensors: SensorsConfig = _field(SensorsConfig(), description="Sensors")
     models: ModelsConfig = _field(ModelsConfig(), description="Models")
     outputs: OutputsConfig = _field(OutputsConfig(), description="Outputs")

@@ -7,6 +7,7 @@ from ._evidence import (
     log_odds_from_probability,
     probability_from_log_odds,
 )
+from ._occluders import cells_filled_by_occluders, cells_hidden_by_occluders, check_occluder_boxes
 from ._stack import PlaneStack
 
 __all__ = [
@@ -14,6 +15,9 @@ __all__ = [
     "Evidence",
     "GroundDetections",
     "PlaneStack",
+    "cells_filled_by_occluders",
+    "cells_hidden_by_occluders",
+    "check_occluder_boxes",
     "log_odds_from_probability",
     "probability_from_log_odds",
 ]

@@ -294,7 +294,7 @@ def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 
 def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
-                  start: int = 0, client=None) -> EvidenceSource:
+                  start: int = 0, client=None, occluder_boxes_m=None) -> EvidenceSource:
     """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
     the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
 
@@ -302,7 +302,9 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     background models (:func:`planefuse.vision.camera_detections` ``replay``), so that what follows is
     exactly what an uninterrupted run computes. With a dask ``client``, each camera's front end (decoding,
     dead frames, background subtraction) runs as a stream on the cluster's workers
-    (:func:`planefuse.batch.remote_foregrounds`); the evidence is the same.
+    (:func:`planefuse.batch.remote_foregrounds`); the evidence is the same. ``occluder_boxes_m`` (B, 6) [m]:
+    known static occluders, whose hidden cells each camera leaves unobserved
+    (:class:`planefuse.registration.CameraRegistration`).
     """
     from ..registration import CameraRegistration
     from ..vision import CameraReport, camera_detections, camera_instants, recording_frames
@@ -318,7 +320,7 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     def messages() -> Iterator[Evidence]:
         # cameras registered through their IMU: frames brought back to the calibrated view as they turn,
         # replayed through the instants a resumed run skips
-        registration = CameraRegistration.from_recording(rec, stack, params.registration)
+        registration = CameraRegistration.from_recording(rec, stack, params.registration, occluder_boxes_m)
         lookups = registration.lookups_at(float(all_times[0]))
         # instants skipped without replay (replayed ones are stabilised as they come)
         registration.advance(all_times[1:start - replay])

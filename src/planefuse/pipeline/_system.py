@@ -12,7 +12,7 @@ import numpy as np
 from .._params import check_fields, require
 from .._state import StateDict, get, sub_state, with_prefix
 from ..eval import EVAL_WARMUP_S, system_metrics
-from ..grid import PlaneStack
+from ..grid import PlaneStack, cells_filled_by_occluders, check_occluder_boxes
 from ..io import Recording
 from ..laser import LaserSensorModel
 from ..tracking import EvidenceTracker, TrackerOutput, TrackingParams
@@ -25,8 +25,8 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 4  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
-#                       4: the report's laser-point stride
+CHECKPOINT_FORMAT = 5  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
+#                       4: the report's laser-point stride; 5: the tracks' supported time
 
 
 def system_laser_model() -> LaserSensorModel:
@@ -71,6 +71,13 @@ class SystemParams:
         since that sensor's previous message (``TrackingParams.evidence_correlation_s``; 0: every message
         counts fully). A camera's errors (crossing silhouette rays of standing people, single-view rays, a
         camera gone) persist for many frames; the laser's and sound's, at their rates, were not found to.
+    occluder_boxes_m : tuple of (x_min, x_max, y_min, y_max, z_min, z_max)
+        Known static occluders of the installation (pillars, shelves, counters), axis-aligned boxes in the
+        world frame [m] (:mod:`planefuse.grid._occluders`): each camera leaves the cells whose line of sight
+        passes through one unobserved (no evidence either way, as an ignored image region), and the cells a
+        box fills are free of people whatever the sensors say there (a laser's returns there are off the
+        box; :class:`planefuse.tracking.EvidenceTracker` ``static_cells``). Empty: none declared. Only with the
+        cameras' per-cell sensor model (``"cell"``).
     camera_params : planefuse.vision.CameraParams
         Camera pipeline parameters (foreground, sensor model, person model, registration).
     laser_model : planefuse.laser.LaserSensorModel
@@ -99,6 +106,7 @@ class SystemParams:
     camera_correlation_s: float = 0.5
     laser_correlation_s: float = 0.0
     sound_correlation_s: float = 0.0
+    occluder_boxes_m: tuple[tuple[float, float, float, float, float, float], ...] = ()
     camera_params: CameraParams = field(default_factory=CameraParams)
     laser_model: LaserSensorModel = field(default_factory=system_laser_model)
     tracking: TrackingParams = field(default_factory=TrackingParams)
@@ -113,6 +121,14 @@ class SystemParams:
                      sound_correlation_s=">=0")
         # metres, not millimetres or centimetres: a cell is at most 5 m, a plane at most 10 m above the ground
         require(self.cell_size_m <= 5.0, self, "cell_size_m", f"must be at most 5 m, got {self.cell_size_m}")
+        try:
+            boxes = check_occluder_boxes(self.occluder_boxes_m, "boxes")
+        except ValueError as err:
+            require(False, self, "occluder_boxes_m", str(err))
+        object.__setattr__(self, "occluder_boxes_m", tuple(tuple(float(v) for v in b) for b in boxes))
+        require(not (len(boxes) and self.cameras and self.camera_params.sensor_model != "cell"), self,
+                "occluder_boxes_m", "static occluders are modelled by the cameras' per-cell sensor model only "
+                f"(camera_params.sensor_model 'cell'), got {self.camera_params.sensor_model!r}")
         require(self.cameras or self.laser or self.sound, self, "cameras",
                 "at least one of cameras, laser, sound must be enabled")
         if self.heights_m is not None:
@@ -321,7 +337,9 @@ class SystemRun:
         if not params.use_filter:
             # "no filter" ablation: the grid forgets everything between fused steps (and nothing is weighted)
             tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={})
-        self.tracker = EvidenceTracker(self.stack, tp)
+        static = (cells_filled_by_occluders(self.stack, params.occluder_boxes_m) if params.occluder_boxes_m
+                  else None)
+        self.tracker = EvidenceTracker(self.stack, tp, static_cells=static)
         if checkpoint is not None:
             self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
         self.resumed_at_step = self.tracker.n_outputs
@@ -337,7 +355,8 @@ class SystemRun:
         out = []
         if params.cameras and rec.camera_streams:
             out.append(camera_source(rec, stack, params.camera_params, report,
-                                     start=consumed.get("cameras", 0), client=self.client))
+                                     start=consumed.get("cameras", 0), client=self.client,
+                                     occluder_boxes_m=params.occluder_boxes_m))
         if params.laser and rec.lasers:
             out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:

@@ -40,7 +40,7 @@ from ..geometry import (
     attitude_from_imu,
     yaw_from_ground_points,
 )
-from ..grid import PlaneStack
+from ..grid import PlaneStack, cells_hidden_by_occluders, check_occluder_boxes
 from ._lookup import ImagePlaneLookup
 
 __all__ = ["ATTITUDE_SOURCES", "AttitudeTrack", "CameraRegistration", "RegistrationParams",
@@ -301,6 +301,10 @@ class CameraRegistration:
     ignore_masks : sequence of (ndarray (height_px, width_px) bool or None), optional
         Per camera, pixels that are not scene evidence: every lookup leaves the cells they see unobserved
         (:meth:`ImagePlaneLookup.without_pixels`).
+    occluder_boxes_m : array_like, shape (B, 6), optional
+        Known static occluders ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m]: every lookup leaves the
+        cells whose line of sight from the camera's centre passes through one unobserved
+        (:func:`planefuse.grid.cells_hidden_by_occluders`; a camera turning about its centre keeps them).
 
     Attributes
     ----------
@@ -318,8 +322,9 @@ class CameraRegistration:
     def __init__(self, cameras: Sequence[PinholeCamera], stack: PlaneStack,
                  tracks: Mapping[str, AttitudeTrack] | None = None, tolerance_px: float = 0.25,
                  ignore_masks: Sequence[np.ndarray | None] | None = None, still_tolerance_px: float | None = None,
-                 still_rate_rad_s: float = float(np.radians(1.0))) -> None:
+                 still_rate_rad_s: float = float(np.radians(1.0)), occluder_boxes_m=None) -> None:
         self.cameras = list(cameras)
+        self.occluder_boxes_m = check_occluder_boxes(occluder_boxes_m)
         if ignore_masks is not None and len(ignore_masks) != len(self.cameras):
             raise ValueError(f"ignore_masks: expected {len(self.cameras)} entries (None where absent), "
                              f"got {len(ignore_masks)}")
@@ -340,9 +345,10 @@ class CameraRegistration:
         self._rays: list[np.ndarray | None] = [None] * len(self.cameras)
 
     @classmethod
-    def from_recording(cls, rec, stack: PlaneStack, params: RegistrationParams = RegistrationParams()
-                       ) -> "CameraRegistration":
-        """The registration a :class:`~planefuse.io.Recording` and ``params`` call for.
+    def from_recording(cls, rec, stack: PlaneStack, params: RegistrationParams = RegistrationParams(),
+                       occluder_boxes_m=None) -> "CameraRegistration":
+        """The registration a :class:`~planefuse.io.Recording` and ``params`` call for (``occluder_boxes_m``:
+        the known static occluders, see the class).
 
         Raises
         ------
@@ -376,7 +382,8 @@ class CameraRegistration:
                 raise ValueError(f"imu {imu.name!r} of camera {cam.name!r}: {exc}") from None
         out = cls(rec.cameras, stack, tracks, params.tolerance_px,
                   ignore_masks=[rec.camera(n).ignore_mask for n in names],
-                  still_tolerance_px=params.still_tolerance_px, still_rate_rad_s=params.still_rate_rad_s)
+                  still_tolerance_px=params.still_tolerance_px, still_rate_rad_s=params.still_rate_rad_s,
+                  occluder_boxes_m=occluder_boxes_m)
         out.imu_gaps = gaps
         return out
 
@@ -394,9 +401,15 @@ class CameraRegistration:
 
     def lookup_for(self, camera_index: int) -> ImagePlaneLookup:
         """The lookup of camera ``camera_index`` at its calibrated attitude (lens distortion included)."""
-        lookup = ImagePlaneLookup.from_camera(self.cameras[camera_index], self.stack)
+        camera = self.cameras[camera_index]
+        lookup = ImagePlaneLookup.from_camera(camera, self.stack)
         mask = self.ignore_masks[camera_index]
-        return lookup if mask is None else lookup.without_pixels(mask)
+        if mask is not None:
+            lookup = lookup.without_pixels(mask)
+        if len(self.occluder_boxes_m):
+            lookup = lookup.without_cells(cells_hidden_by_occluders(camera.center_world, self.stack,
+                                                                    self.occluder_boxes_m))
+        return lookup
 
     def lookups_at(self, time_s: float) -> list[ImagePlaneLookup]:
         """Every camera's lookup (the calibration's: :meth:`stabilise` brings the frames to it); the

@@ -117,6 +117,25 @@ class ImagePlaneLookup:
         idx = np.where(padded[self.pixel_index], np.int32(self.sentinel), self.pixel_index)
         return ImagePlaneLookup(idx.astype(np.int32), self.width_px, self.height_px, self.stack)
 
+    def without_cells(self, unobserved) -> "ImagePlaneLookup":
+        """This lookup with the given cells made unseen (sentinel), e.g. cells a known static occluder hides
+        from the camera (:func:`planefuse.grid.cells_hidden_by_occluders`).
+
+        Parameters
+        ----------
+        unobserved : ndarray, shape (L, ny, nx), bool
+
+        Returns
+        -------
+        ImagePlaneLookup
+            A sensor model built on it says nothing about those cells.
+        """
+        mask = np.asarray(unobserved, dtype=bool)
+        if mask.shape != self.pixel_index.shape:
+            raise ValueError(f"unobserved must have shape {self.pixel_index.shape}, got {mask.shape}")
+        idx = np.where(mask, np.int32(self.sentinel), self.pixel_index)
+        return ImagePlaneLookup(idx.astype(np.int32), self.width_px, self.height_px, self.stack)
+
     def gather(self, image, fill: float = np.nan, out=None) -> np.ndarray:
         """Register one image on every plane: ``out[l, iy, ix] = image[pixel seeing the cell]``.
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._state import StateDict, float_or_none, get, optional_float, strings, sub_state, with_prefix
-from ..grid import Evidence, GroundDetections, PlaneStack
+from ..grid import LOG_ODDS_CLIP, Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
@@ -114,11 +114,25 @@ class EvidenceTracker:
     stack : PlaneStack
         The planes; every evidence must have ``log_odds.shape == stack.shape``.
     params : TrackingParams, optional
+    static_cells : ndarray, shape (L, ny, nx), bool, optional
+        Cells filled by a known static occluder (:func:`planefuse.grid.cells_filled_by_occluders`). No person
+        stands there, and what the sensors say there is about the occluder (a laser's returns off its faces),
+        so every batch's log-odds are replaced there by ``-LOG_ODDS_CLIP`` (certainly free of people, the
+        strongest evidence the grid takes) before the update: the mass the prediction moves into them from
+        a person walking up to the occluder is not kept there either.
     """
 
-    def __init__(self, stack: PlaneStack, params: TrackingParams | None = None) -> None:
+    def __init__(self, stack: PlaneStack, params: TrackingParams | None = None,
+                 static_cells: np.ndarray | None = None) -> None:
         self.stack = stack
         self.params = params if params is not None else TrackingParams()
+        if static_cells is not None:
+            static_cells = np.asarray(static_cells, dtype=bool)
+            if static_cells.shape != stack.shape:
+                raise ValueError(f"static_cells must have the stack's shape {stack.shape}, got {static_cells.shape}")
+            if not static_cells.any():
+                static_cells = None
+        self.static_cells = static_cells
         self.buffer = AsyncEvidenceBuffer(self.params.window_s, self.params.merge_tolerance_s, shape=stack.shape,
                                           correlation_s=self.params.evidence_correlation_s)
         self.bof = BayesianOccupancyFilter(stack, self.params.bof)
@@ -147,7 +161,10 @@ class EvidenceTracker:
     def _process(self, batch: EvidenceBatch) -> Iterator[TrackerOutput]:
         params, stack = self.params, self.stack
         self.bof.predict_to(batch.time_s)
-        self.bof.update(batch.log_odds)
+        log_odds = batch.log_odds
+        if self.static_cells is not None:  # no person in an occluder: what sensors say there is about the occluder
+            log_odds = np.where(self.static_cells, np.float32(-LOG_ODDS_CLIP), log_odds)
+        self.bof.update(log_odds)
         self.sensors.extend(s for s in batch.sensors if s not in self.sensors)
         period = params.output_period_s
         if period is not None and self.next_output_s is not None and batch.time_s < self.next_output_s - 1e-9:

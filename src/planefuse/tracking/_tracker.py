@@ -40,7 +40,16 @@ Each step (``dt`` since the last one):
    apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
    row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
    (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
-6. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
+6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the
+   column evidence ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its prediction, away (more than
+   ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
+   there below the clusters' threshold (partly hidden by an occluder, a camera gone: fewer views, weaker
+   evidence), ``max S >= support_threshold``, the track is updated with that mode's position, the
+   ``S``-weighted mean ``sum_c w_c p_c / sum_c w_c``, ``w_c = max(S_c, 0)``, over the cells ``c`` within
+   ``person_radius_m`` of the strongest cell, as a position measurement of covariance
+   ``(position_std_m^2 + merged_position_std_m^2) I``. Such a step is *supported*: the track is reported
+   and its miss count reset, for at most ``max_supported_s`` since its last cluster (then it coasts);
+7. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
 
@@ -49,8 +58,9 @@ Track management (states of a track)
 * **tentative**: born from an unexplained cluster; becomes *confirmed* after ``confirm_hits``
   consecutive hits, deleted at its first miss;
 * **confirmed**: associated at this step (or sharing a merged cluster); reported;
-* **coasting**: confirmed, without a cluster for ``misses`` consecutive steps: it moves on its prediction
-  and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
+* **supported**: confirmed, without a cluster but held by the filter's weaker evidence (step 6); reported;
+* **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its
+  prediction and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
   ``last cluster confidence x 0.5^misses``;
 * **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
 
@@ -113,6 +123,13 @@ class TrackerParams:
         a track moving with the cluster's owner is a duplicate and is left to die).
     birth_exclusion_m : float
         No track is started on a cluster closer than this [m] to a confirmed track.
+    support_threshold : float or None
+        Column evidence ``S`` (mean capped log-odds per observed body plane, as the clusters' threshold) that
+        supports a confirmed track without a cluster (step 6); None: no support.
+    person_radius_m : float
+        Radius [m] of the disc whose column evidence gives a supported track's position.
+    max_supported_s : float
+        Longest time [s] a track is supported since its last cluster.
     """
 
     gate_m: float = 0.75
@@ -129,13 +146,17 @@ class TrackerParams:
     max_shared_s: float = 1.0
     share_min_relative_speed_m_s: float = 0.3
     birth_exclusion_m: float = 0.5
+    support_threshold: float | None = 1.0  # chosen on seeds 1-3 of every scenario (docs/results.md)
+    person_radius_m: float = 0.3
+    max_supported_s: float = 2.0
 
     def __post_init__(self) -> None:
         check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
                      max_coast_report="int>=0", position_std_m=">0", velocity_std_m_s=">0",
                      acceleration_std_m_s2=">=0", initial_velocity_std_m_s=">0",
                      velocity_max_std_m_s=">0", merged_position_std_m=">=0",
-                     max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0")
+                     max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0",
+                     support_threshold="?finite", person_radius_m=">0", max_supported_s=">=0")
 
 
 @dataclass(frozen=True)
@@ -183,6 +204,7 @@ class _Track:
     misses: int = 0
     confirmed: bool = False
     shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
+    supported_s: float = 0.0  # time [s] this track has been supported by weak evidence since its last cluster
 
 
 def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):
@@ -281,6 +303,12 @@ class MultiPersonTracker:
                     owner[ci] = tr
                 else:
                     self._update(tr, z[ci], R[ci], clusters, ci, position_only=not has_v[ci])
+        taken = z[~free, :2]
+        for tr in self.tracks:  # step 6 before 5: a mode of its own is better evidence than a shared blob
+            if tr.id in matched:
+                tr.supported_s = 0.0
+            elif tr.confirmed and self._support(tr, clusters, taken, dt):
+                matched.add(tr.id)
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
@@ -361,6 +389,42 @@ class MultiPersonTracker:
         R_pos = R_xy + self.params.merged_position_std_m**2 * np.eye(2) if merged else R_xy
         tr.x, tr.P = kf_update(tr.x, tr.P, z_xy, R_pos, _H_POS)
 
+    def _support(self, tr: _Track, clusters: Clusters, taken_xy: np.ndarray, dt: float) -> bool:
+        """Step 6: update ``tr`` with the mode of the column evidence near its prediction, if strong enough;
+        True if it was supported."""
+        p = self.params
+        S = clusters.column_log_odds
+        if (p.support_threshold is None or self.extent_m is None or S is None or not np.size(S)
+                or tr.supported_s + dt > p.max_supported_s):
+            return False
+        x0, x1, y0, y1 = self.extent_m
+        ny, nx = S.shape
+        cell = (x1 - x0) / nx
+        # the cells within gate_m of the prediction (a window around it, then the disc)
+        cx, cy = (tr.x[0] - x0) / cell - 0.5, (tr.x[1] - y0) / cell - 0.5
+        r = int(np.ceil(p.gate_m / cell))
+        ix = np.arange(max(int(cx) - r, 0), min(int(cx) + r + 2, nx))
+        iy = np.arange(max(int(cy) - r, 0), min(int(cy) + r + 2, ny))
+        if not ix.size or not iy.size:
+            return False
+        X, Y = np.meshgrid(x0 + (ix + 0.5) * cell, y0 + (iy + 0.5) * cell)
+        win = S[np.ix_(iy, ix)]
+        ok = np.hypot(X - tr.x[0], Y - tr.x[1]) <= p.gate_m
+        for q in taken_xy:  # another track's person: not this one's
+            ok &= np.hypot(X - q[0], Y - q[1]) > p.birth_exclusion_m
+        if not ok.any():
+            return False
+        k = np.unravel_index(np.argmax(np.where(ok, win, -np.inf)), win.shape)
+        if not win[k] >= p.support_threshold:
+            return False
+        disc = ok & (np.hypot(X - X[k], Y - Y[k]) <= p.person_radius_m)
+        w = np.where(disc, np.maximum(win, 0.0), 0.0)
+        z_xy = np.array([np.sum(w * X), np.sum(w * Y)]) / np.sum(w)
+        self._update_position(tr, z_xy, p.position_std_m**2 * np.eye(2), merged=True)
+        tr.supported_s += dt
+        tr.misses = 0
+        return True
+
     def _inside(self, xy: np.ndarray) -> bool:
         if self.extent_m is None:
             return True
@@ -368,7 +432,8 @@ class MultiPersonTracker:
         return bool(x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1)
 
     # -- checkpoint ------------------------------------------------------------------------------------------------
-    _TRACK_FIELDS = ("id", "x", "P", "height", "confidence", "hits", "misses", "confirmed", "shared_s")
+    _TRACK_FIELDS = ("id", "x", "P", "height", "confidence", "hits", "misses", "confirmed", "shared_s",
+                     "supported_s")
 
     def state_dict(self) -> StateDict:
         """Every track (tentative ones included: state ``x`` (N, 4), covariance ``P`` (N, 4, 4) and the
@@ -386,6 +451,7 @@ class MultiPersonTracker:
             "misses": np.array([t.misses for t in tr], dtype=np.int64),
             "confirmed": np.array([t.confirmed for t in tr], dtype=bool),
             "shared_s": np.array([t.shared_s for t in tr], dtype=float),
+            "supported_s": np.array([t.supported_s for t in tr], dtype=float),
         }
 
     def load_state_dict(self, state) -> None:
@@ -402,7 +468,7 @@ class MultiPersonTracker:
             _Track(int(cols["id"][i]), np.array(cols["x"][i], dtype=float), np.array(cols["P"][i], dtype=float),
                    float(cols["height"][i]), float(cols["confidence"][i]), hits=int(cols["hits"][i]),
                    misses=int(cols["misses"][i]), confirmed=bool(cols["confirmed"][i]),
-                   shared_s=float(cols["shared_s"][i]))
+                   shared_s=float(cols["shared_s"][i]), supported_s=float(cols["supported_s"][i]))
             for i in range(n)
         ]
         self.time_s = float_or_none(get(state, "time_s", "tracker"))

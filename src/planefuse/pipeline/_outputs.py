@@ -210,6 +210,20 @@ def return_freed_memory() -> None:
         trim(0)
 
 
+def one_zarr_codec_thread() -> None:
+    """Have zarr encode and decode chunks in one worker thread, unless its thread pool is configured already
+    (``zarr.config`` ``threading.max_workers``; zarr reads it when it first does I/O in a process).
+
+    A run's occupancy chunks are small (``chunk_steps`` x one plane); a pool of codec threads buys no speed on
+    them, and each of its threads gets its own C-heap arena, which keeps what it decoded: reading back 1500
+    steps for the figures left ~50 MB resident with the default pool, ~15 MB with one thread
+    (docs/benchmarks.md, "Peak RSS")."""
+    import zarr
+
+    if zarr.config.get("threading.max_workers", None) is None:
+        zarr.config.set({"threading.max_workers": 1})
+
+
 def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                   client=None) -> tuple[SystemResult, dict]:
     """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
@@ -235,6 +249,8 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         raise ValueError("run_to_folder needs a plan with an out_dir (run_plan evaluates in memory)")
     params, settings = plan.params, plan.outputs
     stack = stack_for_recording(rec, params)
+    if settings.zarr:
+        one_zarr_codec_thread()
     text = plan.text()
     n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1
     with progress_steps(progress_mode) as progress, OutputWriter(

@@ -119,3 +119,15 @@ def test_run_configuration_declares_the_occluders(tmp_path):
     bad.write_text("recording: rec\nscene:\n  occluder_boxes_m:\n    - [3.8, 3.2, 3.2, 3.8, 0.0, 2.8]\n")
     with pytest.raises(ConfigError, match=r"bad.yaml:3: scene.occluder_boxes_m: boxes\[0\]"):
         load_config(bad)
+
+
+def test_an_occluder_box_in_millimetres_is_refused_naming_the_field():
+    """A box 1000x too far (millimetres in a metre configuration) would hide nothing, silently: refused."""
+    from planefuse.grid import PlaneStack
+    from planefuse.pipeline._system import check_occluders_against_stack
+
+    stack = PlaneStack.from_extent((0.1, 1.0), (0.0, 10.0), (0.0, 8.0), 0.1)
+    check_occluders_against_stack([(4.0, 4.5, 3.0, 3.5, 0.0, 2.0), (-20.0, -19.0, 0.0, 1.0, 0.0, 3.0)], stack)
+    with pytest.raises(ValueError, match=r"scene\.occluder_boxes_m: box 1 .* millimetres"):
+        check_occluders_against_stack([(4.0, 4.5, 3.0, 3.5, 0.0, 2.0),
+                                       (4000.0, 4500.0, 3000.0, 3500.0, 0.0, 2000.0)], stack)

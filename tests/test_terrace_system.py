@@ -57,6 +57,7 @@ def test_shipped_configuration_is_honoured():
     assert gen.evidence_prior == pytest.approx(1 / (1 + np.exp(-(np.log(np.expm1(gen.detection_mass))
                                                                    - params.tracking.cluster.threshold))))
     assert params.heights_m == tuple(data["planes"]["heights_m"])
+    assert params.tracking.tracker.support_threshold is None  # chosen on frames 0-1499
     assert not params.laser and not params.sound
 
 

@@ -174,6 +174,7 @@ def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: 
     stack = PlaneStack.from_extent(heights, x, y, params.cell_size_m)
     if params.cameras and check_cameras:
         check_cameras_against_stack(rec.cameras, stack)
+    check_occluders_against_stack(params.occluder_boxes_m, stack)
     check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
     return stack
 
@@ -192,6 +193,25 @@ def can_evaluate(rec: Recording, times_s) -> bool:
 FAR_FROM_GRID_M = 100.0
 #: A plane closer than this to a camera's centre height [m] is seen edge-on by it.
 EDGE_ON_M = 0.05
+
+
+def check_occluders_against_stack(boxes_m: Sequence, stack: PlaneStack) -> None:
+    """Refuse an occluder box more than :data:`FAR_FROM_GRID_M` from the grid, horizontally or in height (a box
+    in millimetres in a metre configuration, typically: it would hide nothing, silently).
+
+    Raises
+    ------
+    ValueError
+        Naming ``scene.occluder_boxes_m``, the box and the grid's extent.
+    """
+    x0, x1, y0, y1 = stack.extent_m
+    for k, (bx0, bx1, by0, by1, bz0, bz1) in enumerate(boxes_m):
+        d = max(np.hypot(max(bx0 - x1, 0.0, x0 - bx1), max(by0 - y1, 0.0, y0 - by1)), abs(bz0), abs(bz1))
+        if d > FAR_FROM_GRID_M:
+            raise ValueError(
+                f"scene.occluder_boxes_m: box {k} {list(map(float, (bx0, bx1, by0, by1, bz0, bz1)))} is {d:.4g} m from "
+                f"the grid x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m (more than {FAR_FROM_GRID_M:g} m): are its units "
+                "millimetres? Occluder boxes are in metres")
 
 
 def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack, *, above: bool = True) -> None:

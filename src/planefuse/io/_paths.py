@@ -146,4 +146,4 @@ class PathArray(Sequence[Path]):
     def __getitem__(self, i):  # type: ignore[override]
         if isinstance(i, slice):
             return [Path(os.fsdecode(b)) for b in self._paths[i]]
-        return Path(os.fsdecode(self._paths[i]))
+        return Path(self.fspath(i))

@@ -195,6 +195,15 @@ FAR_FROM_GRID_M = 100.0
 EDGE_ON_M = 0.05
 
 
+def _distance_from_grid_m(stack: PlaneStack, x_m: tuple[float, float], y_m: tuple[float, float],
+                         z_m: tuple[float, float]) -> float:
+    """How far [m] the box ``x_m`` x ``y_m`` x ``z_m`` (a point where each range is one value) lies from the grid:
+    the larger of its horizontal distance from the grid's extent and its largest height above or below 0."""
+    x0, x1, y0, y1 = stack.extent_m
+    horizontal = np.hypot(max(x0 - x_m[1], 0.0, x_m[0] - x1), max(y0 - y_m[1], 0.0, y_m[0] - y1))
+    return float(max(horizontal, abs(z_m[0]), abs(z_m[1])))
+
+
 def check_occluders_against_stack(boxes_m: Sequence, stack: PlaneStack) -> None:
     """Refuse an occluder box more than :data:`FAR_FROM_GRID_M` from the grid, horizontally or in height (a box
     in millimetres in a metre configuration, typically: it would hide nothing, silently).
@@ -206,7 +215,7 @@ def check_occluders_against_stack(boxes_m: Sequence, stack: PlaneStack) -> None:
     """
     x0, x1, y0, y1 = stack.extent_m
     for k, (bx0, bx1, by0, by1, bz0, bz1) in enumerate(boxes_m):
-        d = max(np.hypot(max(bx0 - x1, 0.0, x0 - bx1), max(by0 - y1, 0.0, y0 - by1)), abs(bz0), abs(bz1))
+        d = _distance_from_grid_m(stack, (bx0, bx1), (by0, by1), (bz0, bz1))
         if d > FAR_FROM_GRID_M:
             raise ValueError(
                 f"scene.occluder_boxes_m: box {k} {list(map(float, (bx0, bx1, by0, by1, bz0, bz1)))} is {d:.4g} m from "
@@ -232,8 +241,7 @@ def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack, *, above: 
     far = []
     for cam in cameras:
         cx, cy, cz = (float(v) for v in cam.center_world)
-        d = max(np.hypot(max(x0 - cx, 0.0, cx - x1), max(y0 - cy, 0.0, cy - y1)), abs(cz))
-        if d > FAR_FROM_GRID_M:
+        if _distance_from_grid_m(stack, (cx, cx), (cy, cy), (cz, cz)) > FAR_FROM_GRID_M:
             far.append(f"{cam.name!r} at ({cx:.4g}, {cy:.4g}, {cz:.4g}) m")
     if far:
         raise ValueError(f"camera {', '.join(far)} is more than {FAR_FROM_GRID_M:g} m from the grid "

@@ -114,8 +114,7 @@ class ImagePlaneLookup:
         if mask.shape != (self.height_px, self.width_px):
             raise ValueError(f"ignore_mask must have shape ({self.height_px}, {self.width_px}), got {mask.shape}")
         padded = np.append(mask.reshape(-1).astype(bool), False)  # the sentinel stays the sentinel
-        idx = np.where(padded[self.pixel_index], np.int32(self.sentinel), self.pixel_index)
-        return ImagePlaneLookup(idx.astype(np.int32), self.width_px, self.height_px, self.stack)
+        return self.without_cells(padded[self.pixel_index])
 
     def without_cells(self, unobserved) -> "ImagePlaneLookup":
         """This lookup with the given cells made unseen (sentinel), e.g. cells a known static occluder hides

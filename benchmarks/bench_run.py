@@ -50,6 +50,7 @@ STAGES = (
     ("KNN model (priming included)", "planefuse.vision._foreground", "BackgroundSubtractor._learn"),
     ("foreground cleaning, likelihood", "planefuse.vision._foreground", "BackgroundSubtractor.apply"),
     ("frame read + decode", "planefuse.io._streams", "_read_png"),
+    ("frame read + decode", "planefuse.io._video", "VideoFrames.__call__"),
     ("dead-frame check", "planefuse.vision._pipeline", "CameraFrontEnd.check"),
     ("camera fusion", "planefuse.vision._fusion", "CameraFusion.log_odds"),
     ("person extraction", "planefuse.vision._pipeline", "ground_detections_from_log_odds"),

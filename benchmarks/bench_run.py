@@ -18,13 +18,17 @@ process's user + system time (``resource.getrusage``), the honest measure on a s
 interleaved (every configuration once, then again...) and the minimum is reported. The runs' tables
 (detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared by a digest.
 
-Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 7a386ab] [--repeats 2]
-[--downscale 2] [--image-format png|jpg] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras
+Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 16c8280] [--repeats 2]
+[--downscale 2] [--image-format png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times the EPFL terrace video instead (cameras
 c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
 ``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
 only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
 run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
---workers 2``): wall-clock time (the cluster started beforehand), and the two results compared.
+--workers 2``): wall-clock time (the cluster started beforehand), and the two results compared. ``--stages`` adds
+the CPU seconds of every stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
+``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
+cached kernels, the default binaural model), for the before tree and every full-resolution recording, interleaved:
+``taskset`` to one core, ``--threads 1``, figures off, the process's CPU time from ``os.wait4``.
 """
 
 from __future__ import annotations

@@ -163,7 +163,8 @@ class CameraFrontEnd:
         Empty-scene image priming the background model.
     quantise : bool
         Give foregrounds as uint8 ``0..255`` (what :class:`CameraFusion` quantises them to; a quarter of the
-        bytes to send from a worker) instead of float32.
+        bytes to send from a worker, and no float image at all where the subtractor has no blur or resize)
+        instead of float32. :func:`camera_detections` quantises for the per-cell sensor model.
     """
 
     def __init__(self, width_px: int, height_px: int, foreground: ForegroundParams | None, name: str,

@@ -18,13 +18,17 @@ process's user + system time (``resource.getrusage``), the honest measure on a s
 interleaved (every configuration once, then again...) and the minimum is reported. The runs' tables
 (detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared by a digest.
 
-Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 7a386ab] [--repeats 2]
-[--downscale 2] [--image-format png|jpg] [--profile]``; ``--terrace`` times the EPFL terrace video instead (cameras
+Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 16c8280] [--repeats 2]
+[--downscale 2] [--image-format png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times the EPFL terrace video instead (cameras
 c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
 ``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
 only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
 run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
---workers 2``): wall-clock time (the cluster started beforehand), and the two results compared.
+--workers 2``): wall-clock time (the cluster started beforehand), and the two results compared. ``--stages`` adds
+the CPU seconds of every stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
+``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
+cached kernels, the default binaural model), for the before tree and every full-resolution recording, interleaved:
+``taskset`` to one core, ``--threads 1``, figures off, the process's CPU time from ``os.wait4``.
 """
 
 from __future__ import annotations
@@ -38,16 +42,71 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main when this branch started (2026-12-03)
-BEFORE = "7a386ab"
+#: main when this branch started (2026-12-03, issue 19's second pass)
+BEFORE = "16c8280"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+#: ``--stages``: what each stage's timer wraps, ``(stage, module, attribute)``; ``Class.method`` for a method, else
+#: the module's global that its callers look up (the name where it is used). Time is exclusive: a stage called
+#: inside another (the KNN model inside the foreground) is not counted twice.
+STAGES = (
+    ("KNN model (priming included)", "planefuse.vision._foreground", "BackgroundSubtractor._learn"),
+    ("foreground cleaning, likelihood", "planefuse.vision._foreground", "BackgroundSubtractor.apply"),
+    ("frame read + decode", "planefuse.io._streams", "_read_png"),
+    ("frame read + decode", "planefuse.io._video", "VideoFrames.__call__"),
+    ("dead-frame check", "planefuse.vision._pipeline", "CameraFrontEnd.check"),
+    ("camera fusion", "planefuse.vision._fusion", "CameraFusion.log_odds"),
+    ("person extraction", "planefuse.vision._pipeline", "ground_detections_from_log_odds"),
+    ("laser registration", "planefuse.laser._occupancy", "LaserRegistrar.register"),
+    ("sound localisation + registration", "planefuse.audio", "localize"),
+    ("sound localisation + registration", "planefuse.audio", "evidence_from_saliency"),
+    ("BOF predict + update", "planefuse.tracking._bof", "bof_predict_update"),
+    ("clustering", "planefuse.tracking._pipeline", "cluster_occupancy"),
+    ("tracker", "planefuse.tracking._tracker", "MultiPersonTracker.step"),
+    ("tables + occupancy writing", "planefuse.outputs._writer", "OutputWriter.write_occupancy"),
+    ("tables + occupancy writing", "planefuse.outputs._writer", "OutputWriter.write_detections"),
+    ("tables + occupancy writing", "planefuse.outputs._writer", "OutputWriter.write_tracks"),
+    ("evaluation", "planefuse.pipeline._outputs", "system_metrics"),
+)
 
 
-def child(rec_dir: str, out_dir: str, profile: bool, downscale: int) -> None:
+def stage_timers() -> dict[str, float]:
+    """Wrap :data:`STAGES` with CPU timers (exclusive time); returns the dict they fill [s]."""
+    import functools
+    import importlib
+    import time
+
+    spent: dict[str, float] = {}
+    running: list[float] = []  # per open stage: CPU time of the stages called inside it
+
+    def wrap(stage, fn):
+        @functools.wraps(fn)
+        def timed(*args, **kwargs):
+            running.append(0.0)
+            t0 = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                dt = time.process_time() - t0
+                inner = running.pop()
+                spent[stage] = spent.get(stage, 0.0) + dt - inner
+                if running:
+                    running[-1] += dt
+        return timed
+
+    for stage, module, attr in STAGES:
+        owner = importlib.import_module(module)
+        *cls, name = attr.split(".")
+        if cls:
+            owner = getattr(owner, cls[0])
+        setattr(owner, name, wrap(stage, getattr(owner, name)))
+    return spent
+
+
+def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False) -> None:
     """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
-    resolution where above 1; prints a JSON line."""
+    resolution where above 1, with per-stage CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
     import resource
 
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
@@ -79,6 +138,7 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int) -> None:
 
         cam = params.camera_params
         params = replace(params, camera_params=replace(cam, foreground=replace(cam.foreground, downscale=downscale)))
+    spent = stage_timers() if stages else {}
     c0 = cpu()
     rec = read_recording(rec_dir)
     _, metrics = run_plan(rec, RunPlan(params, Path(out_dir), settings), progress_mode="quiet")
@@ -92,7 +152,8 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int) -> None:
     start_s = min((float(rec.camera(c.name).times_s[0]) for c in rec.cameras if len(rec.camera(c.name))), default=0.0)
     print(json.dumps({"cpu_s": used, "duration_s": rec.duration_s - start_s,
                       "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                      "digest": digest(Path(out_dir)), "scores": {k: metrics.get(k) for k in SCORES}}))
+                      "digest": digest(Path(out_dir)), "scores": {k: metrics.get(k) for k in SCORES},
+                      "stages_s": spent}))
 
 
 def digest(out: Path) -> str:
@@ -130,10 +191,11 @@ def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path
     return rec
 
 
-def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1) -> dict:
+def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False) -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
-                       + (["--profile"] if profile else []), env=env, capture_output=True, text=True)
+                       + (["--profile"] if profile else []) + (["--stages"] if stages else []),
+                       env=env, capture_output=True, text=True)
     if p.returncode:
         raise RuntimeError(f"{src}: run failed\n{p.stderr[-3000:]}")
     if profile:
@@ -154,10 +216,13 @@ def main() -> None:
                     help="also time background subtraction at 1/N resolution (1: skip)")
     ap.add_argument("--profile", action="store_true", help="print the last 'after' run's profile (slower)")
     ap.add_argument("--streams", action="store_true", help="also: serial vs per-camera streams on 2 workers")
+    ap.add_argument("--stages", action="store_true", help="also: CPU seconds per stage of every run")
+    ap.add_argument("--cli", action="store_true",
+                    help="also: the whole `planefuse run` process (start-up included), before and after")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.profile, args.downscale)
+        child(*args.child, args.profile, args.downscale, args.stages)
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
     recs: dict[str, Path] = {}
@@ -192,7 +257,7 @@ def main() -> None:
     for r in range(args.repeats):
         for k, (label, src, rec_dir, downscale) in enumerate(runs):
             profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
-            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale))
+            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages))
     some = next(iter(results.values()))[0]
     print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
           f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")
@@ -209,8 +274,77 @@ def main() -> None:
               f"{base / best['cpu_s']:.2f}x | {best['peak_rss_mb']:.0f} | {best['digest']} | {cells} |")
     same = {label: {r["digest"] for r in rs} for label, rs in results.items() if "KNN at" not in label}
     print(f"identical results (every run at full resolution): {len(set().union(*same.values())) == 1}")
+    if args.stages:
+        print_stages(results)
+    if args.cli:
+        cli_runs(runs, tmp, args.repeats)
     if args.streams:
         streams(recs[last], tmp)
+
+
+def print_stages(results: dict[str, list[dict]]) -> None:
+    """CPU seconds per stage (exclusive) of each row's fastest run; the rest is everything unwrapped."""
+    best = {label: min(rs, key=lambda x: x["cpu_s"]) for label, rs in results.items()}
+    names = list(dict.fromkeys(stage for stage, *_ in STAGES))
+    labels = list(best)
+    print("\nCPU seconds per stage (the fastest run of each row; exclusive times)")
+    print("| stage | " + " | ".join(labels) + " |")
+    print("|---|" + "---|" * len(labels))
+    for name in names + ["rest (sources, buffers, Python glue)"]:
+        cells = []
+        for label in labels:
+            b = best[label]
+            v = b["stages_s"].get(name, 0.0) if name in names else b["cpu_s"] - sum(b["stages_s"].values())
+            cells.append(f"{v:.2f} ({100 * v / b['cpu_s']:.0f} %)")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+
+
+def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
+    """The whole ``planefuse run`` process on one core, start-up included (imports, numba's cached kernels, the
+    default binaural model's calibration), figures off: CPU time of the process (``os.wait4``)."""
+    import yaml
+
+    full = [(k, label, src, rec_dir) for k, (label, src, rec_dir, downscale) in enumerate(runs) if downscale == 1]
+    rows: dict[str, list[tuple[float, str]]] = {label: [] for _, label, _, _ in full}
+    for r in range(repeats):
+        for k, label, src, rec_dir in full:
+            cfg = tmp / f"cli-{k}.yaml"
+            out = tmp / f"cli-out-{k}-{r}"
+            env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
+            subprocess.run([sys.executable, "-m", "planefuse", "config", "init", str(cfg), "--recording",
+                            str(rec_dir), "--force"], env=env, check=True, capture_output=True)
+            conf = yaml.safe_load(cfg.read_text())
+            conf["outputs"].update(out_dir=str(out), figures=False, animation="none", report=False)
+            cfg.write_text(yaml.safe_dump(conf, sort_keys=False))
+            core = str(min(os.sched_getaffinity(0)))
+            with open(tmp / f"cli-{k}-{r}.log", "w+") as log:
+                p = subprocess.Popen(["taskset", "-c", core, sys.executable, "-m", "planefuse", "run", str(cfg),
+                                      "--quiet", "--threads", "1", "--fresh"], env=env, stdout=log, stderr=log)
+                _, status, usage = os.wait4(p.pid, 0)
+                if os.waitstatus_to_exitcode(status):
+                    log.seek(0)
+                    raise RuntimeError(f"{label}: planefuse run failed\n{log.read()[-3000:]}")
+            rows[label].append((usage.ru_utime + usage.ru_stime, digest(out)))
+    print("\nwhole `planefuse run` process, one core (taskset), --threads 1, figures off; CPU s of the process, "
+          f"min of {repeats} interleaved")
+    print("| code, recording | CPU s | real-time factor | vs first row | results digest |")
+    print("|---|---|---|---|---|")
+    base = None
+    for _, label, _, rec_dir in full:
+        cpu_s, dig = min(rows[label])
+        base = base or cpu_s
+        duration = read_duration(rec_dir)
+        print(f"| {label} | {cpu_s:.2f} | {cpu_s / duration:.3f} | {base / cpu_s:.2f}x | {dig} |")
+    print(f"identical results (every process): {len({d for rs in rows.values() for _, d in rs}) == 1}")
+
+
+def read_duration(rec_dir: Path) -> float:
+    """Seconds recorded by ``rec_dir``, from its first camera frame (as :func:`child` counts them)."""
+    from planefuse.io import read_recording
+
+    rec = read_recording(rec_dir)
+    start_s = min((float(rec.camera(c.name).times_s[0]) for c in rec.cameras if len(rec.camera(c.name))), default=0.0)
+    return rec.duration_s - start_s
 
 
 def streams(rec_dir: Path, tmp: Path) -> None:

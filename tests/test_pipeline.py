@@ -107,3 +107,33 @@ def test_rerun_recording_holds_every_modality(recording_dir, tmp_path):
         assert expected in paths, sorted(paths)
     assert any(p.startswith("/world/cameras/") and p.endswith("/image") for p in paths)
     assert any(p.startswith("/planes/") for p in paths)
+
+
+def test_a_run_without_figures_does_not_import_matplotlib_or_rerun(recording_dir, tmp_path):
+    """matplotlib and rerun (about a second of start-up) are imported by a run only where figures, the report,
+    the animation or a rerun recording are asked for; the run's files are written all the same."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import planefuse
+
+    code = (
+        "import sys\n"
+        "from pathlib import Path\n"
+        "from planefuse.io import read_recording\n"
+        "from planefuse.outputs import OutputSettings\n"
+        "from planefuse.pipeline import RunPlan, SystemParams, run_plan\n"
+        "settings = OutputSettings(figures=False, animation='none', report=False)\n"
+        f"run_plan(read_recording({str(recording_dir)!r}), RunPlan(SystemParams(sound=False), "
+        f"Path({str(tmp_path / 'out')!r}), settings), progress_mode='quiet')\n"
+        "print(sorted(m for m in ('matplotlib', 'rerun', 'planefuse.viz') if m in sys.modules))\n"
+    )
+    src = str(Path(planefuse.__file__).resolve().parents[1])
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": src})
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert p.stdout.strip().splitlines()[-1] == "[]"
+    assert (tmp_path / "out" / "tracks.csv").is_file() and (tmp_path / "out" / "metrics.json").is_file()
+    assert not (tmp_path / "out" / "figures").exists() and not (tmp_path / "out" / "report.html").exists()

@@ -111,6 +111,53 @@ def test_priming_with_the_empty_scene_sees_people_present_from_the_start(method,
         primed.prime(np.clip(bg, 0, 255).astype(np.uint8), n_frames=0)
 
 
+@pytest.mark.parametrize("params", [
+    ForegroundParams(),
+    ForegroundParams(method="mog2", open_px=3, shadow_likelihood=0.3),
+    ForegroundParams(detect_shadows=False, floor=0.0, ceiling=1.0),  # 0.5 * 255 = 127.5: the rounding's tie
+    ForegroundParams(relearn_fraction=0.3, relearn_frames=2),
+    ForegroundParams(blur_px=3),  # the float image is needed: blurred, then quantised
+    ForegroundParams(downscale=2),  # resized, then quantised
+], ids=["knn", "mog2-open", "no-shadows", "relearn", "blur", "downscale"])
+def test_quantised_foreground_is_the_fusions_levels_of_the_likelihood(params, rng):
+    """``apply(quantised=True)`` (what the front ends hand the per-cell fusion) is ``quantise_foreground`` of the
+    float likelihood, level for level, frame after frame (two models fed the same frames draw the same seeds)."""
+    from planefuse.vision import quantise_foreground
+
+    h, w = 96, 128
+    bg = cv2.GaussianBlur(rng.uniform(60, 200, (h, w, 3)).astype(np.float32), (0, 0), 3)
+    as_float, as_levels = (BackgroundSubtractor(w, h, params) for _ in range(2))
+    for bs in (as_float, as_levels):
+        bs.prime(np.clip(bg, 0, 255).astype(np.uint8))
+    for k in range(12):
+        frame = bg + rng.normal(0, 2, bg.shape)
+        frame[20 + 3 * k:60 + 3 * k, 40:60] = 240.0  # a person walking down
+        frame[70:85, 10:50] *= 0.6  # a shadow
+        if k == 6:
+            frame += 120.0  # a sudden global change (relearning where enabled)
+        frame = np.clip(frame, 0, 255).astype(np.uint8)
+        like, levels = as_float.apply(frame), as_levels.apply(frame, quantised=True)
+        assert like.dtype == np.float32 and levels.dtype == np.uint8
+        np.testing.assert_array_equal(levels, quantise_foreground(like))
+    assert len(np.unique(levels)) >= 2
+
+
+def test_frozen_frame_is_told_by_every_pixel_not_the_first_row(rng):
+    """The frozen-frame check looks at the first row first: a frame whose first row repeats the previous one's
+    and whose rest differs is live; only a bit-identical frame is frozen."""
+    from planefuse.vision import frame_is_dead
+
+    prev = rng.integers(20, 230, (48, 64, 3), dtype=np.uint8)
+    same_top = prev.copy()
+    same_top[30, 40, 1] ^= 1  # one pixel below the first row
+    other_top = prev.copy()
+    other_top[0, 0, 0] ^= 1
+    assert not frame_is_dead(same_top, prev) and not frame_is_dead(other_top, prev)
+    assert frame_is_dead(prev.copy(), prev)
+    assert not frame_is_dead(prev, None) and not frame_is_dead(prev, prev[:40])  # no previous, another size
+    assert frame_is_dead(np.full((48, 64, 3), 8, np.uint8), None)  # black: mean level 8
+
+
 def test_external_masks_and_boxes(tmp_path):
     m = np.zeros((10, 12), np.uint8)
     m[2:5, 3:7] = 255

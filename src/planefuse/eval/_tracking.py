@@ -10,7 +10,6 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-import motmetrics as mm
 import numpy as np
 from scipy.spatial.distance import cdist
 
@@ -91,6 +90,8 @@ def tracking_metrics(
         raise ValueError("ground_truth holds no frame")
     hyp_t = np.array([h[0] for h in hyp]) if hyp else np.zeros(0)
     used = np.zeros(len(hyp), bool)
+    import motmetrics as mm  # and pandas (~0.5 s): only where a run is scored
+
     acc = mm.MOTAccumulator(auto_id=True)
     for t, gid, gxy in gt:
         hid, hxy = np.zeros(0, dtype=np.int64), np.zeros((0, 2))

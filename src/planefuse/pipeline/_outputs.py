@@ -7,6 +7,7 @@ import functools
 import time
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,16 +16,20 @@ from ..io import Recording
 from ..io._paths import check_name
 from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_write_bytes, atomic_write_text, \
     progress_steps, rows_by_step
-from ..viz import FigureInputs
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
 from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
     run_system, stack_for_recording
 
+if TYPE_CHECKING:  # matplotlib and rerun (~1 s of imports) only where figures or a rerun recording are asked for
+    from ..viz import FigureInputs
+
 __all__ = ["run_plan", "run_to_folder", "write_presentation"]
 
 
 def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) -> FigureInputs:
+    from ..viz import FigureInputs
+
     cams = rec.cameras
     images = {}
     for c in cams:
@@ -159,12 +164,12 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
     dict of str -> Path
         What was written: ``"report"``, ``"animation"`` and one entry per figure.
     """
-    figure_inputs = figure_inputs if figure_inputs is not None else FigureInputs()
     written: dict[str, Path] = {}
     figs: dict[str, bytes] = {}
     if settings.figures or settings.report:
-        from ..viz import run_figures
+        from ..viz import FigureInputs, run_figures
 
+        figure_inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         figs = run_figures(out.stack, out.occupancy_array(), out.times_s(), out.detections_table(), out.tracks_table(),
                            out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
     if settings.figures:
@@ -297,7 +302,9 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         return_freed_memory()  # before the figures' transient
         out.finish("presenting")
         try:
-            write_presentation(out, settings, _figure_inputs(rec, run.report, times), progress)
+            # the figures' material (a frame per camera, laser points, saliency) only where figures are drawn
+            inputs = _figure_inputs(rec, run.report, times) if settings.figures or settings.report else None
+            write_presentation(out, settings, inputs, progress)
         except (KeyboardInterrupt, MemoryError):
             raise
         except Exception as exc:  # the tables are complete: say what failed, in one line, and keep them

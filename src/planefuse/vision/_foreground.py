@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from .._params import check_fields, require
+from ._fusion import quantise_foreground
 
 __all__ = [
     "BackgroundSubtractor",
@@ -162,6 +163,10 @@ class BackgroundSubtractor:
         lut[_CV_SHADOW] = params.shadow_likelihood
         lut[_CV_FOREGROUND] = 1.0
         self._lut = lut
+        #: the same likelihoods quantised to the fusion's 256 levels (``apply(quantised=True)``), a table where no
+        #: blur or resize stands between the cleaned mask and them
+        self._levels = None if params.blur_px > 1 or params.downscale > 1 else \
+            quantise_foreground(_soften(lut.copy(), 0, params.floor, params.ceiling, own=True))
         d = params.downscale
         #: the subtractor's frame size (cols, rows) [px]: the camera's, reduced by ``params.downscale``
         self._model_size = (max(1, round(self.width_px / d)), max(1, round(self.height_px / d)))
@@ -238,17 +243,20 @@ class BackgroundSubtractor:
         self._gain.learn(compensated, mask == 0, self.params.relearn_rate if self._relearn_left else None)
         return mask
 
-    def apply(self, frame) -> np.ndarray:
+    def apply(self, frame, quantised: bool = False) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.
 
         Parameters
         ----------
         frame : ndarray, shape (height_px, width_px) or (height_px, width_px, 3), uint8
             Grey or BGR frame.
+        quantised : bool
+            Return the likelihood as the multi-view fusion's 256 levels, ``quantise_foreground(apply(frame))``
+            (uint8), the same values computed without the float image where no blur or resize needs it.
 
         Returns
         -------
-        ndarray, shape (height_px, width_px), float32
+        ndarray, shape (height_px, width_px), float32 (uint8 when ``quantised``)
             Foreground likelihood in ``[floor, ceiling]``.
         """
         img = self._check(frame)
@@ -264,7 +272,8 @@ class BackgroundSubtractor:
             self.n_sudden_changes += int(self._n_learned > p.relearn_frames)
             relearning = True
         if relearning:  # the model is being rebuilt: no evidence either way
-            return np.full((self.height_px, self.width_px), 0.5, dtype=np.float32)
+            like = np.full((self.height_px, self.width_px), 0.5, dtype=np.float32)
+            return quantise_foreground(like) if quantised else like
         # Clean the hard decision (foreground only) before softening it.
         if self._open is not None:
             hard = cv2.morphologyEx(hard, cv2.MORPH_OPEN, self._open)
@@ -272,10 +281,13 @@ class BackgroundSubtractor:
             hard = cv2.morphologyEx(hard, cv2.MORPH_CLOSE, self._close)
         # 255 where the cleaned decision is foreground, else 127 where OpenCV saw a shadow, else 0
         shadow = cv2.bitwise_and(cv2.compare(mask, _CV_SHADOW, cv2.CMP_EQ), _CV_SHADOW)
+        if quantised and self._levels is not None:
+            return cv2.LUT(cv2.max(hard, shadow), self._levels)
         like = cv2.LUT(cv2.max(hard, shadow), self._lut)
         if self.params.downscale > 1:
             like = cv2.resize(like, (self.width_px, self.height_px), interpolation=cv2.INTER_LINEAR)
-        return _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling, own=True)
+        like = _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling, own=True)
+        return quantise_foreground(like) if quantised else like
 
 
 class GainCompensator:

@@ -206,7 +206,8 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
     for i in range(len(s)):
         y0, y1 = max(iy[i] - r, 0), min(iy[i] + r + 1, stack.ny)
         x0, x1 = max(ix[i] - r, 0), min(ix[i] + r + 1, stack.nx)
-        yy, xx = np.mgrid[y0:y1, x0:x1]
+        # np.mgrid[y0:y1, x0:x1]'s values, broadcast instead of built
+        yy, xx = np.broadcast_arrays(np.arange(y0, y1)[:, None], np.arange(x0, x1)[None, :])
         near = (yy - iy[i]) ** 2 + (xx - ix[i]) ** 2 <= r_cells * r_cells
         top_cells = near & (score[y0:y1, x0:x1] >= s[i] - _PLATEAU)
         fy[i], fx[i] = yy[top_cells].mean(), xx[top_cells].mean()

@@ -31,7 +31,10 @@ def frame_is_dead(image: np.ndarray, previous: np.ndarray | None) -> bool:
     # without its float64 copy of the frame
     if sum(cv2.sumElems(image)) <= DEAD_FRAME_MAX_MEAN * image.size:
         return True
-    return previous is not None and previous.shape == image.shape and np.array_equal(image, previous)
+    # a live frame differs from the previous one within its first row almost always: the whole frame is compared
+    # only where that row is the same
+    return previous is not None and previous.shape == image.shape and np.array_equal(image[:1], previous[:1]) \
+        and np.array_equal(image, previous)
 
 
 def lookups_from_cameras(cameras: Sequence[PinholeCamera], stack: PlaneStack,
@@ -160,7 +163,8 @@ class CameraFrontEnd:
         Empty-scene image priming the background model.
     quantise : bool
         Give foregrounds as uint8 ``0..255`` (what :class:`CameraFusion` quantises them to; a quarter of the
-        bytes to send from a worker) instead of float32.
+        bytes to send from a worker, and no float image at all where the subtractor has no blur or resize)
+        instead of float32. :func:`camera_detections` quantises for the per-cell sensor model.
     """
 
     def __init__(self, width_px: int, height_px: int, foreground: ForegroundParams | None, name: str,
@@ -189,7 +193,7 @@ class CameraFrontEnd:
 
     def foreground(self, img: np.ndarray) -> np.ndarray:
         """The foreground likelihood of a checked frame (float32 in [0, 1], or uint8 when quantising)."""
-        fg = img if self.subtractor is None else self.subtractor.apply(img)
+        fg = img if self.subtractor is None else self.subtractor.apply(img, quantised=self.quantise)
         if self.quantise and fg.dtype != np.uint8:
             fg = quantise_foreground(fg)
         return fg
@@ -328,7 +332,9 @@ def camera_detections(
             raise ValueError(f"backgrounds: expected {fusion.n_cameras} images (None where absent), "
                              f"got {len(backgrounds)}")
         bgs = backgrounds if backgrounds is not None and params.foreground is not None else [None] * fusion.n_cameras
-        front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg)
+        # the per-cell fusion reads 256 levels: the front ends give them (no float image in between)
+        front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg,
+                                     quantise=generative is None)
                       for lk, name, bg in zip(lookups, fusion.names, bgs)]
         foregrounds = camera_foregrounds(frames, front_ends, replay, registration)
     for time_s, fgs, status in foregrounds:

@@ -292,8 +292,8 @@ class MultiPersonTracker:
         S = P[:, None] + R[det][None]  # (T, D, 4, 4)
         S_pos = S[..., :2, :2]
         d2_pos = np.einsum("tdi,tdij,tdj->td", y[..., :2], np.linalg.inv(S_pos), y[..., :2])
-        gated = (d2_pos <= self.params.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= self.params.gate_m)
         p = self.params
+        gated = (d2_pos <= p.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= p.gate_m)
         nll_pos = d2_pos + np.linalg.slogdet(2 * np.pi * S_pos)[1]
         nll_full = np.einsum("tdi,tdij,tdj->td", y, np.linalg.inv(S), y) + np.linalg.slogdet(2 * np.pi * S)[1]
         var_c = self.velocity_prior_var_m2_s2 or p.initial_velocity_std_m_s**2  # a false cluster's velocity law

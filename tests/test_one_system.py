@@ -124,6 +124,7 @@ CHANGED = {
     "models.detection.acceleration_std_m_s2": 3.0,
     "models.detection.confirm_hits": 2,
     "models.detection.max_misses": 4,
+    "models.detection.clutter_density_per_m2": 0.5,
     "models.detection.support_threshold": None,
     "models.detection.match_distance_m": 1.0,
     "outputs.zarr": False,

@@ -363,3 +363,25 @@ def test_a_person_the_filter_holds_below_the_threshold_keeps_its_track(support):
     assert all(reported_in_gap)
     assert len(set(ids)) == 1  # the same id before and after the gap
     assert len(tr.reported()) == 2
+
+
+def test_a_track_is_not_pulled_onto_a_ghost_so_that_another_track_takes_its_cluster():
+    """Regression (maximum-cardinality assignment): a walker's track has its own cluster and, 0.47 m behind
+    it (inside its gate), a ghost; a second track, coasting since its person (0.5 m off the walker's path) was
+    hidden 0.8 s before, has only the walker's cluster inside its (wide) gate. Matching both tracks (walker ->
+    ghost, coasting track -> the walker's cluster) makes more pairs but is less likely than the walker on its
+    own cluster and no cluster for the coasting track, which is what the tracker must choose: the walker keeps
+    its id and stays on its cluster (sharing of merged blobs off, to see the assignment alone)."""
+    tr = MultiPersonTracker(TrackerParams(support_threshold=None, max_shared_s=0.0, max_misses=20),
+                            extent_m=(-10, 10, -10, 10))
+    b = np.array([3.0, 0.5])  # a standing person, hidden from t = 1.2 s on
+    walker_id = None
+    for t in np.arange(21) * DT:
+        a = np.array([1.0 + t, 0.0])  # 1 m/s along x; at b's x when t = 2 s
+        xy = [a] + ([b] if t < 1.15 else []) + ([a + [-0.45, -0.15]] if np.isclose(t, 2.0) else [])
+        out = tr.step(_clusters(t, xy, np.zeros((len(xy), 2))))
+        if np.isclose(t, 1.0):
+            (walker_id,) = [i for i, p in zip(out.ids, out.xy_m) if np.linalg.norm(p - a) < 0.1]
+    assert len(tr.tracks) == 2  # the coasting track is still there, unassigned
+    on_walker = [i for i, p in zip(out.ids, out.xy_m) if np.linalg.norm(p - a) < 0.1]
+    assert on_walker == [walker_id]

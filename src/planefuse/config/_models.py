@@ -405,6 +405,11 @@ class DetectionModelConfig(_Model):
         description="White-noise acceleration of the tracks' constant-velocity model", unit="m/s^2",
         expected=">= 0", library="system.tracking.tracker.acceleration_std_m_s2",
     )
+    clutter_density_per_m2: float = _field(
+        description="Density of false clusters (multi-view ghosts, trails) per step, against which the tracker "
+        "weighs each track-to-cluster pairing (with a detection probability of 0.9)", unit="1/m^2",
+        expected="> 0", library="system.tracking.tracker.clutter_density_per_m2",
+    )
     support_threshold: float | None = _field(
         description="Column evidence near a confirmed track's prediction that keeps it reported without a cluster "
         "(the filter still holds the person below column_threshold: partly hidden, a camera gone); null = none",

@@ -81,6 +81,8 @@ CHANGED = {
     "sensors.cameras.relearn_fraction": 0.4,
     "sensors.cameras.relearn_frames": 3,
     "sensors.cameras.relearn_rate": 0.5,
+    "sensors.cameras.selective_update": True,
+    "sensors.cameras.selective_max_frames": 20,
     "sensors.cameras.open_px": 3,
     "sensors.cameras.close_px": 7,
     "sensors.cameras.blur_px": 5,

@@ -197,7 +197,7 @@ RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cam
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
-              "models.filter.camera_correlation_s", "scene.occluder_boxes_m"]
+              "models.filter.camera_correlation_s", "scene.occluder_boxes_m", "sensors.cameras.selective_update"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)

@@ -28,6 +28,9 @@ __all__ = [
 #: OpenCV's default KNN ``dist2Threshold`` (squared distance in grey levels); on frames reduced by ``downscale`` the
 #: default is this divided by ``downscale`` (ForegroundParams.threshold).
 _KNN_THRESHOLD = 400.0
+#: Rate per frame of the running average of the background that protected pixels are compared with (selective
+#: update): the gain compensator's reference rate, a time constant of 20 frames.
+_MEAN_RATE = 0.05
 # Values written by OpenCV's MOG2/KNN subtractors into their masks.
 _CV_FOREGROUND = 255
 _CV_SHADOW = 127
@@ -97,11 +100,11 @@ class ForegroundParams:
     selective_update : bool
         Conservative background update (KNN only): the pixels given to :meth:`BackgroundSubtractor.protect` before
         a frame -- the silhouettes of the people the camera model explains at the previous instant, fed back by the
-        camera pipeline (:func:`planefuse.vision.camera_detections`) -- are not learnt into the background model,
-        so that people who stand still do not fade into it. There the model is fed its own background image
-        (``getBackgroundImage``) instead of the frame, and the foreground decision is the squared colour distance
-        of the frame to that background image against the KNN threshold (one background sample instead of KNN's
-        nearest neighbours; no shadow label). Off: every pixel is learnt (OpenCV's blind update).
+        camera pipeline (:func:`planefuse.vision.camera_detections`) -- that were foreground (or shadow) at the
+        previous frame are not learnt into the background model, so that people who stand still do not fade into
+        it (the background inside a silhouette's box is learnt as usual). There the model is fed a running average of the background (rate 0.05
+        per frame over the pixels called background) instead of the frame, and the foreground decision is the
+        squared colour distance of the frame to that average against the KNN threshold (no shadow label). Off: every pixel is learnt (OpenCV's blind update).
     selective_max_frames : int
         A pixel is kept out of the model for at most this many consecutive frames, then learnt again whatever the
         camera model says (until it leaves the protected region), so that a ghost -- a background object that
@@ -194,6 +197,11 @@ class BackgroundSubtractor:
         # consecutive frames each pixel has been kept out
         self._protect: np.ndarray | None = None
         self._protected_for = np.zeros(self._model_size[::-1], np.uint16)
+        #: the previous frame's foreground (OpenCV's decision, shadows included) at the model's size
+        self._last_foreground = np.zeros(self._model_size[::-1], bool)
+        #: running average of the frames' background pixels (model size, float32): the background protected
+        #: pixels are fed and compared with
+        self._mean_background: np.ndarray | None = None
 
     def protect(self, people) -> None:
         """Keep the pixels ``people`` (height_px, width_px) bool -- where the camera model explains the image by
@@ -275,6 +283,9 @@ class BackgroundSubtractor:
             mask = self._apply_selective(compensated, protect, rate)
         if self._gain is not None:
             self._gain.learn(compensated, mask == 0, self.params.relearn_rate if self._relearn_left else None)
+        if self.params.selective_update:
+            np.not_equal(mask, 0, out=self._last_foreground)
+            self._learn_mean_background(compensated, mask)
         return mask
 
     def _take_protection(self) -> np.ndarray | None:
@@ -284,6 +295,9 @@ class BackgroundSubtractor:
         if m is None:
             count[:] = 0
             return None
+        # only what the model calls foreground: the background around a person, or a false person's box, is
+        # learnt as usual (else a false detection keeps its own box out of the model and so its foreground)
+        m = m & self._last_foreground
         np.add(count, 1, out=count, where=m)
         count[~m] = 0
         np.minimum(count, self.params.selective_max_frames + 1, out=count)
@@ -291,18 +305,29 @@ class BackgroundSubtractor:
         return keep if keep.any() else None
 
     def _apply_selective(self, frame: np.ndarray, protect: np.ndarray, rate: float) -> np.ndarray:
-        """OpenCV's mask of ``frame`` with the model learning its own background image on ``protect`` (ForegroundParams
-        .selective_update); there the decision is the squared distance of ``frame`` to that image."""
-        background = self._model.getBackgroundImage()
-        if background is None or background.shape != frame.shape:  # nothing learnt yet
+        """OpenCV's mask of ``frame`` with the model fed the mean background on ``protect`` (ForegroundParams
+        .selective_update); there the decision is the squared distance of ``frame`` to that mean."""
+        mean = self._mean_background
+        if mean is None:  # nothing learnt yet
             return self._model.apply(frame, learningRate=rate)
         fed = frame.copy()
-        fed[protect] = background[protect]
+        fed[protect] = np.round(mean[protect]).astype(np.uint8)
         mask = self._model.apply(fed, learningRate=rate)
-        d = frame[protect].astype(np.float32) - background[protect].astype(np.float32)
+        d = frame[protect].astype(np.float32) - mean[protect]
         dist2 = (d * d).sum(axis=-1) if d.ndim == 2 else d * d
         mask[protect] = np.where(dist2 > self._model.getDist2Threshold(), _CV_FOREGROUND, 0).astype(np.uint8)
         return mask
+
+    def _learn_mean_background(self, frame: np.ndarray, mask: np.ndarray) -> None:
+        """Running average (rate ``_MEAN_RATE`` per frame) of ``frame`` on the pixels ``mask`` calls background."""
+        if self._mean_background is None:
+            self._mean_background = frame.astype(np.float32)
+            return
+        w = (mask == 0).astype(np.float32) * _MEAN_RATE
+        if frame.ndim == 3:
+            w = w[..., None]
+        self._mean_background += w * (frame.astype(np.float32) - self._mean_background)
+
 
     def apply(self, frame) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.

@@ -275,7 +275,7 @@ class BackgroundSubtractor:
         self._n_learned += 1
         if self.params.downscale > 1:
             img = cv2.resize(img, self._model_size, interpolation=cv2.INTER_AREA)
-        protect = self._take_protection()
+        protect = self._take_protection() if self.params.selective_update else None
         if self._relearn_left > 0:  # the scene is being relearnt: nothing is kept out
             rate = self.params.relearn_rate
             self._relearn_left -= 1

@@ -102,9 +102,11 @@ class ForegroundParams:
         a frame -- the silhouettes of the people the camera model explains at the previous instant, fed back by the
         camera pipeline (:func:`planefuse.vision.camera_detections`) -- that were foreground (or shadow) at the
         previous frame are not learnt into the background model, so that people who stand still do not fade into
-        it (the background inside a silhouette's box is learnt as usual). There the model is fed a running average of the background (rate 0.05
-        per frame over the pixels called background) instead of the frame, and the foreground decision is the
-        squared colour distance of the frame to that average against the KNN threshold (no shadow label). Off: every pixel is learnt (OpenCV's blind update).
+        it (the background inside a silhouette's box is learnt as usual). There the model is fed a running average
+        of the background (rate 0.05 per frame over the pixels called background) instead of the frame, and the
+        foreground decision is the squared colour distance of the frame to that average against the KNN threshold
+        (no shadow label). Off: every pixel is learnt (OpenCV's blind update). Not kept for the EPFL terrace
+        (frames 0-1499: a little better warm, worse from a cold start; docs/results.md).
     selective_max_frames : int
         A pixel is kept out of the model for at most this many consecutive frames, then learnt again whatever the
         camera model says (until it leaves the protected region), so that a ghost -- a background object that
@@ -333,7 +335,6 @@ class BackgroundSubtractor:
         if frame.ndim == 3:
             w = w[..., None]
         self._mean_background += w * (frame.astype(np.float32) - self._mean_background)
-
 
     def apply(self, frame) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.

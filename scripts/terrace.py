@@ -18,6 +18,9 @@ What it does, for frames ``--first`` to ``--last`` (every ``--step``-th):
    false), the only difference with ``planefuse run``'s own ``metrics.json`` (which also skips the first second);
    writes ``terrace.json`` and a Markdown table.
 
+With ``--warmup-from F`` the run starts at frame F (a deployed system runs continuously: background models, filter
+and tracker warm) and only the frames from ``--first`` are scored; without it the models start cold at ``--first``.
+
 Hold-out: every parameter was chosen on frames 0-1499; report on 1500-2999. Example::
 
     PYTHONPATH=src python3 scripts/terrace.py --data ../shared/data --first 1500 --last 3000 --step 5 --out /tmp/terrace

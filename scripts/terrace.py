@@ -18,6 +18,9 @@ What it does, for frames ``--first`` to ``--last`` (every ``--step``-th):
    false), the only difference with ``planefuse run``'s own ``metrics.json`` (which also skips the first second);
    writes ``terrace.json`` and a Markdown table.
 
+With ``--warmup-from F`` the run starts at frame F (a deployed system runs continuously: background models, filter
+and tracker warm) and only the frames from ``--first`` are scored; without it the models start cold at ``--first``.
+
 Hold-out: every parameter was chosen on frames 0-1499; report on 1500-2999. Example::
 
     PYTHONPATH=src python3 scripts/terrace.py --data ../shared/data --first 1500 --last 3000 --step 5 --out /tmp/terrace
@@ -317,6 +320,10 @@ def main(argv=None) -> int:
     ap.add_argument("--first", type=int, default=1500, help="first frame (0-based)")
     ap.add_argument("--last", type=int, default=3000, help="end frame (exclusive)")
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
+    ap.add_argument("--warmup-from", type=int, default=None, metavar="F",
+                    help="a warm run: import and run from frame F (every step-th, F <= first, first - F a multiple of "
+                         "step) as a deployed system runs continuously, but score only the frames from --first (the "
+                         "warm-up frames are not scored); default: start cold at --first")
     ap.add_argument("--config", type=Path, default=CONFIG, help="run configuration (default scripts/terrace.yaml)")
     ap.add_argument("--out", type=Path, default=None, help="folder for terrace.json, table.md and masks")
     ap.add_argument("--rows", default="all",
@@ -334,6 +341,10 @@ def main(argv=None) -> int:
             print(f"skipped: {p} is absent", file=sys.stderr)
             return 0
     frames = np.arange(args.first, args.last, args.step)
+    run_frames = warm_frames(args.warmup_from, args.first, args.last, args.step)
+    if args.warmup_from is not None and args.run_dir is not None:
+        raise SystemExit("--run-dir with --warmup-from: planefuse run's metrics.json would score the warm-up "
+                         "frames too; run them separately")
     out = args.out or Path(tempfile.mkdtemp(prefix="terrace-"))
     out.mkdir(parents=True, exist_ok=True)
     truth = terrace_truth(pom_root, frames)
@@ -343,13 +354,16 @@ def main(argv=None) -> int:
     results = []
     try:
         t0 = time.perf_counter()
-        rec = read_recording(import_terrace(tmp, args.data, frames))
+        rec = read_recording(import_terrace(tmp, args.data, run_frames))
         print(f"planefuse import: {time.perf_counter() - t0:.1f} s wall", flush=True)
         for key, (front, changes) in ROWS.items():
             if key not in rows:
                 continue
             cfg = merged(base, changes)
             filt, raw = run_row(rec, cfg, truth, frames)
+            if filt["n_frames"] != len(frames) or raw["n_frames"] != len(frames):
+                raise RuntimeError(f"row {key}: scored {filt['n_frames']} / {raw['n_frames']} instants, "
+                                   f"expected the {len(frames)} of --first..--last")
             cams = cfg["sensors"]["cameras"]
             heights = cfg["planes"]["heights_m"]
             planes = "/".join(f"{h:g}" for h in heights) + (" (ground alone)" if heights == [0.0] else "")
@@ -373,6 +387,7 @@ def main(argv=None) -> int:
                   f"IDF1 {metrics['idf1']:.3f} (all people, first second skipped)", flush=True)
         if {"generative", "pom"} & rows:
             masks, mask_cpu_s = foreground_masks(rec, tuned_front_end(base))
+            masks = [m[len(run_frames) - len(frames):] for m in masks]  # the scored frames (warm-up dropped)
             np.savez_compressed(out / "masks.npz", frames=frames, c0=masks[0], c1=masks[1])
             gen, q = generative_row(rec, masks, truth, frames)
             gen["mask_cpu_s"] = mask_cpu_s
@@ -392,13 +407,25 @@ def main(argv=None) -> int:
                     print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    meta = dict(first=args.first, last=args.last, step=args.step, n_frames=len(frames), config=base,
+    meta = dict(first=args.first, last=args.last, step=args.step, warmup_from=args.warmup_from,
+                n_frames=len(frames), config=base,
                 generative_25cm=repr(GENERATIVE))
     (out / "terrace.json").write_text(json.dumps(dict(meta=meta, rows=results), indent=1, default=float))
     (out / "table.md").write_text(markdown(results) + "\n")
     print(markdown(results))
     print(f"written {out / 'terrace.json'}")
     return 0
+
+
+def warm_frames(warmup_from: int | None, first: int, last: int, step: int) -> np.ndarray:
+    """The frames run: ``first..last`` every ``step``-th, preceded by the warm-up frames from ``warmup_from``
+    (same step) when given; the scored frames ``first..last`` are then the run's last ones."""
+    if warmup_from is None:
+        return np.arange(first, last, step)
+    if not 0 <= warmup_from <= first or (first - warmup_from) % step:
+        raise SystemExit(f"--warmup-from {warmup_from}: must lie in 0..{first} (--first) with --first minus it "
+                         f"a multiple of --step {step}")
+    return np.arange(warmup_from, last, step)
 
 
 def _rows(spec: str) -> set[str]:

@@ -81,6 +81,8 @@ CHANGED = {
     "sensors.cameras.relearn_fraction": 0.4,
     "sensors.cameras.relearn_frames": 3,
     "sensors.cameras.relearn_rate": 0.5,
+    "sensors.cameras.selective_update": True,
+    "sensors.cameras.selective_max_frames": 20,
     "sensors.cameras.open_px": 3,
     "sensors.cameras.close_px": 7,
     "sensors.cameras.blur_px": 5,
@@ -196,7 +198,7 @@ RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cam
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
-              "models.filter.camera_correlation_s", "scene.occluder_boxes_m"]
+              "models.filter.camera_correlation_s", "scene.occluder_boxes_m", "sensors.cameras.selective_update"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)

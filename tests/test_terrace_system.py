@@ -141,3 +141,14 @@ def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
             np.testing.assert_array_equal(a.detections.xy_m, b.detections.xy_m)
             np.testing.assert_array_equal(a.tracks.ids, b.tracks.ids)
     assert not R.REPLAYABLE & {"close_px", "var_threshold", "generative_sigma"}
+
+
+def test_warm_runs_score_exactly_the_frames_asked_for():
+    """--warmup-from F: the run starts at F, the scored frames --first..--last are its last ones, same step."""
+    run = terrace.warm_frames(0, 1500, 3000, 5)
+    np.testing.assert_array_equal(run[-300:], np.arange(1500, 3000, 5))
+    assert run[0] == 0 and len(run) == 600 and np.all(np.diff(run) == 5)
+    np.testing.assert_array_equal(terrace.warm_frames(None, 1500, 3000, 5), np.arange(1500, 3000, 5))
+    for bad in (1501, 1600, -5):
+        with pytest.raises(SystemExit, match="--warmup-from"):
+            terrace.warm_frames(bad, 1500, 3000, 5)

@@ -193,6 +193,16 @@ class CameraSensorConfig(_Model):
         description="Learning rate while relearning", unit="1/frame", expected="in (0, 1]",
         library="system.camera_params.foreground.relearn_rate",
     )
+    selective_update: bool = _field(
+        description="Keep the silhouettes of the people the cameras' model found at the previous instant out of the "
+        "background model (people who stand still do not fade into it); knn only",
+        library="system.camera_params.foreground.selective_update",
+    )
+    selective_max_frames: int = _field(
+        description="With selective_update: a pixel is kept out for at most this many consecutive frames, then "
+        "learnt (a ghost of a background object that moved still heals)", unit="frames",
+        expected="an integer >= 1", library="system.camera_params.foreground.selective_max_frames",
+    )
     open_px: int = _field(
         description="Side of the morphological opening removing speckle from the foreground; 0 = none", unit="px",
         expected="an integer >= 0", library="system.camera_params.foreground.open_px",

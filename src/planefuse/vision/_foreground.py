@@ -29,6 +29,9 @@ __all__ = [
 #: OpenCV's default KNN ``dist2Threshold`` (squared distance in grey levels); on frames reduced by ``downscale`` the
 #: default is this divided by ``downscale`` (ForegroundParams.threshold).
 _KNN_THRESHOLD = 400.0
+#: Rate per frame of the running average of the background that protected pixels are compared with (selective
+#: update): the gain compensator's reference rate, a time constant of 20 frames.
+_MEAN_RATE = 0.05
 # Values written by OpenCV's MOG2/KNN subtractors into their masks.
 _CV_FOREGROUND = 255
 _CV_SHADOW = 127
@@ -95,6 +98,24 @@ class ForegroundParams:
         camera's size by bilinear interpolation; the open/close sides are divided by it. 1 = full resolution.
         A different detector, not a speed-only change: docs/results.md, "Background subtraction at reduced
         resolution" (not the default: behind full resolution on the tuning seeds).
+    selective_update : bool
+        Conservative background update (KNN only): the pixels given to :meth:`BackgroundSubtractor.protect` before
+        a frame -- the silhouettes of the people the camera model explains at the previous instant, fed back by the
+        camera pipeline (:func:`planefuse.vision.camera_detections`) -- that were foreground (or shadow) at the
+        previous frame are not learnt into the background model, so that people who stand still do not fade into
+        it (the background inside a silhouette's box is learnt as usual). There the model is fed a running average
+        of the background (rate 0.05 per frame over the pixels called background) instead of the frame, and the
+        foreground decision is the squared colour distance of the frame to that average against the KNN threshold
+        (no shadow label). Off: every pixel is learnt (OpenCV's blind update). Not kept for the EPFL terrace
+        (frames 0-1499: a little better warm, worse from a cold start; docs/results.md).
+    selective_max_frames : int
+        A pixel is kept out of the model for at most this many consecutive frames, then learnt again whatever the
+        camera model says (until it leaves the protected region), so that a ghost -- a background object that
+        moved, which the camera model may explain as a person -- still heals. Nothing is protected during the
+        model's first ``selective_max_frames`` frames either: a cold model calls the scene itself foreground and
+        learns the people then in view as background, and the camera model's "people" on those frames are its
+        ghosts (EPFL terrace, frames 1000-1499 from a cold start: filtered MODA -0.08 with protection from the
+        first frame; docs/results.md).
     """
 
     method: str = "knn"
@@ -115,6 +136,8 @@ class ForegroundParams:
     relearn_frames: int = 5
     relearn_rate: float = 0.2
     downscale: int = 1
+    selective_update: bool = False
+    selective_max_frames: int = 50
 
     def __post_init__(self) -> None:
         require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
@@ -122,7 +145,9 @@ class ForegroundParams:
                      ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
         check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
-                     relearn_frames="int>=1", downscale="int>=1")
+                     relearn_frames="int>=1", downscale="int>=1", selective_max_frames="int>=1")
+        require(not self.selective_update or self.method == "knn", self, "selective_update",
+                f"needs method 'knn' (the decision on protected pixels uses its dist2Threshold), got {self.method!r}")
         require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
                 f"must be (rows, cols) >= 1, got {self.gain_blocks}")
 
@@ -179,6 +204,30 @@ class BackgroundSubtractor:
         #: Sudden global changes detected after the first ``relearn_frames`` frames (each gave no evidence and
         #: restarted a fast relearning).
         self.n_sudden_changes = 0
+        # selective update: the pixels (model size) to keep out of the model at the next frame, and for how many
+        # consecutive frames each pixel has been kept out
+        self._protect: np.ndarray | None = None
+        self._protected_for = np.zeros(self._model_size[::-1], np.uint16)
+        #: the previous frame's foreground (OpenCV's decision, shadows included) at the model's size
+        self._last_foreground = np.zeros(self._model_size[::-1], bool)
+        #: running average of the frames' background pixels (model size, float32): the background protected
+        #: pixels are fed and compared with
+        self._mean_background: np.ndarray | None = None
+
+    def protect(self, people) -> None:
+        """Keep the pixels ``people`` (height_px, width_px) bool -- where the camera model explains the image by
+        people -- out of the background model at the next frame (:attr:`ForegroundParams.selective_update`;
+        each pixel at most ``selective_max_frames`` frames in a row). Call before every frame: a frame without
+        a call learns every pixel."""
+        if not self.params.selective_update:
+            raise ValueError(f"{self.name}: protect() needs ForegroundParams.selective_update")
+        m = np.asarray(people)
+        if m.shape != (self.height_px, self.width_px) or m.dtype != bool:
+            raise ValueError(f"{self.name}: people mask must be a {self.height_px}x{self.width_px} bool image, got "
+                             f"{m.dtype} {m.shape}")
+        if self.params.downscale > 1:  # a model pixel is protected where any of its camera pixels is
+            m = cv2.resize(m.astype(np.uint8), self._model_size, interpolation=cv2.INTER_AREA) > 0
+        self._protect = m
 
     def prime(self, empty_frame, n_frames: int = 30) -> None:
         """Initialise the background model with an image of the empty scene (calibration plate).
@@ -233,15 +282,64 @@ class BackgroundSubtractor:
         self._n_learned += 1
         if self.params.downscale > 1:
             img = cv2.resize(img, self._model_size, interpolation=cv2.INTER_AREA)
-        if self._relearn_left > 0:
+        protect = self._take_protection() if self.params.selective_update else None
+        if self._relearn_left > 0:  # the scene is being relearnt: nothing is kept out
             rate = self.params.relearn_rate
             self._relearn_left -= 1
-        if self._gain is None:
-            return self._model.apply(img, learningRate=rate)
-        compensated = self._gain.compensate(img)
-        mask = self._model.apply(compensated, learningRate=rate)
-        self._gain.learn(compensated, mask == 0, self.params.relearn_rate if self._relearn_left else None)
+            protect = None
+        compensated = img if self._gain is None else self._gain.compensate(img)
+        if protect is None:
+            mask = self._model.apply(compensated, learningRate=rate)
+        else:
+            mask = self._apply_selective(compensated, protect, rate)
+        if self._gain is not None:
+            self._gain.learn(compensated, mask == 0, self.params.relearn_rate if self._relearn_left else None)
+        if self.params.selective_update:
+            np.not_equal(mask, 0, out=self._last_foreground)
+            self._learn_mean_background(compensated, mask)
         return mask
+
+    def _take_protection(self) -> np.ndarray | None:
+        """The pixels to keep out of the model at this frame (None: none), counting consecutive protected frames."""
+        m, self._protect = self._protect, None
+        count = self._protected_for
+        if self._n_learned <= self.params.selective_max_frames:
+            m = None  # a cold model: its "people" include the scene it has not learnt yet (see ForegroundParams)
+        if m is None:
+            count[:] = 0
+            return None
+        # only what the model calls foreground: the background around a person, or a false person's box, is
+        # learnt as usual (else a false detection keeps its own box out of the model and so its foreground)
+        m = m & self._last_foreground
+        np.add(count, 1, out=count, where=m)
+        count[~m] = 0
+        np.minimum(count, self.params.selective_max_frames + 1, out=count)
+        keep = m & (count <= self.params.selective_max_frames)
+        return keep if keep.any() else None
+
+    def _apply_selective(self, frame: np.ndarray, protect: np.ndarray, rate: float) -> np.ndarray:
+        """OpenCV's mask of ``frame`` with the model fed the mean background on ``protect`` (ForegroundParams
+        .selective_update); there the decision is the squared distance of ``frame`` to that mean."""
+        mean = self._mean_background
+        if mean is None:  # nothing learnt yet
+            return self._model.apply(frame, learningRate=rate)
+        fed = frame.copy()
+        fed[protect] = np.round(mean[protect]).astype(np.uint8)
+        mask = self._model.apply(fed, learningRate=rate)
+        d = frame[protect].astype(np.float32) - mean[protect]
+        dist2 = (d * d).sum(axis=-1) if d.ndim == 2 else d * d
+        mask[protect] = np.where(dist2 > self._model.getDist2Threshold(), _CV_FOREGROUND, 0).astype(np.uint8)
+        return mask
+
+    def _learn_mean_background(self, frame: np.ndarray, mask: np.ndarray) -> None:
+        """Running average (rate ``_MEAN_RATE`` per frame) of ``frame`` on the pixels ``mask`` calls background."""
+        if self._mean_background is None:
+            self._mean_background = frame.astype(np.float32)
+            return
+        w = (mask == 0).astype(np.float32) * _MEAN_RATE
+        if frame.ndim == 3:
+            w = w[..., None]
+        self._mean_background += w * (frame.astype(np.float32) - self._mean_background)
 
     def apply(self, frame, quantised: bool = False) -> np.ndarray:
         """Update the background model with ``frame`` and return its foreground likelihood.

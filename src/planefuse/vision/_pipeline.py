@@ -11,6 +11,7 @@ import numpy as np
 
 from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
+from ..occupancy import PersonVolume, silhouettes_from_cameras
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
 from ._foreground import BackgroundSubtractor, ForegroundParams
 from ._fusion import NEUTRAL_FOREGROUND, NEUTRAL_LEVEL, CameraFusion, FusionParams, max_log_ratio, quantise_foreground
@@ -198,6 +199,12 @@ class CameraFrontEnd:
             fg = quantise_foreground(fg)
         return fg
 
+    def protect(self, people: np.ndarray) -> None:
+        """Keep the pixels ``people`` (height_px, width_px) bool out of the background model at the next frame
+        (:meth:`BackgroundSubtractor.protect`, ``ForegroundParams.selective_update``)."""
+        if self.subtractor is not None:
+            self.subtractor.protect(people)
+
     def replay(self, img: np.ndarray | None) -> None:
         """Check ``img`` and, if it is a live frame, only learn from it (an instant a resumed run skips)."""
         if self.check(img) == OK:
@@ -299,13 +306,21 @@ def camera_detections(
     foregrounds : iterable of (time_s, foregrounds, statuses), optional
         The cameras' front ends computed elsewhere (per-camera streams on dask workers: ``planefuse.batch.
         remote_foregrounds``): per instant, each camera's :meth:`CameraFrontEnd.process`. ``frames``,
-        ``backgrounds`` and ``replay`` are then not used.
+        ``backgrounds`` and ``replay`` are then not used. Not with ``params.foreground.selective_update``, whose
+        front ends take each instant's people back from this process.
 
     Yields
     ------
     (Evidence, GroundDetections)
         Per-plane fused log-odds ``(L, ny, nx)`` (sensor ``"cameras"``) and the
         people found on the ground, both stamped ``time_s``.
+
+    Notes
+    -----
+    With ``params.foreground.selective_update`` the people found at an instant are fed back to the front ends:
+    their silhouettes in each camera (the generative model's person volume, ``params.generative``, projected
+    from ``cameras``) are kept out of the background models at the next frame. Replayed instants are then
+    computed in full (not yielded), so that a resumed run still gets the exact background models.
 
     Raises
     ------
@@ -319,9 +334,13 @@ def camera_detections(
     for w in caught:
         warnings.warn(w.message, stacklevel=2)
     generative = None
+    if registration is not None:
+        cameras, ignore_masks = registration.cameras, registration.ignore_masks
+    selective = params.foreground is not None and params.foreground.selective_update
+    if selective and (cameras is None or foregrounds is not None):
+        raise ValueError("foreground selective_update needs the calibrated cameras (cameras= or registration=) and "
+                         "the front ends in this process (not foregrounds=)")
     if params.sensor_model == "generative":
-        if registration is not None:
-            cameras, ignore_masks = registration.cameras, registration.ignore_masks
         if cameras is None:
             raise ValueError("sensor_model 'generative' needs the calibrated cameras (cameras= or registration=)")
         generative = GenerativeCameraSensor(cameras, stack, params.generative, ignore_masks, fusion.names)
@@ -336,9 +355,11 @@ def camera_detections(
         front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg,
                                      quantise=generative is None)
                       for lk, name, bg in zip(lookups, fusion.names, bgs)]
-        foregrounds = camera_foregrounds(frames, front_ends, replay, registration)
-    for time_s, fgs, status in foregrounds:
-        for c, what in enumerate(status):
+        foregrounds = camera_foregrounds(frames, front_ends, 0 if selective else replay, registration)
+        person = params.generative.person(stack)
+    for i, (time_s, fgs, status) in enumerate(foregrounds):
+        replayed = selective and i < replay
+        for c, what in enumerate(status if not replayed else ()):
             if what != OK:
                 warnings.warn(f"{fusion.names[c]}: {what} at t={time_s} s; fusing the other cameras",
                               stacklevel=2)
@@ -352,6 +373,23 @@ def camera_detections(
             q = generative.marginals(fgs)
             evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q))
             detections = generative.detections(q, time_s, params.person.nms_radius_m)
+        if selective:
+            for fe, people in zip(front_ends, people_masks(cameras, detections.xy_m, person)):
+                fe.protect(people)
+        if replayed:
+            continue
         if report is not None:
             report.instants += 1
         yield evidence, detections
+
+
+def people_masks(cameras: Sequence[PinholeCamera], xy_m: np.ndarray, person: PersonVolume) -> list[np.ndarray]:
+    """Per camera, the pixels (height_px, width_px) bool covered by the silhouette boxes of people standing at
+    ``xy_m`` (N, 2) [m, world] (:func:`planefuse.occupancy.silhouettes_from_cameras`)."""
+    masks = [np.zeros((c.intrinsics.height_px, c.intrinsics.width_px), bool) for c in cameras]
+    if len(xy_m):
+        boxes = silhouettes_from_cameras(cameras, np.asarray(xy_m, float).reshape(-1, 2), person).boxes_px
+        for m, cam_boxes in zip(masks, boxes):
+            for x0, y0, x1, y1 in cam_boxes[cam_boxes[:, 0] >= 0]:
+                m[y0:y1 + 1, x0:x1 + 1] = True
+    return masks

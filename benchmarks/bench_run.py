@@ -149,8 +149,7 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
         prof.disable()
         pstats.Stats(prof, stream=sys.stderr).sort_stats("tottime").print_stats(25)
     # seconds recorded: from the first camera frame (an imported video clip starts at its first frame's time)
-    start_s = min((float(rec.camera(c.name).times_s[0]) for c in rec.cameras if len(rec.camera(c.name))), default=0.0)
-    print(json.dumps({"cpu_s": used, "duration_s": rec.duration_s - start_s,
+    print(json.dumps({"cpu_s": used, "duration_s": recorded_s(rec),
                       "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
                       "digest": digest(Path(out_dir)), "scores": {k: metrics.get(k) for k in SCORES},
                       "stages_s": spent}))
@@ -333,16 +332,15 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
     for _, label, _, rec_dir in full:
         cpu_s, dig = min(rows[label])
         base = base or cpu_s
-        duration = read_duration(rec_dir)
+        from planefuse.io import read_recording
+
+        duration = recorded_s(read_recording(rec_dir))
         print(f"| {label} | {cpu_s:.2f} | {cpu_s / duration:.3f} | {base / cpu_s:.2f}x | {dig} |")
     print(f"identical results (every process): {len({d for rs in rows.values() for _, d in rs}) == 1}")
 
 
-def read_duration(rec_dir: Path) -> float:
-    """Seconds recorded by ``rec_dir``, from its first camera frame (as :func:`child` counts them)."""
-    from planefuse.io import read_recording
-
-    rec = read_recording(rec_dir)
+def recorded_s(rec) -> float:
+    """Seconds recorded by the recording ``rec`` from its first camera frame (a clip of a video may start late)."""
     start_s = min((float(rec.camera(c.name).times_s[0]) for c in rec.cameras if len(rec.camera(c.name))), default=0.0)
     return rec.duration_s - start_s
 

@@ -157,8 +157,10 @@ def terrace_truth(pom_root: Path, frames) -> TerraceTruth:
                         {f: v[2] for f, v in gt.items()})
 
 
-def import_command(out: Path, data: Path, tsai_dir: Path, times_file: Path) -> list[str]:
-    """The ``planefuse import`` arguments of terrace1 c0 + c1 (videos, Tsai cameras, watermark, ground truth)."""
+def import_command(out: Path, data: Path, tsai_dir: Path, times_file: Path,
+                   background_median_s: float | None = None) -> list[str]:
+    """The ``planefuse import`` arguments of terrace1 c0 + c1 (videos, Tsai cameras, watermark, ground truth;
+    with ``background_median_s``, an empty-scene estimate from the first seconds of each video)."""
     video, pom = data / "epfl_video", data / "epfl_pom" / "EPFL-Terrace"
     wm = ",".join(str(v) for v in WATERMARK_PX)
     args = ["import", str(out), "--calib-format", "tsai", "--units", "mm", "--gt-format", "vatic",
@@ -169,6 +171,8 @@ def import_command(out: Path, data: Path, tsai_dir: Path, times_file: Path) -> l
                  "--ignore-rect", f"c{c}={wm}"]
     for c in (0, 1, 2, 3):
         args += ["--calib", f"c{c}={tsai_dir / f'c{c}.xml'}", "--gt-boxes", f"c{c}={pom / f'terrace1-c{c}' / 'gt' / 'gt.txt'}"]
+    if background_median_s is not None:
+        args += ["--background-median-s", f"{background_median_s:g}"]
     return args + ["--image-size", "c2=360x288", "--image-size", "c3=360x288"]
 
 
@@ -181,13 +185,14 @@ def planefuse_cli(args: list[str]) -> str:
     return res.stdout
 
 
-def import_terrace(folder: Path, data: Path, frames: np.ndarray) -> Path:
-    """``planefuse import`` of terrace1 c0 + c1 over video frames ``frames`` into ``folder/terrace``."""
+def import_terrace(folder: Path, data: Path, frames: np.ndarray, background_median_s: float | None = None) -> Path:
+    """``planefuse import`` of terrace1 c0 + c1 over video frames ``frames`` into ``folder/terrace``
+    (``background_median_s``: :func:`import_command`)."""
     folder.mkdir(parents=True, exist_ok=True)
     planefuse_cli(["cameras", "epfl-tsai", str(folder / "tsai")])
     times = folder / "times.csv"
     times.write_text("time_s,frame_index\n" + "".join(f"{float(f) / FPS!r},{int(f)}\n" for f in frames))
-    args = import_command(folder / "terrace", data, folder / "tsai", times)
+    args = import_command(folder / "terrace", data, folder / "tsai", times, background_median_s)
     print("planefuse " + " ".join(args), flush=True)
     planefuse_cli(args)
     return folder / "terrace"
@@ -221,7 +226,8 @@ def score(truth: TerraceTruth, frames, detections, tracks=None) -> dict:
             gt_frames.append((f / FPS, truth.ids[f], truth.xy_m[f]))
             hyp_frames.append((f / FPS, ids, xy))
         mot = tracking_metrics(gt_frames, hyp_frames, match_distance_m=0.5)
-        out.update(mota=mot["mota"], idf1=mot["idf1"], id_switches=int(mot["num_switches"]))
+        out.update(mota=mot["mota"], idf1=mot["idf1"], id_switches=int(mot["num_switches"]),
+                   track_false_positives=int(mot["num_false_positives"]), track_misses=int(mot["num_misses"]))
     return out
 
 

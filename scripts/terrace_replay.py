@@ -90,6 +90,11 @@ def main(argv=None) -> int:
     ap.add_argument("--first", type=int, default=0, help="first frame (0-based; tuning: 0-1499)")
     ap.add_argument("--last", type=int, default=1500, help="end frame (exclusive)")
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
+    ap.add_argument("--score-from", type=int, default=None, metavar="F",
+                    help="score only frames >= F (the frames before warm the system up, as a deployed system runs "
+                         "continuously; default: score from --first)")
+    ap.add_argument("--background-median-s", type=float, default=None, metavar="S",
+                    help="import with an empty-scene estimate: the median of each video's first S seconds [s]")
     ap.add_argument("--config", type=Path, default=T.CONFIG)
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=YAML",
                     help="change of the captured configuration (repeatable)")
@@ -101,14 +106,17 @@ def main(argv=None) -> int:
         print(f"skipped: the terrace data is absent under {args.data}", file=sys.stderr)
         return 0
     frames = np.arange(args.first, args.last, args.step)
+    scored = frames if args.score_from is None else frames[frames >= args.score_from]
+    if not len(scored):
+        ap.error(f"--score-from {args.score_from} leaves no frame of {args.first}..{args.last} to score")
     truth = T.terrace_truth(pom_root, frames)
     base = T.with_sets(T.load_base_config(args.config), args.set)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-replay-"))
     try:
-        rec = read_recording(T.import_terrace(tmp, args.data, frames))
+        rec = read_recording(T.import_terrace(tmp, args.data, frames, args.background_median_s))
         messages, qs, sensor, cams, _, stack = capture(rec, base)
         by_cam = {T._frame_of(d.time_s): d.xy_m for d in cams}
-        fr = [f for f in frames if f in by_cam]
+        fr = [f for f in scored if f in by_cam]
         s = T.score(truth, fr, [by_cam[f] for f in fr])
         print(f"per frame: MODA {s['moda@0.5']:.3f} / {s['moda@1.0']:.3f}, recall {s['recall@0.5']:.2f}")
         for spec in ["", *args.tries]:
@@ -121,12 +129,13 @@ def main(argv=None) -> int:
             params = config_from_dict(T.merged(cfg, {"recording": str(rec.root)})).system_params()
             outs = replay(stack, messages, qs, sensor, params)
             by = {T._frame_of(o.time_s): o for o in outs}
-            fr = [f for f in frames if f in by]
+            fr = [f for f in scored if f in by]
             s = T.score(truth, fr, [by[f].detections.xy_m for f in fr],
                         [(np.asarray(by[f].tracks.ids), by[f].tracks.xy_m) for f in fr])
             print(f"{spec or 'configuration'}: MODA {s['moda@0.5']:.3f} / {s['moda@1.0']:.3f}, precision "
                   f"{s['precision@0.5']:.2f}, recall {s['recall@0.5']:.2f}, MOTA {s['mota']:.3f}, IDF1 "
-                  f"{s['idf1']:.3f}, ID switches {s['id_switches']}", flush=True)
+                  f"{s['idf1']:.3f}, ID switches {s['id_switches']}, track FP {s['track_false_positives']}, misses "
+                  f"{s['track_misses']}", flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return 0

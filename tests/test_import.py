@@ -32,6 +32,7 @@ from planefuse.io import (
     people_from_boxes,
     read_recording,
 )
+from planefuse.io._import import _background
 
 from conftest import shared_data
 
@@ -386,6 +387,60 @@ def test_import_recording_library_with_image_times_file(installation):
     assert rep.manifest.sensors[0].rate_hz == pytest.approx(10.0)
     with pytest.raises(ValueError, match="output folder is not empty"):
         import_recording(d / "lib", [CameraInput("c1", d / "c1", rate_hz=25.0)], {"c1": cams[1]})
+
+
+def test_import_background_median_and_plate(installation):
+    """The median estimate is numpy's median of the frames it names (video: decoded through the recording's own
+    reader; images: read directly), written as the stream's empty scene that primes background subtraction."""
+    d, cams, frames, _ = installation
+    out = d / "rec"
+    # both at 25 Hz: the first 0.2 s hold frames 0..4
+    r = _cli("import", out, "--camera", f"c0={d / 'c0.mkv'}", "--camera", f"c1={d / 'c1'}", "--rate", "c1=25",
+             "--calib-format", "opencv", "--units", "mm", "--calib", f"c0={d / 'c0.yaml'}",
+             "--calib", f"c1={d / 'c1.yaml'}", "--background-median-s", "0.2")
+    assert r.exit_code == 0, r.output
+    assert "c0: background = median of 5 frames in the first 0.2 s" in r.output
+    rec = read_recording(out)
+    want = np.median(np.stack(frames[:5]), axis=0).round().astype(np.uint8)
+    np.testing.assert_array_equal(rec.camera("c0").background(), want)
+    np.testing.assert_array_equal(rec.camera("c1").background(), np.median(np.stack(
+        [f[::-1] for f in frames[:5]]), axis=0).round().astype(np.uint8))
+    # a person crossing the window is removed: the median of a constant scene with one frame changed is the scene
+    plate = np.full((H, W, 3), 90, np.uint8)
+    for k in range(8):  # every pixel under the bar in one frame of eight
+        img = plate.copy()
+        img[10:30, 10 + 10 * k:20 + 10 * k] = 250
+        cv2.imwrite(str(d / "c1" / f"img_{k + 10}.png"), img)
+    rep = import_recording(d / "lib", [CameraInput("c1", d / "c1", rate_hz=25.0, background_median_s=1.0)],
+                           {"c1": cams[1]})
+    np.testing.assert_array_equal(read_recording(d / "lib").camera("c1").background(), plate)
+    assert any("median of 8 frames" in n for n in rep.notes)
+    # a user's empty-scene image is kept as it is
+    cv2.imwrite(str(d / "plate.png"), plate)
+    r = _cli(*_import_args(d, "--units", "mm", "--background", f"c0={d / 'plate.png'}", "--overwrite"))
+    assert r.exit_code == 0, r.output
+    np.testing.assert_array_equal(read_recording(out).camera("c0").background(), plate)
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--background-median-s", "0.05"], r"camera 'c0': only 2 frame\(s\) in the first 0.05 s, a median background "
+                                        r"needs at least 3"),
+    (["--background-median-s", "-1"], "camera 'c0': background_median_s must be a positive number of seconds"),
+    (["--background-median-s", "nan"], "camera 'c0': background_median_s must be a positive number of seconds"),
+    (["--background", "c0=DIR/small.png"], r"small.png: background of camera 'c0' is 5x4 px, its frames 96x72 px"),
+    (["--background", "c0=DIR/c0_gt.txt"], r"c0_gt.txt: cannot read the background image of camera 'c0'"),
+    (["--background", "c7=DIR/small.png"], "--background names camera 'c7', which has no --camera frames"),
+])
+def test_import_background_errors_are_one_line(installation, extra, message):
+    d = installation[0]
+    cv2.imwrite(str(d / "small.png"), np.zeros((4, 5, 3), np.uint8))
+    r = _cli(*[str(a).replace("DIR", str(d)) for a in _import_args(d, "--units", "mm", *extra)])
+    assert r.exit_code == 2, r.output
+    lines = [ln for ln in r.output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and re.search(message, lines[0]), r.output
+    assert not (d / "rec").exists()
+    with pytest.raises(ValueError, match="not both"):
+        _background(CameraInput("c0", d / "c0.mkv", background=d / "small.png", background_median_s=1.0), None)
 
 
 # --------------------------------------------------------------------------- other EPFL sequences

@@ -129,6 +129,12 @@ def import_cmd(
                                           "Repeatable."),
     ignore_mask: list[str] = typer.Option([], "--ignore-mask", help="NAME=IMAGE: 8-bit mask of the frame size, "
                                           "non-zero = not evidence."),
+    background: list[str] = typer.Option([], "--background", help="NAME=IMAGE: image of the empty scene (colour, "
+                                         "the frames' size), priming the camera's background model."),
+    background_median_s: float = typer.Option(None, "--background-median-s", help="Cameras without --background: "
+                                              "estimate the empty scene as the per-pixel median of the camera's "
+                                              "frames in their first S seconds [s] (people walking are removed, "
+                                              "people standing still for half of it are not)."),
     gt_boxes: list[str] = typer.Option([], "--gt-boxes", help="NAME=FILE: person boxes with identities shared by "
                                        "the cameras; the feet go to the ground through each camera."),
     gt_format: str = typer.Option("mot", "--gt-format", help="Box file format: mot (MOTChallenge, 1-based "
@@ -157,9 +163,10 @@ def import_cmd(
         rates = {k: _floats(v, 1, "--rate")[0] for k, v in _pairs(rate, "--rate").items()}
         times_files = {k: Path(v) for k, v in _pairs(times, "--times").items()}
         masks = {k: Path(v) for k, v in _pairs(ignore_mask, "--ignore-mask").items()}
+        plates = {k: Path(v) for k, v in _pairs(background, "--background").items()}
         rects = _rects(ignore_rect)
         for option, names in (("--times", times_files), ("--rate", rates), ("--ignore-mask", masks),
-                              ("--ignore-rect", rects)):
+                              ("--ignore-rect", rects), ("--background", plates)):
             extra = sorted(set(names) - set(frames))
             if extra:
                 raise ValueError(f"{option} names camera {extra[0]!r}, which has no --camera frames")
@@ -169,7 +176,8 @@ def import_cmd(
         if units not in LENGTH_UNITS_M:
             raise ValueError(f"--units {units!r}: use one of {', '.join(LENGTH_UNITS_M)}")
         inputs = [CameraInput(n, Path(p), times_files.get(n), rates.get(n), start_time_s, tuple(rects.get(n, ())),
-                              masks.get(n)) for n, p in frames.items()]
+                              masks.get(n), plates.get(n), None if n in plates else background_median_s)
+                  for n, p in frames.items()]
         probes = {i.name: probe_camera_input(i) for i in inputs}
         sizes |= {n: (p.width_px, p.height_px) for n, p in probes.items()}
         cameras, notes = load_cameras(calib_format, {n: calib_files[n] for n in set(frames) | set(box_files)},

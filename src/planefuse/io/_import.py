@@ -26,7 +26,7 @@ from ._groundtruth import GroundTruth, PeopleTruth
 from ._manifest import MANIFEST_NAME, CameraEntry, GroundTruthEntry, RecordingManifest
 from ._paths import check_name
 from ._timestamps import TimeChecker, write_csv
-from ._video import video_info
+from ._video import VideoFrames, video_info
 
 __all__ = [
     "VIDEO_SUFFIXES",
@@ -46,6 +46,10 @@ __all__ = [
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".m4v", ".webm", ".mpg", ".mpeg", ".wmv")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 CONTROL_POINT_COLUMNS = ["camera", "u_px", "v_px", "x_m", "y_m", "z_m"]
+#: Most frames a median background estimate reads (evenly spread over its window).
+MEDIAN_MAX_FRAMES = 31
+#: Fewest frames a median background estimate accepts.
+MEDIAN_MIN_FRAMES = 3
 _NUMBER = re.compile(r"(\d+)")
 
 
@@ -71,6 +75,12 @@ class CameraInput:
         Pixels that are not evidence (max exclusive).
     ignore_mask : Path, optional
         8-bit image of the frame size, non-zero = not evidence.
+    background : Path, optional
+        Image of the empty scene (colour, the frames' size): primes the camera's background model.
+    background_median_s : float, optional
+        Without an empty-scene image: estimate one as the per-pixel median of the camera's imported frames in
+        their first ``background_median_s`` seconds (at most :data:`MEDIAN_MAX_FRAMES`, evenly spread). People who
+        walk are removed; people who stay in one place for more than half the window are not.
     """
 
     name: str
@@ -80,6 +90,8 @@ class CameraInput:
     start_time_s: float = 0.0
     ignore_rects_px: tuple[tuple[int, int, int, int], ...] = ()
     ignore_mask: Path | None = None
+    background: Path | None = None
+    background_median_s: float | None = None
 
 
 @dataclass
@@ -477,8 +489,12 @@ def import_recording(out_dir: str | Path, inputs: list[CameraInput], cameras: di
                              f"calibration {size[0]}x{size[1]} px")
         TimeChecker(str(inp.times_file or inp.path), pr.rate_hz).check(pr.times_s)
     masks = {inp.name: _read_ignore_mask(inp, probes[inp.name]) for inp in inputs}
+    backgrounds = {inp.name: _background(inp, probes[inp.name]) for inp in inputs}
+    notes += [f"{inp.name}: background = median of {backgrounds[inp.name][1]} frames in the first "
+              f"{inp.background_median_s:g} s" for inp in inputs if inp.background_median_s is not None]
     root.mkdir(parents=True, exist_ok=True)
-    sensors = [_write_camera(root, inp, cameras[inp.name], probes[inp.name], masks[inp.name]) for inp in inputs]
+    sensors = [_write_camera(root, inp, cameras[inp.name], probes[inp.name], masks[inp.name],
+                             backgrounds[inp.name][0]) for inp in inputs]
     gt = None
     if people is not None:
         gt = GroundTruthEntry(**GroundTruth(people=people).write(root))
@@ -509,7 +525,50 @@ def _read_ignore_mask(inp: CameraInput, pr: _Probe) -> np.ndarray | None:
     return mask > 0
 
 
-def _write_camera(root: Path, inp: CameraInput, cam: PinholeCamera, pr: _Probe, mask: np.ndarray | None) -> CameraEntry:
+def _background(inp: CameraInput, pr: _Probe) -> tuple[np.ndarray | None, int]:
+    """The camera's empty-scene image (H, W, 3) uint8 BGR -- the user's, or the median estimate -- or None,
+    with the number of frames the estimate took (0 otherwise)."""
+    if inp.background is not None and inp.background_median_s is not None:
+        raise ValueError(f"camera {inp.name!r}: give an empty-scene image or a median estimate "
+                         "(background_median_s), not both")
+    if inp.background is not None:
+        img = cv2.imread(str(inp.background), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"{inp.background}: cannot read the background image of camera {inp.name!r}")
+        if img.shape[:2] != (pr.height_px, pr.width_px):
+            raise ValueError(f"{inp.background}: background of camera {inp.name!r} is {img.shape[1]}x{img.shape[0]} "
+                             f"px, its frames {pr.width_px}x{pr.height_px} px")
+        return img, 0
+    if inp.background_median_s is None:
+        return None, 0
+    window_s = float(inp.background_median_s)
+    if not (np.isfinite(window_s) and window_s > 0):
+        raise ValueError(f"camera {inp.name!r}: background_median_s must be a positive number of seconds, got "
+                         f"{inp.background_median_s}")
+    within = np.flatnonzero(pr.times_s < pr.times_s[0] + window_s)
+    if len(within) < MEDIAN_MIN_FRAMES:
+        raise ValueError(f"camera {inp.name!r}: only {len(within)} frame(s) in the first {window_s:g} s, a median "
+                         f"background needs at least {MEDIAN_MIN_FRAMES} (a longer background_median_s)")
+    pick = np.unique(np.round(np.linspace(0, len(within) - 1, min(len(within), MEDIAN_MAX_FRAMES))).astype(int))
+    if pr.video is not None:
+        video = VideoFrames(pr.video, pr.frame_index, pr.times_s, inp.name, pr.width_px, pr.height_px)
+        try:
+            frames = [video(int(within[k])) for k in pick]
+        finally:
+            video.close()
+    else:
+        frames = []
+        for k in pick:
+            img = cv2.imread(str(pr.images[within[k]]), cv2.IMREAD_COLOR)
+            if img is None or img.shape[:2] != (pr.height_px, pr.width_px):
+                raise ValueError(f"{pr.images[within[k]]}: cannot decode image of {pr.width_px}x{pr.height_px} px "
+                                 f"(camera {inp.name!r}, median background)")
+            frames.append(img)
+    return np.median(np.stack(frames), axis=0).round().astype(np.uint8), len(frames)
+
+
+def _write_camera(root: Path, inp: CameraInput, cam: PinholeCamera, pr: _Probe, mask: np.ndarray | None,
+                  background: np.ndarray | None = None) -> CameraEntry:
     base = root / "cameras" / inp.name
     rel = f"cameras/{inp.name}"
     common = dict(type="camera", name=inp.name, width_px=pr.width_px, height_px=pr.height_px, K=_matrix(cam.K),
@@ -519,6 +578,11 @@ def _write_camera(root: Path, inp: CameraInput, cam: PinholeCamera, pr: _Probe, 
         base.mkdir(parents=True, exist_ok=True)
         cv2.imwrite(str(base / "ignore.png"), mask.astype(np.uint8) * 255)
         common["ignore_mask_file"] = f"{rel}/ignore.png"
+    if background is not None:
+        base.mkdir(parents=True, exist_ok=True)
+        if not cv2.imwrite(str(base / "background.png"), background):
+            raise ValueError(f"{base / 'background.png'}: cannot write the background of camera {inp.name!r}")
+        common["background_file"] = f"{rel}/background.png"
     if pr.video is not None:
         video_rel = f"{rel}/video{pr.video.suffix.lower()}"
         _place(pr.video, root / video_rel)

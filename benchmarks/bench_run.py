@@ -1,17 +1,18 @@
 """Real-time factor of ``planefuse run``: CPU seconds per second of recording, before and after, in one run.
 
 The default scene (``planefuse demo``'s: 4 cameras at 25 Hz, nodding laser at 40 Hz, binaural head, 6 people) is
-simulated and written to disk twice as ``planefuse simulate`` writes it: PNG frames at zlib level 1 (what it wrote
-before, ``--png-compression 1``) and stored uncompressed (level 0, its default now; the same pixels). Then it is run
+simulated and written to disk twice: frames as stored PNG (what ``planefuse simulate`` wrote before, ``--image-format
+png``) and as uncompressed BMP (its default now; the same pixels); ``--image-format png`` writes PNG at zlib level 1
+and stored instead, ``jpg`` JPEG. Then it is run
 as ``planefuse run`` runs it (:func:`planefuse.pipeline.run_plan`: reading the recording, decoding every frame,
 background subtraction, registration, filter, tracker, tables and metrics; figures, animation and report off), each
 run in its own process pinned to one core with one thread per library (numba, OpenMP, BLAS, OpenCV):
 
 * ``before``: the tree of ``--before`` (a commit, exported with ``git archive`` into a temporary folder), on the
-  level-1 recording;
-* ``after``: this checkout's ``src`` on the level-1 recording (code only), on the stored recording, and on the stored
-  recording with the cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its
-  scores are printed beside it).
+  first recording;
+* ``after``: this checkout's ``src`` on every recording (the first: code only), and on the last recording with the
+  cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its scores are printed
+  beside it).
 
 Each process first runs a 1.5 s simulated scene (numba compilation, caches), then times the run. CPU time is the
 process's user + system time (``resource.getrusage``), the honest measure on a shared machine; repeats are
@@ -19,7 +20,7 @@ interleaved (every configuration once, then again...) and the minimum is reporte
 (detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared by a digest.
 
 Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 16c8280] [--repeats 2]
-[--downscale 2] [--image-format png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times the EPFL terrace video instead (cameras
+[--downscale 2] [--image-format bmp|png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times the EPFL terrace video instead (cameras
 c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
 ``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
 only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
@@ -42,8 +43,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main when this branch started (2026-12-03, issue 19's second pass)
-BEFORE = "16c8280"
+#: main when this branch started (2026-12-03, issue 19's third pass)
+BEFORE = "d6630e0"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
@@ -206,7 +207,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration-s", type=float, default=10.0)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--image-format", default="png", choices=("png", "jpg"))
+    ap.add_argument("--image-format", default="bmp", choices=("bmp", "png", "jpg"))
     ap.add_argument("--recording", type=Path, help="time this recording instead of a simulated one")
     ap.add_argument("--terrace", action="store_true", help="time the EPFL terrace video (frames 1500-1999)")
     ap.add_argument("--before", default=BEFORE, help="commit of the 'before' tree ('' to skip it)")
@@ -233,10 +234,15 @@ def main() -> None:
         from planefuse.sim import default_scene_config, simulate
 
         rec = simulate(default_scene_config(duration_s=args.duration_s, seed=args.seed))
-        if args.image_format == "png":
+        if args.image_format == "bmp":  # main's default (stored PNG), then this checkout's (BMP)
+            recs["PNG stored"] = tmp / "rec-png0"
+            rec.write(recs["PNG stored"], image_format="png", png_compression=0)
+            recs["BMP"] = tmp / "rec-bmp"
+            rec.write(recs["BMP"], image_format="bmp")
+        elif args.image_format == "png":
             for level, name in ((1, "PNG level 1"), (0, "PNG stored")):
                 recs[name] = tmp / f"rec-png{level}"
-                rec.write(recs[name], png_compression=level)
+                rec.write(recs[name], image_format="png", png_compression=level)
         else:
             recs["JPEG"] = tmp / "rec-jpg"
             rec.write(recs["JPEG"], image_format="jpg")

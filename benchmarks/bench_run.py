@@ -25,8 +25,10 @@ c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of t
 ``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
 only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
 run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
---workers 2``): wall-clock time (the cluster started beforehand), and the two results compared. ``--stages`` adds
-the CPU seconds of every stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
+--workers 2``): wall-clock time (the cluster started beforehand), and the two results compared. ``--stride N``
+(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``), alone and
+with the reduced resolution (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
+stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
 ``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
 cached kernels, the default binaural model), for the before tree and every full-resolution recording, interleaved:
 ``taskset`` to one core, ``--threads 1``, figures off, the process's CPU time from ``os.wait4``.
@@ -105,9 +107,10 @@ def stage_timers() -> dict[str, float]:
     return spent
 
 
-def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False) -> None:
+def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False, stride: int = 1) -> None:
     """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
-    resolution where above 1, with per-stage CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
+    resolution where above 1, every ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
+    CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
     import resource
 
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
@@ -134,11 +137,12 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
         prof = cProfile.Profile()
         prof.enable()
     params = SystemParams()
-    if downscale > 1:
-        from dataclasses import replace
+    from dataclasses import replace
 
-        cam = params.camera_params
-        params = replace(params, camera_params=replace(cam, foreground=replace(cam.foreground, downscale=downscale)))
+    cam = params.camera_params
+    if downscale > 1:
+        cam = replace(cam, foreground=replace(cam.foreground, downscale=downscale))
+    params = replace(params, camera_params=replace(cam, frame_stride=stride))
     spent = stage_timers() if stages else {}
     c0 = cpu()
     rec = read_recording(rec_dir)
@@ -191,9 +195,11 @@ def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path
     return rec
 
 
-def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False) -> dict:
+def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False,
+             stride: int = 1) -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
+                       + ["--stride", str(stride)]
                        + (["--profile"] if profile else []) + (["--stages"] if stages else []),
                        env=env, capture_output=True, text=True)
     if p.returncode:
@@ -214,6 +220,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--downscale", type=int, default=2,
                     help="also time background subtraction at 1/N resolution (1: skip)")
+    ap.add_argument("--stride", type=int, default=2,
+                    help="also time every N-th camera instant only (frame_stride), alone and with --downscale (1: skip)")
     ap.add_argument("--profile", action="store_true", help="print the last 'after' run's profile (slower)")
     ap.add_argument("--streams", action="store_true", help="also: serial vs per-camera streams on 2 workers")
     ap.add_argument("--stages", action="store_true", help="also: CPU seconds per stage of every run")
@@ -222,7 +230,7 @@ def main() -> None:
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.profile, args.downscale, args.stages)
+        child(*args.child, args.profile, args.downscale, args.stages, args.stride)
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
     recs: dict[str, Path] = {}
@@ -248,21 +256,27 @@ def main() -> None:
             rec.write(recs["JPEG"], image_format="jpg")
     first, last = next(iter(recs)), list(recs)[-1]
     after = ROOT / "src"
-    runs: list[tuple[str, Path, Path, int]] = []  # label, source tree, recording, downscale
+    runs: list[tuple[str, Path, Path, int, int]] = []  # label, source tree, recording, downscale, frame stride
     if args.before:
         (tmp / "before").mkdir()
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, "src"], check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(tmp / "before")], input=archive, check=True)
-        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1))
-    runs += [(f"after (this checkout), {name}", after, path, 1) for name, path in recs.items()]
+        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1, 1))
+    runs += [(f"after (this checkout), {name}", after, path, 1, 1) for name, path in recs.items()]
     if args.downscale > 1:
-        runs.append((f"after, {last}, KNN at 1/{args.downscale} resolution", after, recs[last], args.downscale))
+        runs.append((f"after, {last}, KNN at 1/{args.downscale} resolution", after, recs[last], args.downscale, 1))
+    if args.stride > 1:
+        runs.append((f"after, {last}, frame_stride {args.stride}", after, recs[last], 1, args.stride))
+        if args.downscale > 1:
+            runs.append((f"after, {last}, frame_stride {args.stride}, KNN at 1/{args.downscale}", after, recs[last],
+                         args.downscale, args.stride))
     results: dict[str, list[dict]] = {label: [] for label, *_ in runs}
     for r in range(args.repeats):
-        for k, (label, src, rec_dir, downscale) in enumerate(runs):
+        for k, (label, src, rec_dir, downscale, stride) in enumerate(runs):
             profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
-            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages))
+            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages,
+                                           stride))
     some = next(iter(results.values()))[0]
     print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
           f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")
@@ -277,8 +291,9 @@ def main() -> None:
         cells = " | ".join("-" if sc.get(k) is None else f"{sc[k]:.3f}" for k in SCORES)
         print(f"| {label} | {best['cpu_s']:.2f} | {best['cpu_s'] / best['duration_s']:.3f} | "
               f"{base / best['cpu_s']:.2f}x | {best['peak_rss_mb']:.0f} | {best['digest']} | {cells} |")
-    same = {label: {r["digest"] for r in rs} for label, rs in results.items() if "KNN at" not in label}
-    print(f"identical results (every run at full resolution): {len(set().union(*same.values())) == 1}")
+    same = {label: {r["digest"] for r in rs} for label, rs in results.items()
+            if "KNN at" not in label and "frame_stride" not in label}
+    print(f"identical results (every run at full resolution, every frame): {len(set().union(*same.values())) == 1}")
     if args.stages:
         print_stages(results)
     if args.cli:
@@ -309,7 +324,8 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
     default binaural model's calibration), figures off: CPU time of the process (``os.wait4``)."""
     import yaml
 
-    full = [(k, label, src, rec_dir) for k, (label, src, rec_dir, downscale) in enumerate(runs) if downscale == 1]
+    full = [(k, label, src, rec_dir) for k, (label, src, rec_dir, downscale, stride) in enumerate(runs)
+            if downscale == 1 and stride == 1]
     rows: dict[str, list[tuple[float, str]]] = {label: [] for _, label, _, _ in full}
     for r in range(repeats):
         for k, label, src, rec_dir in full:

@@ -475,3 +475,25 @@ def test_laser_device_schema_has_the_fields_of_the_library_classes():
     unit = {k: p.default for k, p in inspect.signature(TiltingUnit).parameters.items() if k != "scanner"}
     device = {k: v.default for k, v in LaserUnitDevice.model_fields.items() if k not in ("scanner", "scan_duration_s")}
     assert {k: unit[k] for k in device} == device
+
+
+def test_yaml_models_load_the_same_data_and_name_the_line_of_an_error(written, tmp_path):
+    """The manifest is parsed by libyaml where PyYAML has it (the pure-Python parser's data), and a YAML or a
+    validation error still names the file and the line."""
+    from planefuse.io._manifest import RecordingManifest
+    from planefuse.io._yaml import _safe_load, load_yaml_model
+
+    text = (written[1] / "scene.yaml").read_text()
+    assert _safe_load(text) == yaml.safe_load(text)
+    m = load_yaml_model(written[1] / "scene.yaml", RecordingManifest)
+    assert m.duration_s == written[0].duration_s
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("duration_s:", "duration_s: [", 1))
+    with pytest.raises(ValueError, match=r"bad\.yaml:\d+: invalid YAML"):
+        load_yaml_model(bad, RecordingManifest)
+    lines = text.splitlines()
+    k = next(i for i, l in enumerate(lines) if l.startswith("duration_s:"))
+    lines[k] = "duration_s: soon"
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=rf"bad\.yaml:{k + 1}: field duration_s"):
+        load_yaml_model(bad, RecordingManifest)

@@ -142,7 +142,9 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
     cam = params.camera_params
     if downscale > 1:
         cam = replace(cam, foreground=replace(cam.foreground, downscale=downscale))
-    params = replace(params, camera_params=replace(cam, frame_stride=stride))
+    if stride > 1:  # (a tree before frame_stride has none)
+        cam = replace(cam, frame_stride=stride)
+    params = replace(params, camera_params=cam)
     spent = stage_timers() if stages else {}
     c0 = cpu()
     rec = read_recording(rec_dir)

@@ -19,9 +19,9 @@ process's user + system time (``resource.getrusage``), the honest measure on a s
 interleaved (every configuration once, then again...) and the minimum is reported. The runs' tables
 (detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared by a digest.
 
-Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 16c8280] [--repeats 2]
-[--downscale 2] [--image-format bmp|png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times the EPFL terrace video instead (cameras
-c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
+Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before d6630e0] [--repeats 2]
+[--downscale 2] [--stride 2] [--image-format bmp|png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times
+the EPFL terrace video instead (cameras c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
 ``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
 only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
 run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
@@ -223,7 +223,8 @@ def main() -> None:
     ap.add_argument("--downscale", type=int, default=2,
                     help="also time background subtraction at 1/N resolution (1: skip)")
     ap.add_argument("--stride", type=int, default=2,
-                    help="also time every N-th camera instant only (frame_stride), alone and with --downscale (1: skip)")
+                    help="also time every N-th camera instant only (frame_stride), alone and with --downscale "
+                    "(1: skip)")
     ap.add_argument("--profile", action="store_true", help="print the last 'after' run's profile (slower)")
     ap.add_argument("--streams", action="store_true", help="also: serial vs per-camera streams on 2 workers")
     ap.add_argument("--stages", action="store_true", help="also: CPU seconds per stage of every run")

@@ -23,9 +23,10 @@ Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--befo
 [--downscale 2] [--stride 2] [--image-format bmp|png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times
 the EPFL terrace video instead (cameras c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz:
 20 s of the held-out half, made a recording by ``planefuse import`` as ``scripts/terrace.py`` does, without its
-ground truth; default configuration, cameras only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
-run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
---workers 2``): wall-clock time (the cluster started beforehand), and the two results compared. ``--stride N``
+ground truth; default configuration, cameras only); ``--recording DIR`` times any recording folder. ``--streams``
+also times, in this process (all cores), the run in one process against the run with each camera's front end on a
+LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
+two results compared. ``--stride N``
 (default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``), alone and
 with the reduced resolution (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
 stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).

@@ -1,33 +1,37 @@
 """Real-time factor of ``planefuse run``: CPU seconds per second of recording, before and after, in one run.
 
 The default scene (``planefuse demo``'s: 4 cameras at 25 Hz, nodding laser at 40 Hz, binaural head, 6 people) is
-simulated and written to disk twice as ``planefuse simulate`` writes it: PNG frames at zlib level 1 (what it wrote
-before, ``--png-compression 1``) and stored uncompressed (level 0, its default now; the same pixels). Then it is run
+simulated and written to disk twice: frames as stored PNG (what ``planefuse simulate`` wrote before, ``--image-format
+png``) and as uncompressed BMP (its default now; the same pixels); ``--image-format png`` writes PNG at zlib level 1
+and stored instead, ``jpg`` JPEG. Then it is run
 as ``planefuse run`` runs it (:func:`planefuse.pipeline.run_plan`: reading the recording, decoding every frame,
 background subtraction, registration, filter, tracker, tables and metrics; figures, animation and report off), each
 run in its own process pinned to one core with one thread per library (numba, OpenMP, BLAS, OpenCV):
 
 * ``before``: the tree of ``--before`` (a commit, exported with ``git archive`` into a temporary folder), on the
-  level-1 recording;
-* ``after``: this checkout's ``src`` on the level-1 recording (code only), on the stored recording, and on the stored
-  recording with the cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its
-  scores are printed beside it).
+  first recording;
+* ``after``: this checkout's ``src`` on every recording (the first: code only), and on the last recording with the
+  cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its scores are printed
+  beside it).
 
 Each process first runs a 1.5 s simulated scene (numba compilation, caches), then times the run. CPU time is the
 process's user + system time (``resource.getrusage``), the honest measure on a shared machine; repeats are
 interleaved (every configuration once, then again...) and the minimum is reported. The runs' tables
 (detections.csv, tracks.csv), occupancy and metrics (run time aside) are compared by a digest.
 
-Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before 16c8280] [--repeats 2]
-[--downscale 2] [--image-format png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times the EPFL terrace video instead (cameras
-c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz: 20 s of the held-out half, made a recording by
-``planefuse import`` as ``scripts/terrace.py`` does, without its ground truth; default configuration, cameras
-only); ``--recording DIR`` times any recording folder. ``--streams`` also times, in this process (all cores), the
-run in one process against the run with each camera's front end on a LocalCluster of 2 workers (``planefuse run
---workers 2``): wall-clock time (the cluster started beforehand), and the two results compared. ``--stages`` adds
-the CPU seconds of every stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
+Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--before d6630e0] [--repeats 2]
+[--downscale 2] [--stride 2] [--image-format bmp|png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times
+the EPFL terrace video instead (cameras c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz:
+20 s of the held-out half, made a recording by ``planefuse import`` as ``scripts/terrace.py`` does, without its
+ground truth; default configuration, cameras only); ``--recording DIR`` times any recording folder. ``--streams``
+also times, in this process (all cores), the run in one process against the run with each camera's front end on a
+LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
+two results compared. ``--stride N``
+(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``), alone and
+with the reduced resolution (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
+stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
 ``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
-cached kernels, the default binaural model), for the before tree and every full-resolution recording, interleaved:
+cached kernels, the default binaural model), for every row (the options as configuration fields), interleaved:
 ``taskset`` to one core, ``--threads 1``, figures off, the process's CPU time from ``os.wait4``.
 """
 
@@ -42,8 +46,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main when this branch started (2026-12-03, issue 19's second pass)
-BEFORE = "16c8280"
+#: main when this branch started (2026-12-03, issue 19's third pass)
+BEFORE = "d6630e0"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
@@ -104,9 +108,10 @@ def stage_timers() -> dict[str, float]:
     return spent
 
 
-def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False) -> None:
+def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False, stride: int = 1) -> None:
     """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
-    resolution where above 1, with per-stage CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
+    resolution where above 1, every ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
+    CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
     import resource
 
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
@@ -133,11 +138,14 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
         prof = cProfile.Profile()
         prof.enable()
     params = SystemParams()
-    if downscale > 1:
-        from dataclasses import replace
+    from dataclasses import replace
 
-        cam = params.camera_params
-        params = replace(params, camera_params=replace(cam, foreground=replace(cam.foreground, downscale=downscale)))
+    cam = params.camera_params
+    if downscale > 1:
+        cam = replace(cam, foreground=replace(cam.foreground, downscale=downscale))
+    if stride > 1:  # (a tree before frame_stride has none)
+        cam = replace(cam, frame_stride=stride)
+    params = replace(params, camera_params=cam)
     spent = stage_timers() if stages else {}
     c0 = cpu()
     rec = read_recording(rec_dir)
@@ -190,9 +198,11 @@ def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path
     return rec
 
 
-def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False) -> dict:
+def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False,
+             stride: int = 1) -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
+                       + ["--stride", str(stride)]
                        + (["--profile"] if profile else []) + (["--stages"] if stages else []),
                        env=env, capture_output=True, text=True)
     if p.returncode:
@@ -206,13 +216,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration-s", type=float, default=10.0)
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--image-format", default="png", choices=("png", "jpg"))
+    ap.add_argument("--image-format", default="bmp", choices=("bmp", "png", "jpg"))
     ap.add_argument("--recording", type=Path, help="time this recording instead of a simulated one")
     ap.add_argument("--terrace", action="store_true", help="time the EPFL terrace video (frames 1500-1999)")
     ap.add_argument("--before", default=BEFORE, help="commit of the 'before' tree ('' to skip it)")
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--downscale", type=int, default=2,
                     help="also time background subtraction at 1/N resolution (1: skip)")
+    ap.add_argument("--stride", type=int, default=2,
+                    help="also time every N-th camera instant only (frame_stride), alone and with --downscale "
+                    "(1: skip)")
     ap.add_argument("--profile", action="store_true", help="print the last 'after' run's profile (slower)")
     ap.add_argument("--streams", action="store_true", help="also: serial vs per-camera streams on 2 workers")
     ap.add_argument("--stages", action="store_true", help="also: CPU seconds per stage of every run")
@@ -221,7 +234,7 @@ def main() -> None:
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.profile, args.downscale, args.stages)
+        child(*args.child, args.profile, args.downscale, args.stages, args.stride)
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
     recs: dict[str, Path] = {}
@@ -233,30 +246,41 @@ def main() -> None:
         from planefuse.sim import default_scene_config, simulate
 
         rec = simulate(default_scene_config(duration_s=args.duration_s, seed=args.seed))
-        if args.image_format == "png":
+        if args.image_format == "bmp":  # main's default (stored PNG), then this checkout's (BMP)
+            recs["PNG stored"] = tmp / "rec-png0"
+            rec.write(recs["PNG stored"], image_format="png", png_compression=0)
+            recs["BMP"] = tmp / "rec-bmp"
+            rec.write(recs["BMP"], image_format="bmp")
+        elif args.image_format == "png":
             for level, name in ((1, "PNG level 1"), (0, "PNG stored")):
                 recs[name] = tmp / f"rec-png{level}"
-                rec.write(recs[name], png_compression=level)
+                rec.write(recs[name], image_format="png", png_compression=level)
         else:
             recs["JPEG"] = tmp / "rec-jpg"
             rec.write(recs["JPEG"], image_format="jpg")
     first, last = next(iter(recs)), list(recs)[-1]
     after = ROOT / "src"
-    runs: list[tuple[str, Path, Path, int]] = []  # label, source tree, recording, downscale
+    runs: list[tuple[str, Path, Path, int, int]] = []  # label, source tree, recording, downscale, frame stride
     if args.before:
         (tmp / "before").mkdir()
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, "src"], check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(tmp / "before")], input=archive, check=True)
-        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1))
-    runs += [(f"after (this checkout), {name}", after, path, 1) for name, path in recs.items()]
+        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1, 1))
+    runs += [(f"after (this checkout), {name}", after, path, 1, 1) for name, path in recs.items()]
     if args.downscale > 1:
-        runs.append((f"after, {last}, KNN at 1/{args.downscale} resolution", after, recs[last], args.downscale))
+        runs.append((f"after, {last}, KNN at 1/{args.downscale} resolution", after, recs[last], args.downscale, 1))
+    if args.stride > 1:
+        runs.append((f"after, {last}, frame_stride {args.stride}", after, recs[last], 1, args.stride))
+        if args.downscale > 1:
+            runs.append((f"after, {last}, frame_stride {args.stride}, KNN at 1/{args.downscale}", after, recs[last],
+                         args.downscale, args.stride))
     results: dict[str, list[dict]] = {label: [] for label, *_ in runs}
     for r in range(args.repeats):
-        for k, (label, src, rec_dir, downscale) in enumerate(runs):
+        for k, (label, src, rec_dir, downscale, stride) in enumerate(runs):
             profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
-            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages))
+            results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages,
+                                           stride))
     some = next(iter(results.values()))[0]
     print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
           f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")
@@ -271,8 +295,9 @@ def main() -> None:
         cells = " | ".join("-" if sc.get(k) is None else f"{sc[k]:.3f}" for k in SCORES)
         print(f"| {label} | {best['cpu_s']:.2f} | {best['cpu_s'] / best['duration_s']:.3f} | "
               f"{base / best['cpu_s']:.2f}x | {best['peak_rss_mb']:.0f} | {best['digest']} | {cells} |")
-    same = {label: {r["digest"] for r in rs} for label, rs in results.items() if "KNN at" not in label}
-    print(f"identical results (every run at full resolution): {len(set().union(*same.values())) == 1}")
+    same = {label: {r["digest"] for r in rs} for label, rs in results.items()
+            if "KNN at" not in label and "frame_stride" not in label}
+    print(f"identical results (every run at full resolution, every frame): {len(set().union(*same.values())) == 1}")
     if args.stages:
         print_stages(results)
     if args.cli:
@@ -303,10 +328,9 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
     default binaural model's calibration), figures off: CPU time of the process (``os.wait4``)."""
     import yaml
 
-    full = [(k, label, src, rec_dir) for k, (label, src, rec_dir, downscale) in enumerate(runs) if downscale == 1]
-    rows: dict[str, list[tuple[float, str]]] = {label: [] for _, label, _, _ in full}
+    rows: dict[str, list[tuple[float, str]]] = {label: [] for label, *_ in runs}
     for r in range(repeats):
-        for k, label, src, rec_dir in full:
+        for k, (label, src, rec_dir, downscale, stride) in enumerate(runs):
             cfg = tmp / f"cli-{k}.yaml"
             out = tmp / f"cli-out-{k}-{r}"
             env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
@@ -314,6 +338,10 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
                             str(rec_dir), "--force"], env=env, check=True, capture_output=True)
             conf = yaml.safe_load(cfg.read_text())
             conf["outputs"].update(out_dir=str(out), figures=False, animation="none", report=False)
+            if downscale > 1:
+                conf["sensors"]["cameras"]["subtraction_downscale"] = downscale
+            if stride > 1:
+                conf["sensors"]["cameras"]["frame_stride"] = stride
             cfg.write_text(yaml.safe_dump(conf, sort_keys=False))
             core = str(min(os.sched_getaffinity(0)))
             with open(tmp / f"cli-{k}-{r}.log", "w+") as log:
@@ -329,14 +357,15 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
     print("| code, recording | CPU s | real-time factor | vs first row | results digest |")
     print("|---|---|---|---|---|")
     base = None
-    for _, label, _, rec_dir in full:
+    for label, _, rec_dir, *_ in runs:
         cpu_s, dig = min(rows[label])
         base = base or cpu_s
         from planefuse.io import read_recording
 
         duration = recorded_s(read_recording(rec_dir))
         print(f"| {label} | {cpu_s:.2f} | {cpu_s / duration:.3f} | {base / cpu_s:.2f}x | {dig} |")
-    print(f"identical results (every process): {len({d for rs in rows.values() for _, d in rs}) == 1}")
+    same = {d for label, rs in rows.items() if "KNN at" not in label and "frame_stride" not in label for _, d in rs}
+    print(f"identical results (every process at full resolution, every frame): {len(same) == 1}")
 
 
 def recorded_s(rec) -> float:

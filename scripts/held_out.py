@@ -1,15 +1,17 @@
 """The whole system on several seeds of the default scene: the defaults against the previous filter
 (bilinear sub-cell motion, dense grid) and no temporal filter. Prints a Markdown table.
 
-Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10] [--probe | --downscale]
-[--workers N | --scheduler tcp://HOST:8786 | --serial]``
+Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10]
+[--probe | --downscale | --stride | --mog2] [--workers N | --scheduler tcp://HOST:8786 | --serial]``
 
 Every (seed, configuration) run is one task of :func:`planefuse.batch.run_batch` (a dask LocalCluster of one
 worker per core by default, or a running scheduler); the metrics are the serial runs' (``--serial`` runs them in
 this process).
 
 ``--probe`` scores instead the clustering / tracker variants of the probe in docs/results.md; ``--downscale`` the
-cameras' background subtraction at full, half and third resolution (``ForegroundParams.downscale``).
+cameras' background subtraction at full, half and third resolution (``ForegroundParams.downscale``); ``--stride``
+the cameras at every instant, every 2nd and every 3rd (``CameraParams.frame_stride``), and every 2nd with the
+half-resolution subtraction; ``--mog2`` OpenCV's other background subtractor (MOG2) against KNN.
 
 The filter's defaults were chosen on seeds 1-3 (tuning); seeds 4 and above are held out. Scores as in
 :func:`planefuse.eval.system_metrics` (first second skipped, 0.5 m match distance).
@@ -48,6 +50,20 @@ DOWNSCALE = {
         _BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, downscale=d, threshold=t)))
        for d, t in ((2, None), (2, 400.0), (2, 300.0), (2, 250.0), (2, 100.0), (3, 400.0), (3, 44.0))},
 }
+#: the cameras at every instant and every k-th only (``--stride``)
+STRIDE = {
+    "every camera instant (default)": _BASE,
+    **{f"frame_stride {k}": replace(_BASE, camera_params=replace(_BASE.camera_params, frame_stride=k)) for k in (2, 3)},
+    "frame_stride 2, KNN at 1/2 resolution": replace(_BASE, camera_params=replace(
+        _BASE.camera_params, frame_stride=2, foreground=replace(_F, downscale=2))),
+}
+#: OpenCV's MOG2 subtractor against the default KNN (``--mog2``)
+MOG2 = {
+    "KNN (default)": _BASE,
+    **{f"MOG2, varThreshold {t:g}" + (" (OpenCV's default)" if t == 16 else ""): replace(
+        _BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, method="mog2", threshold=t)))
+       for t in (16.0, 9.0)},
+}
 KEYS = ("moda", "precision", "recall", "mota", "idf1")
 
 
@@ -58,12 +74,16 @@ def main() -> None:
     ap.add_argument("--probe", action="store_true", help="the clustering / tracker variants instead")
     ap.add_argument("--downscale", action="store_true",
                     help="the cameras' background subtraction at full and reduced resolution instead")
+    ap.add_argument("--stride", action="store_true",
+                    help="the cameras at every instant and every k-th only (frame_stride) instead")
+    ap.add_argument("--mog2", action="store_true", help="OpenCV's MOG2 subtractor against KNN instead")
     ap.add_argument("--workers", type=int, default=None, help="local dask workers (default: one per core)")
     ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
     ap.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
     ap.add_argument("--only", default=None, help="only the configurations whose name contains this")
     args = ap.parse_args()
-    configs = PROBE if args.probe else DOWNSCALE if args.downscale else CONFIGS
+    configs = PROBE if args.probe else DOWNSCALE if args.downscale else STRIDE if args.stride else \
+        MOG2 if args.mog2 else CONFIGS
     if args.only is not None:
         configs = {name: p for name, p in configs.items() if args.only in name}
     seeds = [int(s) for s in args.seeds.split(",")]

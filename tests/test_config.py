@@ -98,6 +98,7 @@ def test_even_velocity_count_is_rejected(tmp_path):
         ("x_range_m: null", "x_range_m: [10.0, 0.0]", "planes.x_range_m", "min < max"),
         ("x_range_m: null", "x_range_m: [0.0]", "planes.x_range_m[1]", "[m]"),
         ("zarr: true", "zarr: maybe", "outputs.zarr", "true or false"),
+        ("frame_stride: 1", "frame_stride: 0", "sensors.cameras.frame_stride", "integer >= 1"),
     ],
 )
 def test_field_errors_name_path_and_expected_range(tmp_path, old, new, path, expected):

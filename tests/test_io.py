@@ -16,6 +16,7 @@ from planefuse.io import (
     AudioStream,
     LaserScans,
     LaserStream,
+    image_file_problem,
     read_recording,
 )
 from planefuse.io._timestamps import TimeChecker, read_csv_chunks, write_csv
@@ -171,9 +172,9 @@ def test_streams_are_lazy_and_chunked(written):
     # Deleting a frame after opening only fails when that frame is read, naming it.
     shutil.copytree(out, out.parent / "lazy")
     lazy = read_recording(out.parent / "lazy")
-    (out.parent / "lazy/cameras/a/frames/000020.png").unlink()
+    (out.parent / "lazy/cameras/a/frames/000020.bmp").unlink()
     lazy.camera("a").frame(19)
-    with pytest.raises(ValueError, match=r"cameras/a/frames/000020\.png: file not found"):
+    with pytest.raises(ValueError, match=r"cameras/a/frames/000020\.bmp: file not found"):
         lazy.camera("a").frame(20)
 
 
@@ -186,7 +187,7 @@ def test_frame_files_are_kept_compactly_and_exactly(written, tmp_path):
     _, out = written
     cs = read_recording(out).camera("a")
     assert isinstance(cs.frame_files, PathArray) and len(cs.frame_files) == len(cs)
-    assert cs.frame_files[20] == (out / "cameras/a/frames/000020.png").resolve()
+    assert cs.frame_files[20] == (out / "cameras/a/frames/000020.bmp").resolve()
     assert cs.frame_files[-1].is_file() and cs.frame_files[:2] == [cs.frame_files[0], cs.frame_files[1]]
     names = [tmp_path / "caméra" / "000001.png", tmp_path / "b" / "x y.png"]
     assert list(PathArray(names)) == names and len(PathArray([])) == 0
@@ -200,14 +201,36 @@ def test_jpeg_frames_are_close_and_masks_exact(tmp_path):
         err = fa.image.astype(float) - fb.image
         assert 10 * np.log10(255**2 / np.mean(err**2)) > 35  # PSNR [dB]
     with pytest.raises(ValueError, match="image_format must be one of"):
-        rec.write(tmp_path / "x", image_format="bmp")
+        rec.write(tmp_path / "x", image_format="tiff")
+
+
+def test_bmp_frames_are_exact_and_the_default(tmp_path):
+    """The default frame format (uncompressed BMP, the fastest to read) gives back the simulated pixels exactly,
+    as stored PNG does, and is what ``planefuse simulate`` writes."""
+    from planefuse.cli._simulate import simulate as simulate_command
+
+    rec = simulate(_small_config(duration_s=0.12))
+    rec.write(tmp_path / "b")
+    rec.write(tmp_path / "p", image_format="png")
+    frames = sorted((tmp_path / "b" / "cameras" / "a" / "frames").iterdir())
+    assert frames and all(f.suffix == ".bmp" for f in frames)
+    for fa, fb, fp in zip(rec.camera("a"), read_recording(tmp_path / "b").camera("a"),
+                          read_recording(tmp_path / "p").camera("a"), strict=True):
+        np.testing.assert_array_equal(fa.image, fb.image)
+        np.testing.assert_array_equal(fb.image, fp.image)
+        np.testing.assert_array_equal(fa.mask, fb.mask)
+    h, w = rec.camera("a").frame(0).shape[:2]
+    assert frames[0].stat().st_size >= h * w * 3
+    import inspect
+
+    assert inspect.signature(simulate_command).parameters["image_format"].default.default == "bmp"
 
 
 def test_png_frames_are_exact_at_every_compression_level(tmp_path):
     rec = simulate(_small_config(duration_s=0.12))
     sizes = {}
     for level in (0, 1, 9):
-        rec.write(tmp_path / f"p{level}", png_compression=level)
+        rec.write(tmp_path / f"p{level}", image_format="png", png_compression=level)
         back = read_recording(tmp_path / f"p{level}")
         for fa, fb in zip(rec.camera("a"), back.camera("a"), strict=True):
             np.testing.assert_array_equal(fa.image, fb.image)
@@ -216,7 +239,7 @@ def test_png_frames_are_exact_at_every_compression_level(tmp_path):
     assert sizes[0] >= len(rec.camera("a")) * h * w * 3 > sizes[1] >= sizes[9]  # level 0: stored, not deflated
     for bad in (-1, 10, 1.5):
         with pytest.raises(ValueError, match="png_compression must be an integer in 0..9"):
-            rec.write(tmp_path / "bad", png_compression=bad)
+            rec.write(tmp_path / "bad", image_format="png", png_compression=bad)
 
 
 def _copy(written, tmp_path, name="broken"):
@@ -244,14 +267,22 @@ def test_truncated_imu_csv_names_file_and_line(written, tmp_path):
         read_recording(d).imu("a_imu").read()
 
 
-def test_truncated_png_names_file(written, tmp_path):
-    d = _copy(written, tmp_path)
-    p = d / "cameras/b/frames/000004.png"
+@pytest.mark.parametrize("fmt, message", [
+    ("png", r"000004\.png: PNG end chunk missing \(truncated file\)"),
+    ("bmp", r"000004\.bmp: 300 bytes of the \d+ its header declares \(truncated file\)")])
+def test_truncated_frame_names_file(tmp_path, fmt, message):
+    d = tmp_path / fmt
+    simulate(_small_config(duration_s=0.6)).write(d, image_format=fmt)
+    p = d / f"cameras/b/frames/000004.{fmt}"
     p.write_bytes(p.read_bytes()[:300])
     rec = read_recording(d)
     rec.camera("b").frame(3)
-    with pytest.raises(ValueError, match=r"000004\.png: PNG end chunk missing \(truncated file\)"):
+    with pytest.raises(ValueError, match=message):
         rec.camera("b").frame(4)
+    assert image_file_problem(p).endswith("(truncated file)")  # planefuse check, without decoding
+    p.write_bytes(b"GARBAGE" + p.read_bytes())
+    with pytest.raises(ValueError, match=f"000004\\.{fmt}: not a {fmt.upper()} file \\(corrupt file\\)"):
+        read_recording(d).camera("b").frame(4)
 
 
 def test_truncated_laser_npz_and_wav_name_file(written, tmp_path):
@@ -444,3 +475,25 @@ def test_laser_device_schema_has_the_fields_of_the_library_classes():
     unit = {k: p.default for k, p in inspect.signature(TiltingUnit).parameters.items() if k != "scanner"}
     device = {k: v.default for k, v in LaserUnitDevice.model_fields.items() if k not in ("scanner", "scan_duration_s")}
     assert {k: unit[k] for k in device} == device
+
+
+def test_yaml_models_load_the_same_data_and_name_the_line_of_an_error(written, tmp_path):
+    """The manifest is parsed by libyaml where PyYAML has it (the pure-Python parser's data), and a YAML or a
+    validation error still names the file and the line."""
+    from planefuse.io._manifest import RecordingManifest
+    from planefuse.io._yaml import _safe_load, load_yaml_model
+
+    text = (written[1] / "scene.yaml").read_text()
+    assert _safe_load(text) == yaml.safe_load(text)
+    m = load_yaml_model(written[1] / "scene.yaml", RecordingManifest)
+    assert m.duration_s == written[0].duration_s
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(text.replace("duration_s:", "duration_s: [", 1))
+    with pytest.raises(ValueError, match=r"bad\.yaml:\d+: invalid YAML"):
+        load_yaml_model(bad, RecordingManifest)
+    lines = text.splitlines()
+    k = next(i for i, l in enumerate(lines) if l.startswith("duration_s:"))
+    lines[k] = "duration_s: soon"
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ValueError, match=rf"bad\.yaml:{k + 1}: field duration_s"):
+        load_yaml_model(bad, RecordingManifest)

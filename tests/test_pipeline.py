@@ -137,3 +137,42 @@ def test_a_run_without_figures_does_not_import_matplotlib_or_rerun(recording_dir
     assert p.stdout.strip().splitlines()[-1] == "[]"
     assert (tmp_path / "out" / "tracks.csv").is_file() and (tmp_path / "out" / "metrics.json").is_file()
     assert not (tmp_path / "out" / "figures").exists() and not (tmp_path / "out" / "report.html").exists()
+
+
+def test_frame_stride_is_the_run_on_a_recording_of_every_other_frame(recording_dir, tmp_path):
+    """``CameraParams.frame_stride`` 2 on a 25 Hz recording gives exactly the run (evidence, detections, tracks,
+    camera report) of the default stride on a copy of it whose cameras kept every other frame (12.5 Hz)."""
+    import shutil
+    from dataclasses import replace
+
+    from planefuse.vision import camera_instants
+
+    half = tmp_path / "half"
+    shutil.copytree(recording_dir, half)
+    manifest = yaml.safe_load((half / "scene.yaml").read_text())
+    for entry in (s for s in manifest["sensors"] if s["type"] == "camera"):
+        times = half / entry["times_file"]
+        header, *rows = times.read_text().splitlines()
+        times.write_text("\n".join([header, *rows[::2]]) + "\n")
+        entry.update(n_frames=len(rows[::2]), rate_hz=entry["rate_hz"] / 2)
+    (half / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
+    full, kept = read_recording(recording_dir), read_recording(half)
+    np.testing.assert_array_equal(camera_instants(full, 2), camera_instants(kept))
+    base = SystemParams()
+    strided = replace(base, camera_params=replace(base.camera_params, frame_stride=2))
+    a, b = run_system(full, strided), run_system(kept, base)
+    assert a.report.n_camera_frames == b.report.n_camera_frames == len(camera_instants(full)[::2]) > 20
+    assert len(a.outputs) == len(b.outputs) > 5
+    for oa, ob in zip(a.outputs, b.outputs, strict=True):
+        assert oa.time_s == ob.time_s
+        np.testing.assert_array_equal(oa.detections.xy_m, ob.detections.xy_m)
+        np.testing.assert_array_equal(oa.tracks.ids, ob.tracks.ids)
+        np.testing.assert_array_equal(oa.tracks.xy_m, ob.tracks.xy_m)
+    det_a, det_b = list(a.report.camera_detections), list(b.report.camera_detections)
+    assert [d.time_s for d in det_a] == [d.time_s for d in det_b]
+    for da, db in zip(det_a, det_b):
+        np.testing.assert_array_equal(da.xy_m, db.xy_m)
+    with pytest.raises(ValueError, match="frame_stride"):
+        replace(base.camera_params, frame_stride=0)
+    with pytest.raises(ValueError, match="stride must be an integer >= 1"):
+        camera_instants(full, 0)

@@ -252,15 +252,20 @@ def test_background_models_are_reproducible_and_replayable(sim):
         np.testing.assert_array_equal(a, b)
 
 
-def test_system_run_resumes_exactly_and_skips_the_past(sim):
-    run = SystemRun(sim)
+@pytest.mark.parametrize("frame_stride", [1, 2])
+def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride):
+    from dataclasses import replace
+
+    base = SystemParams()
+    params = replace(base, camera_params=replace(base.camera_params, frame_stride=frame_stride))
+    run = SystemRun(sim, params)
     ref, state = [], None
     for out in run.outputs():
         ref.append(out)
         if len(ref) == 6:
             state = _through_file(run.state_dict())
     total = run.evidence.n_computed
-    resumed = SystemRun(sim, checkpoint=state)
+    resumed = SystemRun(sim, params, checkpoint=state)
     assert resumed.resumed_at_step == 6
     got = list(resumed.outputs())
     assert len(got) == len(ref) - 6
@@ -275,6 +280,9 @@ def test_system_run_resumes_exactly_and_skips_the_past(sim):
     assert resumed.report.n_laser_scans == run.report.n_laser_scans
     assert resumed.report.n_sound_blocks == run.report.n_sound_blocks
     assert len(resumed.report.camera_detections) == len(run.report.camera_detections)
+    from planefuse.vision import camera_instants
+
+    assert resumed.report.n_camera_frames == len(camera_instants(sim, frame_stride))
     with pytest.raises(ValueError, match="sources"):
         SystemRun(sim, SystemParams(sound=False), checkpoint=state)
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import typer
 
+from ..io import DEFAULT_IMAGE_FORMAT
 from ._app import app, console, exit_with_error
 
 
@@ -16,7 +17,8 @@ def simulate(
     out: Path = typer.Option(..., "--out", help="Output recording folder."),
     duration_s: float = typer.Option(None, "--duration-s", help="Override the scene's duration [s]."),
     seed: int = typer.Option(None, "--seed", help="Override the scene's random seed."),
-    image_format: str = typer.Option("png", "--image-format", help="png (lossless) or jpg (lossy, small)."),
+    image_format: str = typer.Option(DEFAULT_IMAGE_FORMAT, "--image-format",
+                                     help="bmp (uncompressed, fastest to read), png (lossless) or jpg (lossy, small)."),
     png_compression: int = typer.Option(0, "--png-compression", help="zlib level 0-9 of PNG frames: 0 = stored "
                                         "(about 1.7x the bytes of level 1 on simulated frames, read 9x faster)."),
     masks: bool = typer.Option(True, "--masks/--no-masks", help="Write ground-truth foreground masks."),

@@ -228,6 +228,11 @@ class CameraSensorConfig(_Model):
         "of the pixels), the likelihood interpolated back to full size; 1 = full resolution",
         expected="an integer >= 1", library="system.camera_params.foreground.downscale",
     )
+    frame_stride: int = _field(
+        description="Process every k-th synchronised camera instant (the others are not read; the background "
+        "models learn from the processed frames); 1 = every frame",
+        expected="an integer >= 1", library="system.camera_params.frame_stride",
+    )
     # --- generative sensor model (sensor_model: generative; planefuse.vision.GenerativeSensorParams) ---
     generative_people_per_m2: float = _field(
         description="Generative model: prior density of people", unit="1/m^2", expected="> 0",

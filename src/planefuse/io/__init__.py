@@ -34,7 +34,7 @@ from ._manifest import (
     RecordingManifest,
     load_manifest,
 )
-from ._recording import Event, Recording, read_recording, write_recording
+from ._recording import DEFAULT_IMAGE_FORMAT, Event, Recording, read_recording, write_recording
 from ._streams import (
     IMU_COLUMNS,
     AudioStream,
@@ -53,6 +53,7 @@ from ._video import VideoFrames, video_info
 from ._yaml import load_yaml_model
 
 __all__ = [
+    "DEFAULT_IMAGE_FORMAT",
     "image_file_problem",
     "CONTROL_POINT_COLUMNS",
     "IMAGE_SUFFIXES",

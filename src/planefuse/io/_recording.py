@@ -31,10 +31,12 @@ from ._streams import IMU_COLUMNS, AudioStream, CameraStream, ImuData, ImuStream
 from ._paths import resolve_inside
 from ._timestamps import write_csv
 
-__all__ = ["Event", "Recording", "read_recording", "write_recording"]
+__all__ = ["DEFAULT_IMAGE_FORMAT", "Event", "Recording", "read_recording", "write_recording"]
 
 _PNG = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE]
-_IMAGE_PARAMS = {"png": _PNG, "jpg": [cv2.IMWRITE_JPEG_QUALITY, 95]}
+_IMAGE_PARAMS = {"bmp": [], "png": _PNG, "jpg": [cv2.IMWRITE_JPEG_QUALITY, 95]}
+#: the camera frames' file format :func:`write_recording` (and ``planefuse simulate``) writes by default
+DEFAULT_IMAGE_FORMAT = "bmp"
 
 
 def _png_params(compression: int) -> list[int]:
@@ -140,7 +142,7 @@ class Recording:
             yield ev
 
     def write(self, out_dir: str | Path, *, overwrite: bool = False, masks: bool = True,
-              image_format: str = "png", png_compression: int = 0) -> RecordingManifest:
+              image_format: str = DEFAULT_IMAGE_FORMAT, png_compression: int = 0) -> RecordingManifest:
         """Write every stream, the ground truth and ``scene.yaml`` to ``out_dir``; see :func:`write_recording`."""
         return write_recording(self, out_dir, overwrite=overwrite, masks=masks, image_format=image_format,
                                png_compression=png_compression)
@@ -197,7 +199,8 @@ def _matrix(a: np.ndarray) -> list[list[float]]:
 
 
 def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = False,
-                    masks: bool = True, image_format: str = "png", png_compression: int = 0) -> RecordingManifest:
+                    masks: bool = True, image_format: str = DEFAULT_IMAGE_FORMAT,
+                    png_compression: int = 0) -> RecordingManifest:
     """Write ``rec`` in the planefuse recording format (``docs/recording-format.md``).
 
     Parameters
@@ -209,14 +212,15 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
         Allow writing into a non-empty folder (files of the same name are replaced).
     masks : bool
         Also write the cameras' ground-truth label masks (always PNG, lossless).
-    image_format : {"png", "jpg"}
-        Camera frames as lossless PNG (exact round trip) or JPEG quality 95 (lossy, about 10x smaller than a
-        stored PNG; the pixel noise of simulated frames makes PNG compression expensive and weak).
+    image_format : {"bmp", "png", "jpg"}
+        Camera frames as uncompressed BMP (the default: exact round trip, read about 10x faster than a stored
+        PNG of the same bytes, 0.08 instead of 0.8 ms per 360x288 frame, as it needs no checksums or row
+        filters; docs/benchmarks.md, "Real-time factor"), lossless PNG (exact round trip), or JPEG quality 95
+        (lossy, about 10x smaller; the pixel noise of simulated frames makes PNG compression expensive and weak).
     png_compression : int
-        zlib level of the PNG frames, 0-9. 0 (the default) stores them uncompressed: the same pixels, about
-        1.7x the bytes of level 1 on simulated frames, but written about 15x and read about 9x faster
-        (0.2 instead of 2 ms per 360x288 frame; docs/benchmarks.md, "Real-time factor"). Masks, background
-        and ignore images are always compressed (they compress well).
+        zlib level of PNG frames, 0-9. 0 (the default) stores them uncompressed: the same pixels, about
+        1.7x the bytes of level 1 on simulated frames, but written about 15x and read about 3x faster.
+        Masks, background and ignore images are always compressed PNG (they compress well).
 
     Returns
     -------

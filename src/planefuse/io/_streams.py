@@ -263,12 +263,14 @@ def _resolve(mask):
 
 _JPEG_START, _JPEG_END = b"\xff\xd8\xff", b"\xff\xd9"
 _PNG_START, _PNG_END = b"\x89PNG\r\n\x1a\n", b"IEND\xaeB`\x82"
+_BMP_START = b"BM"
 
 
 def image_file_problem(path: str | os.PathLike) -> str | None:
-    """What is wrong with an image file, without decoding it: missing, empty, or -- for JPEG and PNG -- not
-    starting with the format's signature (garbage) or not ending with its end marker (truncated). None when
-    nothing is (other formats are checked for existence and size only)."""
+    """What is wrong with an image file, without decoding it: missing, empty, or -- for JPEG, PNG and BMP -- not
+    starting with the format's signature (garbage) or not ending with its end marker, for BMP not of the size
+    its header declares (truncated). None when nothing is (other formats are checked for existence and size
+    only)."""
     try:
         st = os.stat(path)
         size = st.st_size
@@ -284,11 +286,11 @@ def image_file_problem(path: str | os.PathLike) -> str | None:
         return "file not found (missing frame)"
     except OSError as exc:
         return f"cannot read ({exc.strerror or exc})"
-    return _content_problem(path, head, tail)
+    return _content_problem(path, head, tail, size)
 
 
-def _content_problem(path: str | os.PathLike, head: bytes, tail: bytes) -> str | None:
-    """:func:`image_file_problem`'s check of a non-empty file's first 8 and last 32 bytes."""
+def _content_problem(path: str | os.PathLike, head: bytes, tail: bytes, size: int) -> str | None:
+    """:func:`image_file_problem`'s check of a non-empty file of ``size`` bytes from its first 8 and last 32."""
     suffix = os.path.splitext(path)[1].lower()
     if suffix in (".jpg", ".jpeg"):
         if not head.startswith(_JPEG_START):
@@ -300,6 +302,12 @@ def _content_problem(path: str | os.PathLike, head: bytes, tail: bytes) -> str |
             return "not a PNG file (corrupt file)"
         if _PNG_END not in tail:
             return "PNG end chunk missing (truncated file)"
+    elif suffix == ".bmp":
+        if not head.startswith(_BMP_START) or len(head) < 6:
+            return "not a BMP file (corrupt file)"
+        declared = int.from_bytes(head[2:6], "little")  # the file's size in bytes, from its header
+        if size < declared:
+            return f"{size} bytes of the {declared} its header declares (truncated file)"
     return None
 
 
@@ -311,7 +319,7 @@ def _read_png(path: str | os.PathLike, flags: int) -> np.ndarray:
     except OSError:  # missing, a folder, unreadable: the check names it
         data = None
     problem = (image_file_problem(path) or "cannot read") if data is None or data.size == 0 else \
-        _content_problem(path, data[:8].tobytes(), data[-32:].tobytes())
+        _content_problem(path, data[:8].tobytes(), data[-32:].tobytes(), data.size)
     if problem is not None:
         raise ValueError(f"{path}: {problem}")
     img = cv2.imdecode(data, flags)

@@ -314,7 +314,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     if report.camera is None:
         report.camera = CameraReport()
     replay = start if params.foreground is not None else 0
-    all_times = camera_instants(rec)
+    stride = params.frame_stride
+    all_times = camera_instants(rec, stride)
     times = all_times[start:]
 
     def messages() -> Iterator[Evidence]:
@@ -339,15 +340,15 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             from ..batch import remote_foregrounds
 
             fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start,
-                                     quantise=params.sensor_model == "cell")
+                                     quantise=params.sensor_model == "cell", stride=stride)
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
                                          registration=registration, foregrounds=fgs)
         else:
             # empty-scene calibration plates prime the background models (no ghosts of people already in view)
             backgrounds = [_background_or_none(rec.camera(n)) for n in names]
-            instants = camera_detections(recording_frames(rec, start=start - replay), lookups, stack, params,
-                                         names=names, report=report.camera, backgrounds=backgrounds,
-                                         replay=replay, registration=registration)
+            frames = recording_frames(rec, start=start - replay, stride=stride)
+            instants = camera_detections(frames, lookups, stack, params, names=names, report=report.camera,
+                                         backgrounds=backgrounds, replay=replay, registration=registration)
         report.camera_registration = registration
         for ev, det in instants:
             report.camera_detections.append(det)

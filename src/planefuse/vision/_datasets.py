@@ -341,13 +341,16 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 
-def camera_instants(recording) -> np.ndarray:
+def camera_instants(recording, stride: int = 1) -> np.ndarray:
     """The synchronised camera instants of a recording [s], shape (T,), increasing.
 
     The union of all cameras' frame times, whatever the cameras' order: times closer than half the shortest
     frame period are one instant (taken at its earliest frame time). A frame dropped by one camera is thus
-    still an instant of the others, and a missing frame of the camera that lacks it.
+    still an instant of the others, and a missing frame of the camera that lacks it. With ``stride`` k > 1,
+    every k-th of these instants from the first (:attr:`planefuse.vision.CameraParams.frame_stride`).
     """
+    if not (isinstance(stride, (int, np.integer)) and stride >= 1):
+        raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
     streams = [recording.camera(c.name) for c in recording.cameras]
     times = np.sort(np.concatenate([np.asarray(s.times_s, dtype=float) for s in streams] or [np.zeros(0)]))
     if times.size == 0:
@@ -357,21 +360,22 @@ def camera_instants(recording) -> np.ndarray:
     for t in times[1:]:
         if t - starts[-1] > tol_s:
             starts.append(t)
-    return np.asarray(starts)
+    return np.asarray(starts)[::stride]
 
 
-def recording_frames(recording, *, masks: bool = False,
-                     start: int = 0) -> Iterator[tuple[float, list[np.ndarray | None]]]:
+def recording_frames(recording, *, masks: bool = False, start: int = 0,
+                     stride: int = 1) -> Iterator[tuple[float, list[np.ndarray | None]]]:
     """Synchronised frames of a :class:`planefuse.io.Recording` (simulated or read from disk).
 
     Instants are :func:`camera_instants` (the union of all cameras' frame times); each camera contributes
     its frame nearest in time when that is within half of its own frame period, else ``None`` (a missing
     frame, which :func:`camera_detections` counts on that camera).
     ``masks=True`` yields the exact foreground masks (uint8 0/255) instead of the images.
-    ``start`` skips the first instants (their frames are not read).
+    ``start`` skips the first instants (their frames are not read); ``stride`` k > 1 reads every k-th instant
+    only (``camera_instants(recording, stride)``; ``start`` then counts those).
     """
     streams = [recording.camera(c.name) for c in recording.cameras]
-    for t in camera_instants(recording)[int(start):]:
+    for t in camera_instants(recording, stride)[int(start):]:
         imgs: list[np.ndarray | None] = []
         for s in streams:
             j = frame_at(s, t)

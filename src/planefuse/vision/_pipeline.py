@@ -9,6 +9,7 @@ from typing import Iterable, Iterator, Literal, Sequence
 import cv2
 import numpy as np
 
+from .._params import check_fields
 from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..occupancy import PersonVolume, silhouettes_from_cameras
@@ -102,6 +103,13 @@ class CameraParams:
         the grid's cells (``generative``; Fleuret et al. 2008, docs/cameras.md).
     generative : GenerativeSensorParams
         The generative model's parameters (used when ``sensor_model == "generative"``).
+    frame_stride : int
+        Process every ``frame_stride``-th synchronised camera instant of a recording, from the first
+        (:func:`planefuse.vision.camera_instants`); the others are not read. 1 = every frame. The background
+        models learn from the processed frames only (``ForegroundParams.history`` counts those), and the filter
+        weighs each camera message by the time since the previous one (``SystemParams.camera_correlation_s``),
+        so the cameras' total weight per second does not change. Roughly divides the cameras' share of a run's
+        CPU time (decoding, background subtraction, fusion, person extraction) by ``frame_stride``.
     """
 
     foreground: ForegroundParams | None = field(default_factory=ForegroundParams)
@@ -110,10 +118,12 @@ class CameraParams:
     registration: RegistrationParams = field(default_factory=RegistrationParams)
     sensor_model: Literal["cell", "generative"] = "cell"
     generative: GenerativeSensorParams = field(default_factory=GenerativeSensorParams)
+    frame_stride: int = 1
 
     def __post_init__(self) -> None:
         if self.sensor_model not in ("cell", "generative"):
             raise ValueError(f"CameraParams.sensor_model must be 'cell' or 'generative', got {self.sensor_model!r}")
+        check_fields(self, frame_stride="int>=1")
 
 
 @dataclass

@@ -274,7 +274,8 @@ class MeanFieldSolver:
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
-        args = (B, W, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
+        weighted = observed is not None and any(o is not None for o in observed)
+        args = (B, W, weighted, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
                 float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
                 float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
         if self.threads == 1:
@@ -317,10 +318,13 @@ def _integral(img, W, h, w, po, I, o):  # pragma: no cover - compiled
 
 
 @njit(cache=True, boundscheck=False, fastmath=False)
-def _abar_pass(D, W, B, I2, prev, o, wl, hl, p0, w):  # pragma: no cover - compiled
+def _abar_pass(D, W, B, I2, prev, o, wl, hl, p0, w, weighted):  # pragma: no cover - compiled
     # Running 2-D product of the difference array D (local (hl + 1) x (wl + 1) at D[o]) -> Abar = 1 - product, and
     # the interleaved integral images of W Abar and W B Abar (I2 at 2 o). Rows go four at a time: each row's
-    # running product and sums are serial along x, and four independent chains keep the core busy.
+    # running product and sums are serial along x, and four independent chains keep the core busy. Every cell of
+    # D is set back to 1 once read (and its last row and column, which boxes may scale but the pass never reads):
+    # D is all ones again for the next iteration without a separate fill. ``weighted`` False: W is all ones and
+    # is not read (multiplying by 1.0 is exact: the same sums).
     wl1 = wl + 1
     for x in range(wl):
         prev[x] = 1.0
@@ -344,15 +348,21 @@ def _abar_pass(D, W, B, I2, prev, o, wl, hl, p0, w):  # pragma: no cover - compi
             r1 *= D[d1 + x]
             r2 *= D[d2 + x]
             r3 *= D[d3 + x]
+            D[d0 + x] = D[d1 + x] = D[d2 + x] = D[d3 + x] = 1.0
             p_0 = r0 * prev[x]
             p_1 = r1 * p_0
             p_2 = r2 * p_1
             p_3 = r3 * p_2
             prev[x] = p_3
-            v0 = (1.0 - p_0) * W[q0 + x]
-            v1 = (1.0 - p_1) * W[q1 + x]
-            v2 = (1.0 - p_2) * W[q2 + x]
-            v3 = (1.0 - p_3) * W[q3 + x]
+            v0 = 1.0 - p_0
+            v1 = 1.0 - p_1
+            v2 = 1.0 - p_2
+            v3 = 1.0 - p_3
+            if weighted:
+                v0 *= W[q0 + x]
+                v1 *= W[q1 + x]
+                v2 *= W[q2 + x]
+                v3 *= W[q3 + x]
             a0 += v0
             a1 += v1
             a2 += v2
@@ -388,15 +398,22 @@ def _abar_pass(D, W, B, I2, prev, o, wl, hl, p0, w):  # pragma: no cover - compi
         pix = p0 + y * w
         for x in range(wl):
             r *= D[o + y * wl1 + x]
+            D[o + y * wl1 + x] = 1.0
             pr = r * prev[x]
             prev[x] = pr
-            a = (1.0 - pr) * W[pix + x]
+            a = 1.0 - pr
+            if weighted:
+                a *= W[pix + x]
             ra += a
             rba += a * B[pix + x]
             j = 2 * (x + 1)
             I2[row + j] = I2[up + j] + ra
             I2[row + j + 1] = I2[up + j + 1] + rba
         y += 1
+    for x in range(wl1):
+        D[o + hl * wl1 + x] = 1.0
+    for y in range(hl):
+        D[o + y * wl1 + wl] = 1.0
 
 
 @njit(cache=True, boundscheck=False)
@@ -441,39 +458,44 @@ def _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners):  # pragma: no cover -
 
 
 @njit(cache=True, boundscheck=False)
-def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB, region,
-                  corners, inv_sigma, acc):  # pragma: no cover - compiled
-    # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k evaluated
-    # this iteration. Reads q, t_remove and skip; writes only camera c's storage (D and I2 at its offsets,
-    # prev[c], region[c], corners[c], acc[c]): the cameras can run in parallel.
-    K = boxes.shape[1]
+def _camera_terms(c, B, W, weighted, hw, px_off, ii_off, boxes, q, t_remove, active, n_active, active_changed,
+                  evaluate, n_eval, D, I2, prev, RW, RB, SB, region, corners, inv_sigma,
+                  acc):  # pragma: no cover - compiled
+    # acc[c, k] = [Psi(B_c, Abar_c^{k,1}) - Psi(B_c, Abar_c^{k,0})] / sigma for every location k of
+    # evaluate[:n_eval]. active[:n_active]: the locations in the synthetic image (q_k >= cut), increasing k;
+    # active_changed: that set changed since the last call. Reads q, t_remove and the lists; writes only camera
+    # c's storage (D and I2 at its offsets, prev[c], region[c], corners[c], acc[c]): the cameras can run in
+    # parallel. D is all ones on entry and on return (the pass resets it).
     h, w = hw[c, 0], hw[c, 1]
     o, po = ii_off[c], px_off[c]
     # 1. the region [X0, X1] x [Y0, Y1] covered by some box in the synthetic image (Abar = 0 elsewhere, so the
-    # integral images need only cover it: outside, they are its values clamped to its edges); the corner
-    # positions are recomputed where it changed
-    X0, Y0, X1, Y1 = w, h, -1, -1
-    for k in range(K):
-        x0 = boxes[c, k, 0]
-        if x0 < 0 or q[k] < cut:
-            continue
-        X0 = min(X0, x0)
-        Y0 = min(Y0, boxes[c, k, 1])
-        X1 = max(X1, boxes[c, k, 2])
-        Y1 = max(Y1, boxes[c, k, 3])
-    if X1 < 0:
-        X0, Y0, X1, Y1 = 0, 0, -1, -1
-    if X0 != region[c, 0] or Y0 != region[c, 1] or X1 != region[c, 2] or Y1 != region[c, 3]:
-        region[c, 0], region[c, 1], region[c, 2], region[c, 3] = X0, Y0, X1, Y1
-        _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners)
+    # integral images need only cover it: outside, they are its values clamped to its edges); it can change only
+    # where the set of active locations did, and the corner positions are recomputed where it changed
+    if active_changed:
+        X0, Y0, X1, Y1 = w, h, -1, -1
+        for i in range(n_active):
+            k = active[i]
+            x0 = boxes[c, k, 0]
+            if x0 < 0:
+                continue
+            X0 = min(X0, x0)
+            Y0 = min(Y0, boxes[c, k, 1])
+            X1 = max(X1, boxes[c, k, 2])
+            Y1 = max(Y1, boxes[c, k, 3])
+        if X1 < 0:
+            X0, Y0, X1, Y1 = 0, 0, -1, -1
+        if X0 != region[c, 0] or Y0 != region[c, 1] or X1 != region[c, 2] or Y1 != region[c, 3]:
+            region[c, 0], region[c, 1], region[c, 2], region[c, 3] = X0, Y0, X1, Y1
+            _corner_indices(c, boxes, o, X0, Y0, X1, Y1, corners)
+    X0, Y0, X1, Y1 = region[c, 0], region[c, 1], region[c, 2], region[c, 3]
     wl, hl = X1 - X0 + 1, Y1 - Y0 + 1
     wl1 = wl + 1
-    # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each box scales its four corners
-    for i in range(o, o + (hl + 1) * wl1):
-        D[i] = 1.0
-    for k in range(K):
+    # difference array (local, (hl + 1) x wl1) of prod_k (1 - q_k R_ck): each active box scales its four corners,
+    # in increasing k (the same products as a pass over all locations)
+    for i in range(n_active):
+        k = active[i]
         i00 = corners[c, k, 0]
-        if i00 < 0 or q[k] < cut:
+        if i00 < 0:
             continue
         f = 1.0 - q[k]
         g = t_remove[k]  # 1 / f
@@ -483,13 +505,14 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D,
         D[corners[c, k, 3]] *= f
     # 2. running 2-D product -> Abar = 1 - prod; integral images of W Abar and W B Abar in the same pass,
     # interleaved so that one box corner of both is one cache line
-    _abar_pass(D, W, B, I2, prev[c], o, wl, hl, po + Y0 * w + X0, w)
+    _abar_pass(D, W, B, I2, prev[c], o, wl, hl, po + Y0 * w + X0, w, weighted)
     last = 2 * (o + (hl + 1) * wl1 - 1)
     SA, SBA, sb = I2[last], I2[last + 1], SB[c]
     # 3. per location: pseudo-distance with the location present and absent (its box sums: four look-ups each)
-    for k in range(K):
+    for i in range(n_eval):
+        k = evaluate[i]
         i00 = corners[c, k, 0]
-        if i00 < 0 or skip[k]:
+        if i00 < 0:
             continue
         i00 *= 2
         i01 = 2 * corners[c, k, 1]
@@ -517,8 +540,8 @@ def _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D,
         acc[c, k] = ((sb + a1 - 2.0 * ba1) * d0 - (sb + a0 - 2.0 * ba0) * d1) * inv_sigma / (d1 * d0)
 
 
-def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping, tol,
-              ignored_below, q_max, prior):  # pragma: no cover - compiled
+def _solve_py(B, W, weighted, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_sigma, max_iter, damping,
+              tol, ignored_below, q_max, prior):  # pragma: no cover - compiled
     n_cam, K = boxes.shape[0], boxes.shape[1]
     ones = np.ones(B.shape[0])
     RW = np.zeros((n_cam, K))
@@ -526,6 +549,7 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
     SB = np.zeros(n_cam)
     for c in prange(n_cam):
         _frame_constants(c, B, W, hw, px_off, ii_off, boxes, D, ones, RW, RB, SB)
+    D[:] = 1.0  # the difference arrays start (and, reset by each pass, stay) all ones
     # one row per camera, summed in camera order after the parallel loop: the same sums on any number of threads
     acc = np.zeros((n_cam, K))
     prev = np.empty((n_cam, hw[:, 1].max()))
@@ -537,11 +561,19 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
     skip = np.zeros(K, dtype=np.bool_)
     cut = max(ignored_below, Q_NEGLIGIBLE * prior)
     # 1 / (1 - q_k) removes location k from the synthetic image (1 where it is left out of it); kept up to date
-    # by the update below
+    # by the update below, with the lists (increasing k) of the locations in the synthetic image (q_k >= cut)
+    # and of those evaluated next (not dormant): the cameras' loops visit only these
     t_remove = np.ones(K)
+    active = np.empty(K, dtype=np.int64)
+    evaluate = np.arange(K)
+    n_active = 0
     for k in range(K):
         if q[k] >= cut:
             t_remove[k] = 1.0 / (1.0 - q[k])
+            active[n_active] = k
+            n_active += 1
+    n_eval = K
+    active_changed = True
     converged = False
     full = True
     it = 0
@@ -551,12 +583,18 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
             full = True
         if full:
             skip[:] = False
+            for k in range(K):
+                evaluate[k] = k
+            n_eval = K
         for c in prange(n_cam):
-            _camera_terms(c, B, W, hw, px_off, ii_off, boxes, q, t_remove, skip, cut, D, I2, prev, RW, RB, SB,
-                          region, corners, inv_sigma, acc)
+            _camera_terms(c, B, W, weighted, hw, px_off, ii_off, boxes, q, t_remove, active, n_active,
+                          active_changed, evaluate, n_eval, D, I2, prev, RW, RB, SB, region, corners, inv_sigma, acc)
         # 4. damped fixed-point update; converged when no marginal moved by more than tol relative to
         # max(q_k, prior) (an absolute bound would stop at once on fine grids, where every q_k is small)
         moved = False
+        active_changed = False
+        n_active = 0
+        n_eval = 0
         for k in range(K):
             qk = q[k]
             if skip[k]:
@@ -575,8 +613,18 @@ def _solve_py(B, W, hw, px_off, ii_off, boxes, q, D, I2, log_prior_ratio, inv_si
                     moved = True
                 if e > E_DORMANT:
                     skip[k] = True
+                else:
+                    evaluate[n_eval] = k  # n_eval <= k: the list is rewritten in place behind the loop
+                    n_eval += 1
             q[k] = qn
-            t_remove[k] = 1.0 / (1.0 - qn) if qn >= cut else 1.0
+            if qn >= cut:
+                t_remove[k] = 1.0 / (1.0 - qn)
+                active[n_active] = k
+                n_active += 1
+                active_changed |= qk < cut
+            else:
+                t_remove[k] = 1.0
+                active_changed |= qk >= cut
         if not moved:
             if full:
                 converged = True

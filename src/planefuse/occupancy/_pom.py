@@ -18,7 +18,9 @@ probability printed with 6 significant digits.
 
 from __future__ import annotations
 
+import io
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator, Sequence
@@ -95,6 +97,51 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
     """
     path = Path(path)
     text = path.read_text(encoding="utf-8", errors="replace")
+    lines = text.splitlines()
+    bulk = _bulk_rectangles(lines)
+    if bulk is not None:
+        try:
+            return _parse(path, lines, bulk)
+        except _NotBulk:
+            pass
+    return _parse(path, lines, None)
+
+
+class _NotBulk(Exception):
+    """The bulk-read RECTANGLE lines need the line-by-line check (for its error message, or an unusual line)."""
+
+
+_BULK_PREFIX = "RECTANGLE "
+
+
+def _bulk_rectangles(lines: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The lines starting with ``"RECTANGLE "`` read at once: their 1-based line numbers, (N, 6) int64 rows of
+    camera, location, box (-1 where ``notvisible``) and (N,) bool ``notvisible``. None where one of them does not
+    read as 6 integers or ``<camera> <location> notvisible``: the file is then read line by line, which names the
+    line."""
+    idx = [n for n, ln in enumerate(lines) if ln.startswith(_BULK_PREFIX)]
+    if not idx:
+        return np.zeros(0, np.int64), np.zeros((0, 6), np.int64), np.zeros(0, bool)
+    chosen = [lines[n] for n in idx]
+    hidden = np.array(["notvisible" in ln for ln in chosen])
+    body = "\n".join(chosen)
+    if body.count("RECTANGLE") != len(chosen) or body.count("notvisible") != hidden.sum():
+        return None
+    body = body.replace("RECTANGLE", "").replace("notvisible", "-1 -1 -1 -1")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # an empty line would be a warning: the slow path then reads it
+            rows = np.loadtxt(io.StringIO(body), dtype=np.int64, ndmin=2, comments=None)
+    except (ValueError, Warning):
+        return None
+    if rows.shape != (len(idx), 6) or (rows[hidden, 2:] != -1).any():
+        return None
+    return np.array(idx, np.int64) + 1, rows, hidden
+
+
+def _parse(path: Path, lines: list[str], bulk: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> PomConfig:
+    """Read the ``.pom`` lines; ``bulk``: the ``"RECTANGLE "`` lines already read by :func:`_bulk_rectangles`
+    (their checks vectorised: raises _NotBulk where one fails, for the line-by-line reading to name it)."""
     room = None  # (w, h, n_cam, n_loc)
     cams: dict[int, tuple[int, int, int]] = {}  # id -> (w, h, line)
     rects: list[tuple[int, int, int, list[int] | None]] = []  # (line, cam, loc, box)
@@ -114,7 +161,9 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         except ValueError:
             raise fail(n, f"{key} takes integers, got {' '.join(vals)!r}") from None
 
-    for n, raw in enumerate(text.splitlines(), start=1):
+    for n, raw in enumerate(lines, start=1):
+        if bulk is not None and raw.startswith(_BULK_PREFIX):
+            continue
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
@@ -187,6 +236,10 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         sizes = tuple((h, w) for _ in ids)
     index = {cid: i for i, cid in enumerate(ids)}
     boxes = np.full((n_cam, n_loc, 4), -1, dtype=np.int32)
+    if bulk is not None:
+        if rects:  # RECTANGLE lines of another spelling (leading blanks, tabs): all read line by line
+            raise _NotBulk
+        _fill_bulk(boxes, bulk, index, sizes)
     for line, cid, loc, box in rects:
         if cid not in index:
             raise fail(line, f"camera {cid} is not defined (cameras: {ids})")
@@ -212,6 +265,35 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         damping=defaults.damping, tolerance=defaults.tolerance,
     )
     return PomConfig(path, tuple(ids), Silhouettes(boxes, sizes), params, formats, tuple(process), format_lines)
+
+
+def _fill_bulk(boxes: np.ndarray, bulk: tuple[np.ndarray, np.ndarray, np.ndarray], index: dict[int, int],
+               sizes: tuple[tuple[int, int], ...]) -> None:
+    """Write the RECTANGLE lines into ``boxes`` (C, K, 4) at once, the later of two lines for the same camera and
+    location winning, as line by line; raises _NotBulk where a line would fail a check."""
+    n_cam, n_loc = boxes.shape[:2]
+    _, rows, hidden = bulk
+    if not len(rows):
+        return
+    ids = np.array(sorted(index), np.int64)
+    cam = np.searchsorted(ids, rows[:, 0])
+    if (cam >= len(ids)).any() or (ids[np.minimum(cam, len(ids) - 1)] != rows[:, 0]).any():
+        raise _NotBulk
+    cam = np.array([index[int(i)] for i in ids], np.int64)[cam]
+    loc, box = rows[:, 1], rows[:, 2:]
+    if ((loc < 0) | (loc >= n_loc)).any():
+        raise _NotBulk
+    hw = np.array(sizes, np.int64)[cam]
+    shown = ~hidden
+    bad = shown & ~((box[:, 0] >= 0) & (box[:, 0] <= box[:, 2]) & (box[:, 2] < hw[:, 1])
+                    & (box[:, 1] >= 0) & (box[:, 1] <= box[:, 3]) & (box[:, 3] < hw[:, 0]))
+    if bad.any():
+        raise _NotBulk
+    # the last line of each (camera, location) wins
+    key = cam * n_loc + loc
+    _, last = np.unique(key[::-1], return_index=True)
+    last = len(key) - 1 - last
+    boxes[cam[last], loc[last]] = box[last]
 
 
 def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:

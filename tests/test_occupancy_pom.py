@@ -241,7 +241,7 @@ def test_bulk_read_of_rectangles_equals_line_by_line(tmp_path, rects):
 
     path = _write(tmp_path, "ROOM -1 -1 2 3\nCAMERA 0 40 30\nCAMERA 1 40 30\n" + rects)
     out = []
-    for read in (read_pom, lambda p: _parse(p, p.read_text().splitlines(), None)):
+    for read in (read_pom, lambda p: _parse(p, enumerate(p.read_text().splitlines(), start=1), None)):
         try:
             out.append(read(path).silhouettes.boxes_px.tolist())
         except ValueError as e:
@@ -260,8 +260,21 @@ def test_bulk_read_of_a_large_file_equals_line_by_line(tmp_path, rng):
     sil = Silhouettes(boxes.astype(np.int32), ((288, 360),) * C)
     path = tmp_path / "large.pom"
     write_pom(path, sil, GenerativeParams(prior=2e-4), process=(0, 3))
-    a, b = read_pom(path), _parse(path, path.read_text().splitlines(), None)
+    a, b = read_pom(path), _parse(path, enumerate(path.read_text().splitlines(), start=1), None)
     assert np.array_equal(a.silhouettes.boxes_px, sil.boxes_px)
     assert np.array_equal(a.silhouettes.boxes_px, b.silhouettes.boxes_px)
     assert (a.params, a.process, a.camera_ids, a.silhouettes.image_sizes) == \
         (b.params, b.process, b.camera_ids, b.silhouettes.image_sizes)
+
+
+def test_run_pom_reads_grey_levels_as_read_pom_masks_does(tmp_path, rng):
+    """``run_pom`` hands the solver the masks' uint8 grey levels (it scales them by 1 / 255 itself), the public
+    ``read_pom_masks`` float images: the same marginals, bit for bit, on grey (not only 0 / 255) masks."""
+    cfg = read_pom(_write(tmp_path, GOOD))
+    (tmp_path / "masks").mkdir()
+    for f in (7, 8):
+        for c, (h, w) in enumerate(cfg.silhouettes.image_sizes):
+            cv2.imwrite(str(tmp_path / "masks" / f"f{f}-c{c}.png"), rng.integers(0, 256, (h, w), dtype=np.uint8))
+    solver = MeanFieldSolver(cfg.silhouettes, cfg.params)
+    for f, res in run_pom(cfg, write=False):
+        assert np.array_equal(res.marginals, solver.solve(read_pom_masks(cfg, f)).marginals)

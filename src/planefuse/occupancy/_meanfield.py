@@ -236,6 +236,7 @@ class MeanFieldSolver:
         n_ii = int(self._ii_off[-1])
         self._D = np.zeros(n_ii, dtype=np.float64)        # difference array (and the constant integral images)
         self._I2 = np.zeros(2 * n_ii, dtype=np.float64)   # interleaved integral images of W Abar, W B Abar
+        self._ones = np.ones(int(self._px_off[-1]))          # W where every pixel is observed
 
     def solve(self, foregrounds: Sequence[np.ndarray], observed: Sequence[np.ndarray | None] | None = None,
               initial=None) -> MeanFieldResult:
@@ -257,15 +258,18 @@ class MeanFieldSolver:
         sil, p = self.silhouettes, self.params
         sizes = sil.image_sizes
         fg = _check_images(foregrounds, sizes, "foregrounds", binary=False)
-        if observed is None:
-            w_img = [np.ones(s) for s in sizes]
-        else:
+        weighted = observed is not None and any(o is not None for o in observed)
+        if weighted:
             if len(observed) != len(sizes):
                 raise ValueError(f"observed: expected {len(sizes)} masks (None for all observed), got {len(observed)}")
             w_img = _check_images([np.ones(s, bool) if o is None else o for o, s in zip(observed, sizes)], sizes,
                                   "observed", binary=True)
+            W = np.concatenate([w.ravel() for w in w_img])
+        else:
+            if observed is not None and len(observed) != len(sizes):
+                raise ValueError(f"observed: expected {len(sizes)} masks (None for all observed), got {len(observed)}")
+            W = self._ones  # all observed: the kernel does not read W (weighted False)
         B = np.concatenate([f.ravel() for f in fg])
-        W = np.concatenate([w.ravel() for w in w_img])
         K = sil.n_locations
         if initial is None:
             q = np.full(K, p.prior, dtype=np.float64)
@@ -274,7 +278,6 @@ class MeanFieldSolver:
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
-        weighted = observed is not None and any(o is not None for o in observed)
         args = (B, W, weighted, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
                 float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
                 float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))

@@ -21,9 +21,11 @@ from __future__ import annotations
 import io
 import os
 import warnings
+from itertools import compress
+from operator import methodcaller, not_
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import cv2
 import numpy as np
@@ -98,13 +100,14 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
     path = Path(path)
     text = path.read_text(encoding="utf-8", errors="replace")
     lines = text.splitlines()
-    bulk = _bulk_rectangles(lines)
+    is_rect = list(map(methodcaller("startswith", _BULK_PREFIX), lines))
+    bulk = _bulk_rectangles(list(compress(lines, is_rect)))
     if bulk is not None:
         try:
-            return _parse(path, lines, bulk)
+            return _parse(path, compress(enumerate(lines, start=1), map(not_, is_rect)), bulk)
         except _NotBulk:
             pass
-    return _parse(path, lines, None)
+    return _parse(path, enumerate(lines, start=1), None)
 
 
 class _NotBulk(Exception):
@@ -114,15 +117,12 @@ class _NotBulk(Exception):
 _BULK_PREFIX = "RECTANGLE "
 
 
-def _bulk_rectangles(lines: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """The lines starting with ``"RECTANGLE "`` read at once: their 1-based line numbers, (N, 6) int64 rows of
-    camera, location, box (-1 where ``notvisible``) and (N,) bool ``notvisible``. None where one of them does not
-    read as 6 integers or ``<camera> <location> notvisible``: the file is then read line by line, which names the
-    line."""
-    idx = [n for n, ln in enumerate(lines) if ln.startswith(_BULK_PREFIX)]
-    if not idx:
-        return np.zeros(0, np.int64), np.zeros((0, 6), np.int64), np.zeros(0, bool)
-    chosen = [lines[n] for n in idx]
+def _bulk_rectangles(chosen: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The lines starting with ``"RECTANGLE "`` read at once: (N, 6) int64 rows of camera, location, box (-1 where
+    ``notvisible``) and (N,) bool ``notvisible``. None where one of them does not read as 6 integers or
+    ``<camera> <location> notvisible``: the file is then read line by line, which names the line."""
+    if not chosen:
+        return np.zeros((0, 6), np.int64), np.zeros(0, bool)
     hidden = np.array(["notvisible" in ln for ln in chosen])
     body = "\n".join(chosen)
     if body.count("RECTANGLE") != len(chosen) or body.count("notvisible") != hidden.sum():
@@ -134,14 +134,15 @@ def _bulk_rectangles(lines: list[str]) -> tuple[np.ndarray, np.ndarray, np.ndarr
             rows = np.loadtxt(io.StringIO(body), dtype=np.int64, ndmin=2, comments=None)
     except (ValueError, Warning):
         return None
-    if rows.shape != (len(idx), 6) or (rows[hidden, 2:] != -1).any():
+    if rows.shape != (len(chosen), 6) or (rows[hidden, 2:] != -1).any():
         return None
-    return np.array(idx, np.int64) + 1, rows, hidden
+    return rows, hidden
 
 
-def _parse(path: Path, lines: list[str], bulk: tuple[np.ndarray, np.ndarray, np.ndarray] | None) -> PomConfig:
-    """Read the ``.pom`` lines; ``bulk``: the ``"RECTANGLE "`` lines already read by :func:`_bulk_rectangles`
-    (their checks vectorised: raises _NotBulk where one fails, for the line-by-line reading to name it)."""
+def _parse(path: Path, numbered: Iterable[tuple[int, str]], bulk: tuple[np.ndarray, np.ndarray] | None) -> PomConfig:
+    """Read the ``.pom`` lines ``(1-based number, text)``; ``bulk``: the ``"RECTANGLE "`` lines, left out of
+    ``numbered`` and read by :func:`_bulk_rectangles` (their checks vectorised: raises _NotBulk where one fails,
+    for the line-by-line reading to name it)."""
     room = None  # (w, h, n_cam, n_loc)
     cams: dict[int, tuple[int, int, int]] = {}  # id -> (w, h, line)
     rects: list[tuple[int, int, int, list[int] | None]] = []  # (line, cam, loc, box)
@@ -161,9 +162,7 @@ def _parse(path: Path, lines: list[str], bulk: tuple[np.ndarray, np.ndarray, np.
         except ValueError:
             raise fail(n, f"{key} takes integers, got {' '.join(vals)!r}") from None
 
-    for n, raw in enumerate(lines, start=1):
-        if bulk is not None and raw.startswith(_BULK_PREFIX):
-            continue
+    for n, raw in numbered:
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
@@ -267,12 +266,12 @@ def _parse(path: Path, lines: list[str], bulk: tuple[np.ndarray, np.ndarray, np.
     return PomConfig(path, tuple(ids), Silhouettes(boxes, sizes), params, formats, tuple(process), format_lines)
 
 
-def _fill_bulk(boxes: np.ndarray, bulk: tuple[np.ndarray, np.ndarray, np.ndarray], index: dict[int, int],
+def _fill_bulk(boxes: np.ndarray, bulk: tuple[np.ndarray, np.ndarray], index: dict[int, int],
                sizes: tuple[tuple[int, int], ...]) -> None:
     """Write the RECTANGLE lines into ``boxes`` (C, K, 4) at once, the later of two lines for the same camera and
     location winning, as line by line; raises _NotBulk where a line would fail a check."""
     n_cam, n_loc = boxes.shape[:2]
-    _, rows, hidden = bulk
+    rows, hidden = bulk
     if not len(rows):
         return
     ids = np.array(sorted(index), np.int64)
@@ -305,6 +304,12 @@ def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
         No INPUT_VIEW_FORMAT line, a missing or unreadable image, or one of the wrong size (naming the file and
         the ``.pom`` line).
     """
+    return [img.astype(np.float64) / 255.0 for img in _read_grey_masks(cfg, frame)]
+
+
+def _read_grey_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
+    """The INPUT_VIEW_FORMAT images of one frame, uint8 grey levels (the solver scales them by 1 / 255 as
+    :func:`read_pom_masks` does: the same foreground)."""
     if "INPUT_VIEW_FORMAT" not in cfg.formats:
         raise ValueError(f"{cfg.path}: no INPUT_VIEW_FORMAT line: cannot find the input masks")
     line = cfg.format_lines["INPUT_VIEW_FORMAT"]
@@ -319,7 +324,7 @@ def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
             raise ValueError(f"{cfg.path}:{line}: INPUT_VIEW_FORMAT: cannot read image {p}")
         if img.shape != (h, w):
             raise ValueError(f"{cfg.path}:{line}: {p} is {img.shape[1]}x{img.shape[0]}, camera {cid} is {w}x{h}")
-        out.append(img.astype(np.float64) / 255.0)
+        out.append(img)
     return out
 
 
@@ -351,7 +356,7 @@ def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = T
     """
     solver = MeanFieldSolver(cfg.silhouettes, params or cfg.params, threads=threads)
     for frame in (cfg.frames if frames is None else frames):
-        result = solver.solve(read_pom_masks(cfg, frame))
+        result = solver.solve(_read_grey_masks(cfg, frame))
         if write and "RESULT_FORMAT" in cfg.formats:
             out = pom_frame_path(cfg, "RESULT_FORMAT", frame)
             out.parent.mkdir(parents=True, exist_ok=True)

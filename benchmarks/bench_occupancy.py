@@ -34,6 +34,7 @@ from __future__ import annotations
 import _single_thread  # noqa: F401  (one core; before numpy)
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -58,7 +59,6 @@ from planefuse.occupancy import (  # noqa: E402
     write_pom,
     write_pom_result,
 )
-from planefuse.occupancy._pom import _read_grey_masks  # noqa: E402  (run_pom's reading)
 
 
 def _ours(pom_file: Path, frames) -> tuple[np.ndarray, float, float]:
@@ -98,6 +98,8 @@ def compare(exe: Path, name: str, pom_file: Path, frames, grid_shape, repeats: i
     ratio = t_pom / t_ours
     agree = agreement(ours, pom, grid_shape)
     s_pom, s_ours = _startup(exe, pom_file)
+    print(f"<!-- {name}: paired ratios {' '.join(f'{r:.2f}' for r in ratio)}; load average "
+          f"{os.getloadavg()[0]:.1f} -->", file=sys.stderr)
     print(f"| {name} | {repeats} | {1e3 * np.median(t_pom):.1f} ({t_pom.max() / t_pom.min():.2f}) | "
           f"{1e3 * np.median(t_ours):.1f} ({t_ours.max() / t_ours.min():.2f}) | {its:.0f} | "
           f"**{np.median(ratio):.1f}x** ({ratio.min():.1f}-{ratio.max():.1f}) | {1e3 * s_pom:.0f} / {1e3 * s_ours:.0f} | "
@@ -133,6 +135,8 @@ def large_case(work: Path, n_frames: int) -> tuple[Path, list[int], tuple[int, i
 
 def breakdown(pom_file: Path, frames, repeats: int) -> None:
     """planefuse's per-frame costs, each summed over the frames, fastest of the repeats [ms per frame]."""
+    from planefuse.occupancy._pom import _read_grey_masks  # run_pom's reading of the masks
+
     cfg = read_pom(pom_file)
     solver = MeanFieldSolver(cfg.silhouettes, cfg.params)
     best = {}
@@ -163,6 +167,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.repeats < 1 or args.frames_200 < 1:
         raise SystemExit("--repeats and --frames-200 must be >= 1")
+    print(f"<!-- load average at start {os.getloadavg()[0]:.1f} (other jobs on the machine inflate both programs' "
+          f"times; the paired ratios are the numbers to read) -->", file=sys.stderr)
     with tempfile.TemporaryDirectory(prefix="bench-occupancy-") as tmp:
         tmp = Path(tmp)
         exe = build_pom(tmp)

@@ -211,3 +211,92 @@ def test_marginals_do_not_depend_on_a_background_margin():
     b = occupancy_marginals(big_fg, big).marginals
     assert np.allclose(a, b, rtol=0, atol=1e-9)
     assert a[0] > 0.9 and a[1] > 0.9 and a[2] < 0.1
+
+
+def _plain_iteration(fg, boxes, p):
+    """The solver's iteration written pixel by pixel from the module docstring (synthetic images as arrays, no
+    integral image, difference array, region or location lists), with its documented schedule: damping, dormant
+    locations (target < 1e-8) damped without evaluation and refreshed every 5th iteration, locations below
+    max(ignored_below, 1e-3 prior) left out of Abar, convergence confirmed on a full iteration."""
+    C, K = boxes.shape[:2]
+    q = np.full(K, p.prior)
+    cut = max(p.ignored_below, 1e-3 * p.prior)
+    lpr = np.log((1 - p.prior) / p.prior)
+    skip = np.zeros(K, bool)
+    full, it = True, 0
+    while it < p.max_iterations:
+        it += 1
+        if it % 5 == 0 or it == p.max_iterations:
+            full = True
+        if full:
+            skip[:] = False
+        s = np.zeros(K)
+        for c in range(C):
+            prod = np.ones((H, W))
+            for k in range(K):
+                if boxes[c, k, 0] >= 0 and q[k] >= cut:
+                    prod *= 1 - q[k] * _box_image(boxes[c, k])
+            abar = 1 - prod
+            for k in range(K):
+                if boxes[c, k, 0] < 0 or skip[k]:
+                    continue
+                inside = _box_image(boxes[c, k]) > 0
+                a1, a0 = abar.copy(), abar.copy()
+                a1[inside] = 1.0
+                if q[k] >= cut:
+                    a0[inside] = np.maximum(1 - (1 - abar[inside]) / (1 - q[k]), 0.0)
+                psi = [(fg[c] * (1 - a) + (1 - fg[c]) * a).sum() / max(a.sum(), 1.0) for a in (a1, a0)]
+                s[k] += (psi[0] - psi[1]) / p.sigma
+        e = np.minimum(lpr + s, 700.0)
+        target = np.where(skip, 0.0, 1 / (1 + np.exp(e)))
+        qn = np.where(skip, p.damping * q, np.minimum(p.damping * q + (1 - p.damping) * target, 1 - 1e-6))
+        moved = (~skip & (np.abs(qn - q) > p.tolerance * np.maximum(q, p.prior))).any()
+        skip |= ~skip & (e > 18.42)
+        q = qn
+        if not moved:
+            if full:
+                return q, it, True
+            full = True
+        else:
+            full = False
+    return q, it, False
+
+
+@pytest.mark.parametrize("ignored_below", [0.0, 0.02])
+def test_solver_equals_a_plain_pixel_by_pixel_iteration(rng, ignored_below):
+    """The kernel's economies (integral images, difference array reset by the pass, region rescanned only when the
+    set of locations in the synthetic image changes, loops over the active and evaluated locations only) give the
+    plain iteration's marginals and iteration count, to the rounding of its different order of sums, on scenes
+    where locations turn dormant, drop out of the synthetic image and shrink its region."""
+    C, K = 2, 40
+    p = GenerativeParams(prior=0.02, ignored_below=ignored_below)
+    for _ in range(3):
+        x0 = rng.integers(0, W - 12, (C, K))
+        y0 = rng.integers(0, H - 20, (C, K))
+        boxes = np.stack([x0, y0, x0 + rng.integers(3, 12, (C, K)), y0 + rng.integers(8, 20, (C, K))], -1)
+        boxes[1, :5] = -1
+        people = rng.choice(K, 3, replace=False)
+        fg = []
+        for c in range(C):
+            img = (rng.random((H, W)) < 0.03).astype(float)
+            for k in people:
+                if boxes[c, k, 0] >= 0:
+                    a, b, e, d = boxes[c, k]
+                    img[b:d + 1, a:e + 1] = 1.0
+            fg.append(img)
+        res = MeanFieldSolver(Silhouettes(boxes.astype(np.int32), ((H, W),) * C), p).solve(fg)
+        q, n_it, converged = _plain_iteration(fg, boxes, p)
+        assert res.n_iterations == n_it and res.converged == converged
+        assert np.allclose(res.marginals, q, rtol=1e-9, atol=1e-12)
+        assert (q > 0.5).sum() >= 2 and (q < 1e-3 * p.prior).any()  # people found, locations left out of Abar
+
+
+def test_all_observed_mask_gives_the_marginals_of_no_mask(rng):
+    """``observed`` all True runs the weighted pass (W read and multiplied), ``observed=None`` the unweighted one
+    (W not read): multiplying by 1.0 is exact, so the marginals are the same bits."""
+    sil, fg = _two_view_scene()
+    fg = [np.clip(f + (rng.random(f.shape) < 0.05), 0, 1) for f in fg]
+    a = occupancy_marginals(fg, sil).marginals
+    b = occupancy_marginals(fg, sil, observed=[np.ones((H, W), bool)] * 2).marginals
+    c = occupancy_marginals(fg, sil, observed=[None, np.ones((H, W), bool)]).marginals
+    assert np.array_equal(a, b) and np.array_equal(a, c)

@@ -217,3 +217,64 @@ def test_pom_export_from_a_recording_then_run(tmp_path):
     r = CliRunner().invoke(app, ["pom", str(out), "--quiet"])
     assert r.exit_code == 0, r.output
     assert len((out.parent / "proba-f2.dat").read_text().splitlines()) == 400
+
+
+_RECT_CASES = [
+    "RECTANGLE 0 0 1 2 3 4\nRECTANGLE 1 2 notvisible\nRECTANGLE 0 0 notvisible\n",   # later line wins
+    "RECTANGLE 0 0 1 2 3 4\nRECTANGLE 0 0 2 2 3 4\n",
+    "  RECTANGLE 0 0 1 2 3 4\nRECTANGLE 1 1 1 2 3 4\n",                               # leading blanks
+    "RECTANGLE\t0 0 1 2 3 4\n", "RECTANGLE 0 0 +1 2 3 4\n", "RECTANGLE 0 0 3_0 2 35 4\n",
+    "RECTANGLE 0 0 -1 -1 -1 -1\n", "RECTANGLE 0 1 notvisible 4\n", "RECTANGLE 2 0 1 2 3 4\n",
+    "RECTANGLE 0 3 1 2 3 4\n", "RECTANGLE 0 0 1 2 40 4\n", "RECTANGLE 0 0 4 2 3 4\n", "RECTANGLE 0 0 1 2 3\n",
+    "RECTANGLE 0 0 1 2 3 x\n", "RECTANGLE 0 -1 notvisible\n", "RECTANGLE notvisible 0 1\n",
+    "RECTANGLE 0 notvisible -1\n", "RECTANGLE RECTANGLE 0 1 2 3 4 5\n", "RECTANGLE 0 0 1 2 3 4 # note\n",
+    "FOO 1\nRECTANGLE 0 0 1 2 3\n", "RECTANGLE 0 0 1 2 3\nFOO 1\n", "RECTANGLE 0 0 1 2 3 99999999999999999999\n",
+    "RECTANGLE \n",
+]
+
+
+@pytest.mark.parametrize("rects", _RECT_CASES)
+def test_bulk_read_of_rectangles_equals_line_by_line(tmp_path, rects):
+    """``read_pom`` reads the ``RECTANGLE `` lines at once (np.loadtxt, vectorised checks) and falls back to the
+    line-by-line reading where one would fail: the same boxes, or the same error naming the same line."""
+    from planefuse.occupancy._pom import _parse
+
+    path = _write(tmp_path, "ROOM -1 -1 2 3\nCAMERA 0 40 30\nCAMERA 1 40 30\n" + rects)
+    out = []
+    for read in (read_pom, lambda p: _parse(p, enumerate(p.read_text().splitlines(), start=1), None)):
+        try:
+            out.append(read(path).silhouettes.boxes_px.tolist())
+        except ValueError as e:
+            out.append(str(e))
+    assert out[0] == out[1]
+
+
+def test_bulk_read_of_a_large_file_equals_line_by_line(tmp_path, rng):
+    """200 x 200 locations in 4 cameras (the benchmark's size), some not visible: the same configuration."""
+    from planefuse.occupancy._pom import _parse
+
+    C, K = 4, 40000
+    x0, y0 = rng.integers(0, 300, (C, K)), rng.integers(0, 200, (C, K))
+    boxes = np.stack([x0, y0, x0 + rng.integers(0, 59, (C, K)), y0 + rng.integers(0, 87, (C, K))], -1)
+    boxes[rng.random((C, K)) < 0.1] = -1
+    sil = Silhouettes(boxes.astype(np.int32), ((288, 360),) * C)
+    path = tmp_path / "large.pom"
+    write_pom(path, sil, GenerativeParams(prior=2e-4), process=(0, 3))
+    a, b = read_pom(path), _parse(path, enumerate(path.read_text().splitlines(), start=1), None)
+    assert np.array_equal(a.silhouettes.boxes_px, sil.boxes_px)
+    assert np.array_equal(a.silhouettes.boxes_px, b.silhouettes.boxes_px)
+    assert (a.params, a.process, a.camera_ids, a.silhouettes.image_sizes) == \
+        (b.params, b.process, b.camera_ids, b.silhouettes.image_sizes)
+
+
+def test_run_pom_reads_grey_levels_as_read_pom_masks_does(tmp_path, rng):
+    """``run_pom`` hands the solver the masks' uint8 grey levels (it scales them by 1 / 255 itself), the public
+    ``read_pom_masks`` float images: the same marginals, bit for bit, on grey (not only 0 / 255) masks."""
+    cfg = read_pom(_write(tmp_path, GOOD))
+    (tmp_path / "masks").mkdir()
+    for f in (7, 8):
+        for c, (h, w) in enumerate(cfg.silhouettes.image_sizes):
+            cv2.imwrite(str(tmp_path / "masks" / f"f{f}-c{c}.png"), rng.integers(0, 256, (h, w), dtype=np.uint8))
+    solver = MeanFieldSolver(cfg.silhouettes, cfg.params)
+    for f, res in run_pom(cfg, write=False):
+        assert np.array_equal(res.marginals, solver.solve(read_pom_masks(cfg, f)).marginals)

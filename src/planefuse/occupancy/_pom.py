@@ -18,10 +18,14 @@ probability printed with 6 significant digits.
 
 from __future__ import annotations
 
+import io
 import os
+import warnings
+from itertools import compress
+from operator import methodcaller, not_
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Iterable, Iterator, Sequence
 
 import cv2
 import numpy as np
@@ -95,6 +99,50 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
     """
     path = Path(path)
     text = path.read_text(encoding="utf-8", errors="replace")
+    lines = text.splitlines()
+    is_rect = list(map(methodcaller("startswith", _BULK_PREFIX), lines))
+    bulk = _bulk_rectangles(list(compress(lines, is_rect)))
+    if bulk is not None:
+        try:
+            return _parse(path, compress(enumerate(lines, start=1), map(not_, is_rect)), bulk)
+        except _NotBulk:
+            pass
+    return _parse(path, enumerate(lines, start=1), None)
+
+
+class _NotBulk(Exception):
+    """The bulk-read RECTANGLE lines need the line-by-line check (for its error message, or an unusual line)."""
+
+
+_BULK_PREFIX = "RECTANGLE "
+
+
+def _bulk_rectangles(chosen: list[str]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The lines starting with ``"RECTANGLE "`` read at once: (N, 6) int64 rows of camera, location, box (-1 where
+    ``notvisible``) and (N,) bool ``notvisible``. None where one of them does not read as 6 integers or
+    ``<camera> <location> notvisible``: the file is then read line by line, which names the line."""
+    if not chosen:
+        return np.zeros((0, 6), np.int64), np.zeros(0, bool)
+    hidden = np.array(["notvisible" in ln for ln in chosen])
+    body = "\n".join(chosen)
+    if body.count("RECTANGLE") != len(chosen) or body.count("notvisible") != hidden.sum():
+        return None
+    body = body.replace("RECTANGLE", "").replace("notvisible", "-1 -1 -1 -1")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # an empty line would be a warning: the slow path then reads it
+            rows = np.loadtxt(io.StringIO(body), dtype=np.int64, ndmin=2, comments=None)
+    except (ValueError, Warning):
+        return None
+    if rows.shape != (len(chosen), 6) or (rows[hidden, 2:] != -1).any():
+        return None
+    return rows, hidden
+
+
+def _parse(path: Path, numbered: Iterable[tuple[int, str]], bulk: tuple[np.ndarray, np.ndarray] | None) -> PomConfig:
+    """Read the ``.pom`` lines ``(1-based number, text)``; ``bulk``: the ``"RECTANGLE "`` lines, left out of
+    ``numbered`` and read by :func:`_bulk_rectangles` (their checks vectorised: raises _NotBulk where one fails,
+    for the line-by-line reading to name it)."""
     room = None  # (w, h, n_cam, n_loc)
     cams: dict[int, tuple[int, int, int]] = {}  # id -> (w, h, line)
     rects: list[tuple[int, int, int, list[int] | None]] = []  # (line, cam, loc, box)
@@ -114,7 +162,7 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         except ValueError:
             raise fail(n, f"{key} takes integers, got {' '.join(vals)!r}") from None
 
-    for n, raw in enumerate(text.splitlines(), start=1):
+    for n, raw in numbered:
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
@@ -187,6 +235,10 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
         sizes = tuple((h, w) for _ in ids)
     index = {cid: i for i, cid in enumerate(ids)}
     boxes = np.full((n_cam, n_loc, 4), -1, dtype=np.int32)
+    if bulk is not None:
+        if rects:  # RECTANGLE lines of another spelling (leading blanks, tabs): all read line by line
+            raise _NotBulk
+        _fill_bulk(boxes, bulk, index, sizes)
     for line, cid, loc, box in rects:
         if cid not in index:
             raise fail(line, f"camera {cid} is not defined (cameras: {ids})")
@@ -214,6 +266,35 @@ def read_pom(path: str | os.PathLike) -> PomConfig:
     return PomConfig(path, tuple(ids), Silhouettes(boxes, sizes), params, formats, tuple(process), format_lines)
 
 
+def _fill_bulk(boxes: np.ndarray, bulk: tuple[np.ndarray, np.ndarray], index: dict[int, int],
+               sizes: tuple[tuple[int, int], ...]) -> None:
+    """Write the RECTANGLE lines into ``boxes`` (C, K, 4) at once, the later of two lines for the same camera and
+    location winning, as line by line; raises _NotBulk where a line would fail a check."""
+    n_cam, n_loc = boxes.shape[:2]
+    rows, hidden = bulk
+    if not len(rows):
+        return
+    ids = np.array(sorted(index), np.int64)
+    cam = np.searchsorted(ids, rows[:, 0])
+    if (cam >= len(ids)).any() or (ids[np.minimum(cam, len(ids) - 1)] != rows[:, 0]).any():
+        raise _NotBulk
+    cam = np.array([index[int(i)] for i in ids], np.int64)[cam]
+    loc, box = rows[:, 1], rows[:, 2:]
+    if ((loc < 0) | (loc >= n_loc)).any():
+        raise _NotBulk
+    hw = np.array(sizes, np.int64)[cam]
+    shown = ~hidden
+    bad = shown & ~((box[:, 0] >= 0) & (box[:, 0] <= box[:, 2]) & (box[:, 2] < hw[:, 1])
+                    & (box[:, 1] >= 0) & (box[:, 1] <= box[:, 3]) & (box[:, 3] < hw[:, 0]))
+    if bad.any():
+        raise _NotBulk
+    # the last line of each (camera, location) wins
+    key = cam * n_loc + loc
+    _, last = np.unique(key[::-1], return_index=True)
+    last = len(key) - 1 - last
+    boxes[cam[last], loc[last]] = box[last]
+
+
 def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
     """The INPUT_VIEW_FORMAT images of one frame as float foreground in [0, 1] (grey level / 255), one per camera.
 
@@ -223,6 +304,12 @@ def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
         No INPUT_VIEW_FORMAT line, a missing or unreadable image, or one of the wrong size (naming the file and
         the ``.pom`` line).
     """
+    return [img.astype(np.float64) / 255.0 for img in _read_grey_masks(cfg, frame)]
+
+
+def _read_grey_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
+    """The INPUT_VIEW_FORMAT images of one frame, uint8 grey levels (the solver scales them by 1 / 255 as
+    :func:`read_pom_masks` does: the same foreground)."""
     if "INPUT_VIEW_FORMAT" not in cfg.formats:
         raise ValueError(f"{cfg.path}: no INPUT_VIEW_FORMAT line: cannot find the input masks")
     line = cfg.format_lines["INPUT_VIEW_FORMAT"]
@@ -237,7 +324,7 @@ def read_pom_masks(cfg: PomConfig, frame: int) -> list[np.ndarray]:
             raise ValueError(f"{cfg.path}:{line}: INPUT_VIEW_FORMAT: cannot read image {p}")
         if img.shape != (h, w):
             raise ValueError(f"{cfg.path}:{line}: {p} is {img.shape[1]}x{img.shape[0]}, camera {cid} is {w}x{h}")
-        out.append(img.astype(np.float64) / 255.0)
+        out.append(img)
     return out
 
 
@@ -269,7 +356,7 @@ def run_pom(cfg: PomConfig, frames: Sequence[int] | None = None, write: bool = T
     """
     solver = MeanFieldSolver(cfg.silhouettes, params or cfg.params, threads=threads)
     for frame in (cfg.frames if frames is None else frames):
-        result = solver.solve(read_pom_masks(cfg, frame))
+        result = solver.solve(_read_grey_masks(cfg, frame))
         if write and "RESULT_FORMAT" in cfg.formats:
             out = pom_frame_path(cfg, "RESULT_FORMAT", frame)
             out.parent.mkdir(parents=True, exist_ok=True)

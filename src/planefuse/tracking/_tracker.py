@@ -171,6 +171,7 @@ class TrackerParams:
     support_threshold: float | None = 1.0  # chosen on seeds 1-3 of every scenario (docs/results.md)
     person_radius_m: float = 0.3
     max_supported_s: float = 2.0
+    reacquire_speed_m_s: float | None = 1.5
 
     def __post_init__(self) -> None:
         check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
@@ -179,7 +180,8 @@ class TrackerParams:
                      velocity_max_std_m_s=">0", merged_position_std_m=">=0",
                      max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0",
                      detection_probability="(0,1)", clutter_density_per_m2=">0",
-                     support_threshold="?finite", person_radius_m=">0", max_supported_s=">=0")
+                     support_threshold="?finite", person_radius_m=">0", max_supported_s=">=0",
+                     reacquire_speed_m_s="?>=0")
 
 
 @dataclass(frozen=True)
@@ -281,8 +283,11 @@ class MultiPersonTracker:
         self.time_s: float | None = None
         self._next_id = 1
 
-    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray):
-        """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs."""
+    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
+                   cap_m: np.ndarray | float | None = None, miss_cost: float = 0.0):
+        """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs;
+        ``cap_m`` (per track, or one value) [m]: the distance cap of the gate (default ``gate_m``); ``miss_cost``:
+        the cost of leaving a track unassigned (0: a pair only where more likely than a miss and a ghost)."""
         det = np.flatnonzero(free)
         if not group or det.size == 0:
             return []
@@ -293,7 +298,8 @@ class MultiPersonTracker:
         S_pos = S[..., :2, :2]
         d2_pos = np.einsum("tdi,tdij,tdj->td", y[..., :2], np.linalg.inv(S_pos), y[..., :2])
         p = self.params
-        gated = (d2_pos <= p.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= p.gate_m)
+        cap = np.broadcast_to(p.gate_m if cap_m is None else cap_m, (len(group),))
+        gated = (d2_pos <= p.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= cap[:, None])
         nll_pos = d2_pos + np.linalg.slogdet(2 * np.pi * S_pos)[1]
         nll_full = np.einsum("tdi,tdij,tdj->td", y, np.linalg.inv(S), y) + np.linalg.slogdet(2 * np.pi * S)[1]
         var_c = self.velocity_prior_var_m2_s2 or p.initial_velocity_std_m_s**2  # a false cluster's velocity law
@@ -302,7 +308,7 @@ class MultiPersonTracker:
                 - 2 * np.log(p.detection_probability / ((1 - p.detection_probability) * p.clutter_density_per_m2)))
         n_trk, n_det = cost.shape
         cost = np.concatenate([np.where(gated, cost, np.inf), np.full((n_trk, n_trk), np.inf)], axis=1)
-        cost[np.arange(n_trk), n_det + np.arange(n_trk)] = 0.0  # each track's own "no cluster this step"
+        cost[np.arange(n_trk), n_det + np.arange(n_trk)] = miss_cost  # each track's own "no cluster this step"
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if c < n_det]
 
@@ -347,6 +353,7 @@ class MultiPersonTracker:
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
                 matched.add(sharer.id)
+        self._reacquire(matched, z, R, has_v, free, clusters, dt)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:
@@ -367,6 +374,27 @@ class MultiPersonTracker:
             self._next_id += 1
         self.tracks = alive
         return self.reported()
+
+    def _reacquire(self, matched: set[int], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
+                   clusters: Clusters, dt: float) -> None:
+        """Step 7: confirmed tracks lost for at least one step take the clusters no track took, within their
+        covariance gate and ``gate_m + reacquire_speed_m_s x`` the time since their last cluster."""
+        p = self.params
+        if p.reacquire_speed_m_s is None:
+            return
+        lost = [tr for tr in self.tracks if tr.confirmed and tr.id not in matched and tr.misses >= 1]
+        cap = np.array([p.gate_m + p.reacquire_speed_m_s * (tr.misses + 1) * dt for tr in lost])
+        # every gated pair is taken (the cost of a miss above any pair's): the alternative to the lost person is a
+        # new one, born on the same cluster, not a ghost
+        for ti, ci in self._associate(lost, z, R, has_v, free, cap, miss_cost=1e9):
+            tr = lost[ti]
+            free[ci] = False
+            matched.add(tr.id)
+            tr.supported_s = 0.0
+            # tentative again, as a track born on this cluster would be: reported after confirm_hits hits in a row,
+            # ended at its first miss (a ghost it took), but under its own id
+            tr.confirmed, tr.hits = False, 0
+            self._update(tr, z[ci], R[ci], clusters, ci, position_only=True)
 
     def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
                 position_only: bool = False, merged: bool = False) -> None:

@@ -349,9 +349,9 @@ class FilterModelConfig(_Model):
         library="system.tracking.window_s",
     )
     camera_correlation_s: float = _field(
-        description="Correlation time of the cameras' evidence errors: each fused camera frame counts "
-        "min(1, dt / this) of an independent observation, dt the time since the previous frame; 0 = every frame "
-        "fully", unit="s", expected=">= 0", library="system.camera_correlation_s",
+        description="Correlation time of each camera's evidence errors: a camera's frame counts "
+        "min(1, dt / this) of an independent observation, dt the time since that camera's previous live frame; "
+        "0 = every frame fully", unit="s", expected=">= 0", library="system.camera_correlation_s",
     )
     laser_correlation_s: float = _field(
         description="The same for each laser's scans", unit="s", expected=">= 0",

@@ -425,6 +425,11 @@ class DetectionModelConfig(_Model):
         "(the filter still holds the person below column_threshold: partly hidden, a camera gone); null = none",
         expected="null or finite", library="system.tracking.tracker.support_threshold",
     )
+    reacquire_speed_m_s: float | None = _field(
+        description="A track lost for a step or more takes a cluster no track took within its covariance gate and "
+        "gate_m + this x the time it has been lost (tentative again, under its own id); null = never", unit="m/s",
+        expected="null or >= 0", library="system.tracking.tracker.reacquire_speed_m_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

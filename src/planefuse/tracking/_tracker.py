@@ -64,7 +64,14 @@ Each step (``dt`` since the last one):
    ``person_radius_m`` of the strongest cell, as a position measurement of covariance
    ``(position_std_m^2 + merged_position_std_m^2) I``. Such a step is *supported*: the track is reported
    and its miss count reset, for at most ``max_supported_s`` since its last cluster (then it coasts);
-7. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
+7. re-acquisition: a confirmed track lost (no cluster, no support) for ``k >= 1`` steps, whose prediction ran
+   on at constant velocity while its person stopped or turned unseen (fewer views during a camera dropout, the
+   filter's evidence too weak), may take a cluster no track took inside its position gate, with the distance cap
+   widened to ``gate_m + reacquire_speed_m_s (k + 1) dt``; every gated pair is formed (the alternative is a new
+   track on the same cluster, not a ghost), globally by the costs of step 3. The track becomes *tentative*
+   again, as a track born on that cluster would be (reported after ``confirm_hits`` hits in a row, ended at its
+   first miss: a ghost it took dies as a ghost's track would), but keeps its id;
+8. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
 
@@ -77,6 +84,7 @@ Track management (states of a track)
 * **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its
   prediction and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
   ``last cluster confidence x 0.5^misses``;
+* **re-acquired**: a lost confirmed track that took a free cluster (step 7): tentative again, same id;
 * **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
 
 Step counts are in output steps (scale them with the output rate).
@@ -150,6 +158,10 @@ class TrackerParams:
         Radius [m] of the disc whose column evidence gives a supported track's position.
     max_supported_s : float
         Longest time [s] a track is supported since its last cluster.
+    reacquire_speed_m_s : float or None
+        Re-acquisition (step 7): a confirmed track lost for ``k >= 1`` steps may take a cluster no track took
+        within its covariance gate and ``gate_m + reacquire_speed_m_s x (k + 1) dt`` [m] of its prediction (a
+        person who stopped or turned while unseen); None: never.
     """
 
     gate_m: float = 0.75
@@ -377,8 +389,8 @@ class MultiPersonTracker:
 
     def _reacquire(self, matched: set[int], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
                    clusters: Clusters, dt: float) -> None:
-        """Step 7: confirmed tracks lost for at least one step take the clusters no track took, within their
-        covariance gate and ``gate_m + reacquire_speed_m_s x`` the time since their last cluster."""
+        """Step 7 (module docstring): confirmed tracks lost for at least one step take the clusters no track took,
+        within their covariance gate and ``gate_m + reacquire_speed_m_s x`` the time since their last cluster."""
         p = self.params
         if p.reacquire_speed_m_s is None:
             return

@@ -381,7 +381,8 @@ class SystemRun:
         :meth:`_camera_correlation_s`)."""
         p, rec = self.params, self.rec
         cams = {"cameras": p.camera_correlation_s} if p.camera_params.sensor_model != "cell" else {}
-        return {**cams, **{n: p.laser_correlation_s for n in rec.lasers}, **{n: p.sound_correlation_s for n in rec.audio}}
+        return {**cams, **{n: p.laser_correlation_s for n in rec.lasers},
+                **{n: p.sound_correlation_s for n in rec.audio}}
 
     def _camera_correlation_s(self) -> float:
         """The cameras' correlation time [s] applied per camera by the camera source (per-cell sensor model, with

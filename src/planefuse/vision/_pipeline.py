@@ -372,6 +372,9 @@ def camera_detections(
         person = params.generative.person(stack)
     if correlation_s < 0 or not np.isfinite(correlation_s):
         raise ValueError(f"correlation_s must be finite and >= 0 s, got {correlation_s}")
+    if correlation_s > 0 and generative is not None:
+        raise ValueError("correlation_s weights each camera of the per-cell sensor model; the generative model's "
+                         "evidence does not split by camera (weight its message: evidence_correlation_s)")
     last = [None] * fusion.n_cameras if last_live_s is None else list(last_live_s)
     if len(last) != fusion.n_cameras:
         raise ValueError(f"last_live_s: expected {fusion.n_cameras} times (None where none), got {len(last)}")

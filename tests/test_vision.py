@@ -337,3 +337,56 @@ def test_pipeline_reports_missing_frames(rng):
         assert detection_scores([(xy, det.xy_m)], 0.3).moda == 1.0
     with pytest.raises(ValueError, match="min_agreement"):
         PersonParams(min_agreement=0.0)
+
+
+def test_fusion_weights_each_camera_by_its_own_weight(rng):
+    """``weights``: the fused log-odds are the weighted sum of each camera fused alone; out-of-range or
+    wrongly sized weights are refused."""
+    cams = _pinhole_ring()
+    stack = PlaneStack.from_extent([0.1, 1.0], (0, 10), (0, 10), 0.1)
+    lks = lookups_from_cameras(cams, stack)
+    fgs = [rng.random((288, 360)).astype(np.float32) for _ in cams]
+    fusion = CameraFusion(lks, stack)
+    w = [0.08, 1.0, 0.0, 0.5]
+    alone = [fusion.log_odds([fg if k == c else None for k in range(4)]).copy() for c, fg in enumerate(fgs)]
+    np.testing.assert_allclose(fusion.log_odds(fgs, weights=w), sum(wc * a for wc, a in zip(w, alone)), atol=1e-5)
+    np.testing.assert_array_equal(fusion.log_odds(fgs, weights=[1.0] * 4), fusion.log_odds(fgs))
+    for bad in ([1.0] * 3, [1.0, 1.0, 1.0, 1.5], [1.0, 1.0, 1.0, np.nan]):
+        with pytest.raises(ValueError, match="weights"):
+            fusion.log_odds(fgs, weights=bad)
+
+
+def test_a_camera_back_from_a_dropout_counts_as_a_fresh_observation():
+    """Regression (camera_dropout, tuning seed 1: the cameras' correlation weighting was applied to their fused
+    message, so a camera back after seconds black or frozen counted 0.08 of an observation, like a camera that
+    had just delivered a frame, and the filter could not catch up with a walker who had turned meanwhile).
+    Four cameras at 25 Hz, correlation time 0.5 s; cam1 delivers no frame for 0.2 s. Each camera is weighted by
+    the time since its own previous live frame: the three others 0.04 / 0.5 at every instant, cam1 0.24 / 0.5 at
+    its return and its first frame ever 1; the detections are those of the unweighted evidence."""
+    cams = default_camera_ring()
+    stack = PlaneStack.from_extent([0.1, 0.5, 1.0, 1.5], (0, 10), (0, 10), 0.1)
+    lks = lookups_from_cameras(cams, stack)
+    fgs = [foreground_from_mask(render_cylinder_mask(c, np.array([[4.0, 5.0]]), 1.7)) for c in cams]
+    times = np.arange(12) * 0.04
+    gap = (times > 0.1) & (times < 0.3)  # cam1's frames at 0.12 .. 0.28 s never arrive
+    frames = [(t, [fgs[0], None if g else fgs[1], fgs[2], fgs[3]]) for t, g in zip(times, gap)]
+    with pytest.warns(UserWarning, match="cam1: no frame"):
+        weighted = list(camera_detections(frames, lks, stack, CameraParams(foreground=None), correlation_s=0.5))
+        plain = list(camera_detections(frames, lks, stack, CameraParams(foreground=None)))
+    fusion = CameraFusion(lks, stack)
+    alone = [fusion.log_odds([fg if k == c else None for k in range(4)]).copy() for c, fg in enumerate(fgs)]
+    back = int(np.flatnonzero(~gap & (times > 0.3))[0])  # cam1's first frame after the gap, t = 0.32 s
+    expected_w = {0: [1.0] * 4, 1: [0.08] * 4, back: [0.08, 0.48, 0.08, 0.08]}
+    for i, w in expected_w.items():
+        np.testing.assert_allclose(weighted[i][0].log_odds, sum(wc * a for wc, a in zip(w, alone)), atol=1e-4)
+    gap_i = int(np.flatnonzero(gap)[0])
+    np.testing.assert_allclose(weighted[gap_i][0].log_odds, 0.08 * (alone[0] + alone[2] + alone[3]), atol=1e-4)
+    for (_, a), (_, b) in zip(weighted, plain):
+        np.testing.assert_array_equal(a.xy_m, b.xy_m)
+    # a resumed stream starts from each camera's last live frame
+    resumed = list(camera_detections(frames[back:], lks, stack, CameraParams(foreground=None), correlation_s=0.5,
+                                     last_live_s=[times[back - 1], times[gap_i - 1], times[back - 1],
+                                                  times[back - 1]]))
+    np.testing.assert_array_equal(resumed[0][0].log_odds, weighted[back][0].log_odds)
+    with pytest.raises(ValueError, match="correlation_s"):
+        next(camera_detections(frames, lks, stack, CameraParams(foreground=None), correlation_s=-1.0))

@@ -354,9 +354,9 @@ class FilterModelConfig(_Model):
         library="system.tracking.window_s",
     )
     camera_correlation_s: float = _field(
-        description="Correlation time of the cameras' evidence errors: each fused camera frame counts "
-        "min(1, dt / this) of an independent observation, dt the time since the previous frame; 0 = every frame "
-        "fully", unit="s", expected=">= 0", library="system.camera_correlation_s",
+        description="Correlation time of each camera's evidence errors: a camera's frame counts "
+        "min(1, dt / this) of an independent observation, dt the time since that camera's previous live frame; "
+        "0 = every frame fully", unit="s", expected=">= 0", library="system.camera_correlation_s",
     )
     laser_correlation_s: float = _field(
         description="The same for each laser's scans", unit="s", expected=">= 0",
@@ -429,6 +429,11 @@ class DetectionModelConfig(_Model):
         description="Column evidence near a confirmed track's prediction that keeps it reported without a cluster "
         "(the filter still holds the person below column_threshold: partly hidden, a camera gone); null = none",
         expected="null or finite", library="system.tracking.tracker.support_threshold",
+    )
+    reacquire_speed_m_s: float | None = _field(
+        description="A track lost for a step or more takes a cluster no track took within its covariance gate and "
+        "gate_m + this x the time it has been lost (tentative again, under its own id); null = never", unit="m/s",
+        expected="null or >= 0", library="system.tracking.tracker.reacquire_speed_m_s",
     )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",

@@ -294,7 +294,7 @@ def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 
 def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
-                  start: int = 0, client=None, occluder_boxes_m=None) -> EvidenceSource:
+                  start: int = 0, client=None, occluder_boxes_m=None, correlation_s: float = 0.0) -> EvidenceSource:
     """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
     the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
 
@@ -304,7 +304,9 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     dead frames, background subtraction) runs as a stream on the cluster's workers
     (:func:`planefuse.batch.remote_foregrounds`); the evidence is the same. ``occluder_boxes_m`` (B, 6) [m]:
     known static occluders, whose hidden cells each camera leaves unobserved
-    (:class:`planefuse.registration.CameraRegistration`).
+    (:class:`planefuse.registration.CameraRegistration`). ``correlation_s`` [s]: each camera's frames weighted by
+    their share of the time since its previous live frame (:func:`planefuse.vision.camera_detections`); a resumed
+    run takes each camera's last live frame before ``start`` from the restored report's missing frames.
     """
     from ..registration import CameraRegistration
     from ..vision import CameraReport, camera_detections, camera_instants, recording_frames
@@ -317,6 +319,11 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     stride = params.frame_stride
     all_times = camera_instants(rec, stride)
     times = all_times[start:]
+    # each camera's last live frame before the first computed instant: the last instant it did not miss
+    last_live_s = []
+    for n in names:
+        missed = set(report.camera.missing_frames.get(n, ()))
+        last_live_s.append(next((float(t) for t in all_times[:start][::-1] if float(t) not in missed), None))
 
     def messages() -> Iterator[Evidence]:
         # cameras registered through their IMU: frames brought back to the calibrated view as they turn,
@@ -342,13 +349,15 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start,
                                      quantise=params.sensor_model == "cell", stride=stride)
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
-                                         registration=registration, foregrounds=fgs)
+                                         registration=registration, foregrounds=fgs, correlation_s=correlation_s,
+                                         last_live_s=last_live_s)
         else:
             # empty-scene calibration plates prime the background models (no ghosts of people already in view)
             backgrounds = [_background_or_none(rec.camera(n)) for n in names]
             frames = recording_frames(rec, start=start - replay, stride=stride)
             instants = camera_detections(frames, lookups, stack, params, names=names, report=report.camera,
-                                         backgrounds=backgrounds, replay=replay, registration=registration)
+                                         backgrounds=backgrounds, replay=replay, registration=registration,
+                                         correlation_s=correlation_s, last_live_s=last_live_s)
         report.camera_registration = registration
         for ev, det in instants:
             report.camera_detections.append(det)

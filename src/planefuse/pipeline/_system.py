@@ -25,8 +25,8 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 5  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
-#                       4: the report's laser-point stride; 5: the tracks' supported time
+CHECKPOINT_FORMAT = 6  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
+#                       4: the report's laser-point stride; 5: the tracks' supported time; 6: cameras weighted each
 
 
 def system_laser_model() -> LaserSensorModel:
@@ -66,10 +66,12 @@ class SystemParams:
         the "no filter" ablation): prediction resets the grid to the prior, and no message is weighted
         by a correlation time (below).
     camera_correlation_s, laser_correlation_s, sound_correlation_s : float
-        Correlation time ``tau`` [s] >= 0 of the errors of the cameras' fused evidence, of each laser's and
+        Correlation time ``tau`` [s] >= 0 of the errors of each camera's evidence, of each laser's and
         of each binaural head's: the filter weighs every message by ``min(1, dt / tau)``, ``dt`` the time
         since that sensor's previous message (``TrackingParams.evidence_correlation_s``; 0: every message
-        counts fully). A camera's errors (crossing silhouette rays of standing people, single-view rays, a
+        counts fully); each camera by the time since its own previous live frame (per-cell sensor model:
+        :func:`planefuse.vision.camera_detections` ``correlation_s``; the generative model's fused message as
+        one sensor). A camera's errors (crossing silhouette rays of standing people, single-view rays, a
         camera gone) persist for many frames; the laser's and sound's, at their rates, were not found to.
     occluder_boxes_m : tuple of (x_min, x_max, y_min, y_max, z_min, z_max)
         Known static occluders of the installation (pillars, shelves, counters), axis-aligned boxes in the
@@ -373,10 +375,20 @@ class SystemRun:
         self.resumed_at_step = self.tracker.n_outputs
 
     def _correlation_s(self) -> dict[str, float]:
-        """Error correlation time [s] per sensor name of the recording's evidence (cameras, lasers, heads)."""
+        """Error correlation time [s] per sensor name of the recording's evidence weighted by the filter's buffer
+        (lasers, heads; the cameras' fused message with the generative sensor model, whose evidence does not
+        split by camera: with the per-cell model each camera is weighted in the camera source,
+        :meth:`_camera_correlation_s`)."""
         p, rec = self.params, self.rec
-        return {"cameras": p.camera_correlation_s, **{n: p.laser_correlation_s for n in rec.lasers},
+        cams = {"cameras": p.camera_correlation_s} if p.camera_params.sensor_model != "cell" else {}
+        return {**cams, **{n: p.laser_correlation_s for n in rec.lasers},
                 **{n: p.sound_correlation_s for n in rec.audio}}
+
+    def _camera_correlation_s(self) -> float:
+        """The cameras' correlation time [s] applied per camera by the camera source (per-cell sensor model, with
+        the filter; 0 otherwise)."""
+        p = self.params
+        return p.camera_correlation_s if p.use_filter and p.camera_params.sensor_model == "cell" else 0.0
 
     def _sources(self, consumed: Mapping[str, int]) -> list[EvidenceSource]:
         rec, params, stack, report = self.rec, self.params, self.stack, self.report
@@ -384,7 +396,8 @@ class SystemRun:
         if params.cameras and rec.camera_streams:
             out.append(camera_source(rec, stack, params.camera_params, report,
                                      start=consumed.get("cameras", 0), client=self.client,
-                                     occluder_boxes_m=params.occluder_boxes_m))
+                                     occluder_boxes_m=params.occluder_boxes_m,
+                                     correlation_s=self._camera_correlation_s()))
         if params.laser and rec.lasers:
             out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:

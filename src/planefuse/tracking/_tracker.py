@@ -64,7 +64,14 @@ Each step (``dt`` since the last one):
    ``person_radius_m`` of the strongest cell, as a position measurement of covariance
    ``(position_std_m^2 + merged_position_std_m^2) I``. Such a step is *supported*: the track is reported
    and its miss count reset, for at most ``max_supported_s`` since its last cluster (then it coasts);
-7. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
+7. re-acquisition: a confirmed track lost (no cluster, no support) for ``k >= 1`` steps, whose prediction ran
+   on at constant velocity while its person stopped or turned unseen (fewer views during a camera dropout, the
+   filter's evidence too weak), may take a cluster no track took inside its position gate, with the distance cap
+   widened to ``gate_m + reacquire_speed_m_s (k + 1) dt``; every gated pair is formed (the alternative is a new
+   track on the same cluster, not a ghost), globally by the costs of step 3. The track becomes *tentative*
+   again, as a track born on that cluster would be (reported after ``confirm_hits`` hits in a row, ended at its
+   first miss: a ghost it took dies as a ghost's track would), but keeps its id;
+8. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
 
@@ -77,6 +84,7 @@ Track management (states of a track)
 * **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its
   prediction and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
   ``last cluster confidence x 0.5^misses``;
+* **re-acquired**: a lost confirmed track that took a free cluster (step 7): tentative again, same id;
 * **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
 
 Step counts are in output steps (scale them with the output rate).
@@ -150,6 +158,10 @@ class TrackerParams:
         Radius [m] of the disc whose column evidence gives a supported track's position.
     max_supported_s : float
         Longest time [s] a track is supported since its last cluster.
+    reacquire_speed_m_s : float or None
+        Re-acquisition (step 7): a confirmed track lost for ``k >= 1`` steps may take a cluster no track took
+        within its covariance gate and ``gate_m + reacquire_speed_m_s x (k + 1) dt`` [m] of its prediction (a
+        person who stopped or turned while unseen); None: never.
     """
 
     gate_m: float = 0.75
@@ -171,6 +183,7 @@ class TrackerParams:
     support_threshold: float | None = 1.0  # chosen on seeds 1-3 of every scenario (docs/results.md)
     person_radius_m: float = 0.3
     max_supported_s: float = 2.0
+    reacquire_speed_m_s: float | None = 2.5  # chosen on seeds 1-3 (docs/results.md)
 
     def __post_init__(self) -> None:
         check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
@@ -179,7 +192,8 @@ class TrackerParams:
                      velocity_max_std_m_s=">0", merged_position_std_m=">=0",
                      max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0",
                      detection_probability="(0,1)", clutter_density_per_m2=">0",
-                     support_threshold="?finite", person_radius_m=">0", max_supported_s=">=0")
+                     support_threshold="?finite", person_radius_m=">0", max_supported_s=">=0",
+                     reacquire_speed_m_s="?>=0")
 
 
 @dataclass(frozen=True)
@@ -281,8 +295,11 @@ class MultiPersonTracker:
         self.time_s: float | None = None
         self._next_id = 1
 
-    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray):
-        """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs."""
+    def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
+                   cap_m: np.ndarray | float | None = None, miss_cost: float = 0.0):
+        """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs;
+        ``cap_m`` (per track, or one value) [m]: the distance cap of the gate (default ``gate_m``); ``miss_cost``:
+        the cost of leaving a track unassigned (0: a pair only where more likely than a miss and a ghost)."""
         det = np.flatnonzero(free)
         if not group or det.size == 0:
             return []
@@ -293,7 +310,8 @@ class MultiPersonTracker:
         S_pos = S[..., :2, :2]
         d2_pos = np.einsum("tdi,tdij,tdj->td", y[..., :2], np.linalg.inv(S_pos), y[..., :2])
         p = self.params
-        gated = (d2_pos <= p.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= p.gate_m)
+        cap = np.broadcast_to(p.gate_m if cap_m is None else cap_m, (len(group),))
+        gated = (d2_pos <= p.gate_chi2) & (np.linalg.norm(y[..., :2], axis=-1) <= cap[:, None])
         nll_pos = d2_pos + np.linalg.slogdet(2 * np.pi * S_pos)[1]
         nll_full = np.einsum("tdi,tdij,tdj->td", y, np.linalg.inv(S), y) + np.linalg.slogdet(2 * np.pi * S)[1]
         var_c = self.velocity_prior_var_m2_s2 or p.initial_velocity_std_m_s**2  # a false cluster's velocity law
@@ -302,7 +320,7 @@ class MultiPersonTracker:
                 - 2 * np.log(p.detection_probability / ((1 - p.detection_probability) * p.clutter_density_per_m2)))
         n_trk, n_det = cost.shape
         cost = np.concatenate([np.where(gated, cost, np.inf), np.full((n_trk, n_trk), np.inf)], axis=1)
-        cost[np.arange(n_trk), n_det + np.arange(n_trk)] = 0.0  # each track's own "no cluster this step"
+        cost[np.arange(n_trk), n_det + np.arange(n_trk)] = miss_cost  # each track's own "no cluster this step"
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if c < n_det]
 
@@ -347,6 +365,7 @@ class MultiPersonTracker:
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
                 matched.add(sharer.id)
+        self._reacquire(matched, z, R, has_v, free, clusters, dt)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:
@@ -367,6 +386,27 @@ class MultiPersonTracker:
             self._next_id += 1
         self.tracks = alive
         return self.reported()
+
+    def _reacquire(self, matched: set[int], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
+                   clusters: Clusters, dt: float) -> None:
+        """Step 7 (module docstring): confirmed tracks lost for at least one step take the clusters no track took,
+        within their covariance gate and ``gate_m + reacquire_speed_m_s x`` the time since their last cluster."""
+        p = self.params
+        if p.reacquire_speed_m_s is None:
+            return
+        lost = [tr for tr in self.tracks if tr.confirmed and tr.id not in matched and tr.misses >= 1]
+        cap = np.array([p.gate_m + p.reacquire_speed_m_s * (tr.misses + 1) * dt for tr in lost])
+        # every gated pair is taken (the cost of a miss above any pair's): the alternative to the lost person is a
+        # new one, born on the same cluster, not a ghost
+        for ti, ci in self._associate(lost, z, R, has_v, free, cap, miss_cost=1e9):
+            tr = lost[ti]
+            free[ci] = False
+            matched.add(tr.id)
+            tr.supported_s = 0.0
+            # tentative again, as a track born on this cluster would be: reported after confirm_hits hits in a row,
+            # ended at its first miss (a ghost it took), but under its own id
+            tr.confirmed, tr.hits = False, 0
+            self._update(tr, z[ci], R[ci], clusters, ci, position_only=True)
 
     def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
                 position_only: bool = False, merged: bool = False) -> None:

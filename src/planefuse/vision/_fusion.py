@@ -93,18 +93,25 @@ def quantise_foreground(fg: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, boundscheck=False)
-def _fuse_kernel(fg_q, lut, active, table, out):  # pragma: no cover - compiled
-    # out[n] = sum over active cameras c seeing cell n of table[fg_q[lut[c, n]]]
+def _fuse_kernel(fg_q, lut, active, table, weights, out):  # pragma: no cover - compiled
+    # out[n] = sum over active cameras c seeing cell n of weights[c] table[fg_q[lut[c, n]]]
     n_cam, n_cell = lut.shape
     out[:] = 0.0
     for c in range(n_cam):
         if not active[c]:
             continue
         row = lut[c]
-        for n in range(n_cell):
-            k = row[n]
-            if k >= 0:
-                out[n] += table[fg_q[k]]
+        w = weights[c]
+        if w == 1.0:
+            for n in range(n_cell):
+                k = row[n]
+                if k >= 0:
+                    out[n] += table[fg_q[k]]
+        else:
+            for n in range(n_cell):
+                k = row[n]
+                if k >= 0:
+                    out[n] += w * table[fg_q[k]]
 
 
 class CameraFusion:
@@ -151,6 +158,7 @@ class CameraFusion:
         self._table = log_odds_table(params)
         self._views: dict[tuple, np.ndarray] = {}
         self.active = np.ones(len(lookups), dtype=np.bool_)
+        self._unit_weights = np.ones(len(lookups), dtype=np.float32)
         self.blind_cameras = [n for n, row in zip(self.names, self._lut) if not np.any(row >= 0)]
         if self.blind_cameras:
             warnings.warn(f"cameras {self.blind_cameras} see no cell of the plane stack; they add no evidence",
@@ -173,7 +181,8 @@ class CameraFusion:
             self._views[key] = seen.reshape(self.stack.shape).astype(np.float32)
         return self._views[key]
 
-    def log_odds(self, foregrounds: Sequence[np.ndarray | None], out: np.ndarray | None = None) -> np.ndarray:
+    def log_odds(self, foregrounds: Sequence[np.ndarray | None], out: np.ndarray | None = None,
+                 weights: Sequence[float] | None = None) -> np.ndarray:
         """Fused per-plane log-odds of occupancy from one instant's foreground likelihoods.
 
         Parameters
@@ -183,6 +192,9 @@ class CameraFusion:
             camera; ``None`` for a camera without a frame at this instant (it
             then contributes nothing).
         out : ndarray, shape (L, ny, nx), float32, optional
+        weights : sequence of C floats in [0, 1], optional
+            Each camera's log-likelihood ratios are multiplied by its weight (its share of an independent
+            observation, :func:`planefuse.vision.camera_detections` ``correlation_s``); default 1.
 
         The cameras that delivered a frame are left in :attr:`active` (C,) bool;
         ``cameras_seeing(self.active)`` counts the views behind each cell.
@@ -190,11 +202,17 @@ class CameraFusion:
         Returns
         -------
         ndarray, shape (L, ny, nx), float32
-            ``sum_i log P(f_i | occ) - log P(f_i | free)`` over the cameras
+            ``sum_i w_i (log P(f_i | occ) - log P(f_i | free))`` over the cameras
             seeing each cell; 0 where none does.
         """
         if len(foregrounds) != self.n_cameras:
             raise ValueError(f"expected {self.n_cameras} foreground images (None for missing), got {len(foregrounds)}")
+        if weights is None:
+            w = self._unit_weights
+        else:
+            w = np.asarray(weights, dtype=np.float32)
+            if w.shape != (self.n_cameras,) or not np.all((w >= 0) & (w <= 1)):
+                raise ValueError(f"weights must be {self.n_cameras} values in [0, 1], got {np.asarray(weights)!r}")
         active = np.zeros(self.n_cameras, dtype=np.bool_)
         for c, fg in enumerate(foregrounds):
             if fg is None:
@@ -215,10 +233,11 @@ class CameraFusion:
             out = np.empty(self.stack.shape, dtype=np.float32)
         elif out.shape != self.stack.shape or out.dtype != np.float32:
             raise ValueError(f"out must be float32 of shape {self.stack.shape}, got {out.dtype} {out.shape}")
-        _fuse_kernel(self._fg_q, self._lut, active, self._table, out.reshape(-1))
+        _fuse_kernel(self._fg_q, self._lut, active, self._table, w, out.reshape(-1))
         self.active = active
         return out
 
-    def evidence(self, foregrounds: Sequence[np.ndarray | None], time_s: float, sensor: str = "cameras") -> Evidence:
+    def evidence(self, foregrounds: Sequence[np.ndarray | None], time_s: float, sensor: str = "cameras",
+                 weights: Sequence[float] | None = None) -> Evidence:
         """:meth:`log_odds` wrapped in the :class:`~planefuse.grid.Evidence` contract."""
-        return Evidence(float(time_s), sensor, self.log_odds(foregrounds), copy=False)  # a new grid per call
+        return Evidence(float(time_s), sensor, self.log_odds(foregrounds, weights=weights), copy=False)  # a new grid

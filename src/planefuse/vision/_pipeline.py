@@ -276,6 +276,8 @@ def camera_detections(
     cameras: Sequence[PinholeCamera] | None = None,
     ignore_masks: Sequence[np.ndarray | None] | None = None,
     foregrounds: Iterable[tuple[float, Sequence[np.ndarray | None], Sequence[str]]] | None = None,
+    correlation_s: float = 0.0,
+    last_live_s: Sequence[float | None] | None = None,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -318,6 +320,17 @@ def camera_detections(
         remote_foregrounds``): per instant, each camera's :meth:`CameraFrontEnd.process`. ``frames``,
         ``backgrounds`` and ``replay`` are then not used. Not with ``params.foreground.selective_update``, whose
         front ends take each instant's people back from this process.
+    correlation_s : float
+        Correlation time ``tau`` [s] >= 0 of each camera's errors (per-cell sensor model only): camera ``c``'s
+        log-likelihood ratios at an instant ``t`` are weighted by ``w_c = min(1, (t - t_c) / tau)``, ``t_c`` the
+        time of its previous live frame (:mod:`planefuse.tracking._async`, "Temporally correlated sensor
+        errors", applied per camera): a camera's frame counts its share of the time since *its* previous one,
+        so one back from a dropout (black, frozen, frames lost) counts as a fresh observation, and a camera's
+        silence does not change the others' weights. 0: every frame counts fully. The detections are computed
+        from the unweighted evidence.
+    last_live_s : sequence of (float or None), optional
+        Per camera, the time [s] of its last live frame before the first instant of ``frames`` (a resumed run;
+        None: none yet, its next frame counts fully).
 
     Yields
     ------
@@ -367,6 +380,14 @@ def camera_detections(
                       for lk, name, bg in zip(lookups, fusion.names, bgs)]
         foregrounds = camera_foregrounds(frames, front_ends, 0 if selective else replay, registration)
         person = params.generative.person(stack)
+    if correlation_s < 0 or not np.isfinite(correlation_s):
+        raise ValueError(f"correlation_s must be finite and >= 0 s, got {correlation_s}")
+    if correlation_s > 0 and generative is not None:
+        raise ValueError("correlation_s weights each camera of the per-cell sensor model; the generative model's "
+                         "evidence does not split by camera (weight its message: evidence_correlation_s)")
+    last = [None] * fusion.n_cameras if last_live_s is None else list(last_live_s)
+    if len(last) != fusion.n_cameras:
+        raise ValueError(f"last_live_s: expected {fusion.n_cameras} times (None where none), got {len(last)}")
     for i, (time_s, fgs, status) in enumerate(foregrounds):
         replayed = selective and i < replay
         for c, what in enumerate(status if not replayed else ()):
@@ -379,6 +400,8 @@ def camera_detections(
             evidence = fusion.evidence(fgs, time_s)
             detections = ground_detections_from_log_odds(evidence.log_odds, fusion.cameras_seeing(fusion.active),
                                                          stack, time_s, max_log_ratio(params.fusion), params.person)
+            if correlation_s > 0:
+                evidence = _weighted(fusion, fgs, evidence, last, correlation_s)
         else:
             q = generative.marginals(fgs)
             evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q))
@@ -391,6 +414,25 @@ def camera_detections(
         if report is not None:
             report.instants += 1
         yield evidence, detections
+
+
+def _weighted(fusion: CameraFusion, fgs: Sequence[np.ndarray | None], evidence: Evidence, last: list,
+              correlation_s: float) -> Evidence:
+    """``evidence`` with each live camera ``c`` weighted by ``min(1, (t - last[c]) / correlation_s)``; updates
+    ``last`` [s] in place (:func:`camera_detections` ``correlation_s``)."""
+    t = float(evidence.time_s)
+    w = np.ones(fusion.n_cameras)
+    for c, fg in enumerate(fgs):
+        if fg is not None:
+            if last[c] is not None:
+                w[c] = min(1.0, max(t - last[c], 0.0) / correlation_s)
+            last[c] = t
+    live = w[fusion.active]
+    if not live.size or np.all(live == 1.0):
+        return evidence
+    if np.all(live == live[0]):  # the usual instant: every live camera's previous frame at the same time
+        return Evidence(t, evidence.sensor, evidence.log_odds * np.float32(live[0]), copy=False)
+    return fusion.evidence(fgs, t, evidence.sensor, weights=w)
 
 
 def people_masks(cameras: Sequence[PinholeCamera], xy_m: np.ndarray, person: PersonVolume) -> list[np.ndarray]:

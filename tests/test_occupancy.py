@@ -145,15 +145,15 @@ def test_mean_field_against_exact_posterior_by_enumeration(rng):
         assert ((q > 0.5) == (exact > 0.5)).all()
 
 
-def test_threads_give_the_same_marginals(rng):
-    """The parallel kernel (cameras on numba's threads) gives the serial kernel's marginals bit for bit."""
-    C, K = 4, 300
+def _random_scene(rng, n_cameras: int, n_locations: int, n_unseen: int, n_people: int):
+    """Random boxes (C, K, 4) [px] (camera 1 sees not the first ``n_unseen`` locations) and foregrounds: the
+    boxes of ``n_people`` random locations filled, 3 % of the pixels on at random."""
+    C, K = n_cameras, n_locations
     x0 = rng.integers(0, W - 12, (C, K))
     y0 = rng.integers(0, H - 20, (C, K))
     boxes = np.stack([x0, y0, x0 + rng.integers(3, 12, (C, K)), y0 + rng.integers(8, 20, (C, K))], -1)
-    boxes[1, :40] = -1                                             # some locations unseen by camera 1
-    sil = Silhouettes(boxes.astype(np.int32), ((H, W),) * C)
-    people = rng.choice(K, 4, replace=False)
+    boxes[1, :n_unseen] = -1
+    people = rng.choice(K, n_people, replace=False)
     fg = []
     for c in range(C):
         img = (rng.random((H, W)) < 0.03).astype(float)
@@ -162,6 +162,13 @@ def test_threads_give_the_same_marginals(rng):
                 a, b, e, d = boxes[c, k]
                 img[b:d + 1, a:e + 1] = 1.0
         fg.append(img)
+    return boxes, fg
+
+
+def test_threads_give_the_same_marginals(rng):
+    """The parallel kernel (cameras on numba's threads) gives the serial kernel's marginals bit for bit."""
+    boxes, fg = _random_scene(rng, 4, 300, n_unseen=40, n_people=4)
+    sil = Silhouettes(boxes.astype(np.int32), ((H, W),) * 4)
     serial = MeanFieldSolver(sil, GenerativeParams(), threads=1).solve(fg)
     parallel = MeanFieldSolver(sil, GenerativeParams(), threads=2).solve(fg)
     assert np.array_equal(serial.marginals, parallel.marginals)
@@ -271,19 +278,7 @@ def test_solver_equals_a_plain_pixel_by_pixel_iteration(rng, ignored_below):
     C, K = 2, 40
     p = GenerativeParams(prior=0.02, ignored_below=ignored_below)
     for _ in range(3):
-        x0 = rng.integers(0, W - 12, (C, K))
-        y0 = rng.integers(0, H - 20, (C, K))
-        boxes = np.stack([x0, y0, x0 + rng.integers(3, 12, (C, K)), y0 + rng.integers(8, 20, (C, K))], -1)
-        boxes[1, :5] = -1
-        people = rng.choice(K, 3, replace=False)
-        fg = []
-        for c in range(C):
-            img = (rng.random((H, W)) < 0.03).astype(float)
-            for k in people:
-                if boxes[c, k, 0] >= 0:
-                    a, b, e, d = boxes[c, k]
-                    img[b:d + 1, a:e + 1] = 1.0
-            fg.append(img)
+        boxes, fg = _random_scene(rng, C, K, n_unseen=5, n_people=3)
         res = MeanFieldSolver(Silhouettes(boxes.astype(np.int32), ((H, W),) * C), p).solve(fg)
         q, n_it, converged = _plain_iteration(fg, boxes, p)
         assert res.n_iterations == n_it and res.converged == converged

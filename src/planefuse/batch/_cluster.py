@@ -12,9 +12,10 @@ from ._jobs import BatchJob, JobResult, run_job
 __all__ = ["batch_client", "run_batch"]
 
 #: Worker environment for a LocalCluster: one thread per library in each worker process, so that
-#: ``n_workers`` processes use ``n_workers`` cores and a run gives the same numbers on any worker.
+#: ``n_workers`` processes use ``n_workers`` cores and a run gives the same numbers on any worker
+#: (:func:`planefuse.batch._jobs.threads_from_environment` applies the numba and OpenCV ones in each task).
 SINGLE_THREAD_ENV = {name: "1" for name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
-                                             "MKL_NUM_THREADS")}
+                                             "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM")}
 
 
 @contextmanager

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import traceback
 from dataclasses import dataclass, field
 
@@ -98,19 +100,26 @@ class JobResult:
         return self.error is None
 
 
-def _numba_config_from_environment() -> None:
-    """Make numba read the environment now, before any kernel starts its thread pool.
+def threads_from_environment() -> None:
+    """Make numba and OpenCV take their thread counts from the environment now, before any kernel starts.
 
     A dask worker process is spawned, imports the batch's main module (and numba, which reads
     ``NUMBA_NUM_THREADS`` then: unset, so one per core), and only afterwards gets the cluster's environment
     (``NUMBA_NUM_THREADS=1``). If a kernel started the pool before numba re-read its environment, the next
     re-read raised "Cannot set NUMBA_NUM_THREADS to a different value once the threads have been launched"
     (seen once in an 18-run sweep). Re-reading first, in every task, starts the pool with the cluster's value;
-    where nothing changed it is a no-op.
+    where nothing changed it is a no-op. OpenCV's pool has one thread per core unless
+    ``OPENCV_FOR_THREADS_NUM`` says otherwise, which it reads once: each of two single-threaded workers on two
+    cores otherwise ran OpenCV (background subtraction, morphology, warps) on two threads.
     """
     import numba
 
     numba.config.reload_config()
+    n = os.environ.get("OPENCV_FOR_THREADS_NUM")
+    if n:
+        import cv2
+
+        cv2.setNumThreads(int(n))
 
 
 def run_job(job: BatchJob) -> JobResult:
@@ -118,7 +127,7 @@ def run_job(job: BatchJob) -> JobResult:
     from ..io import read_recording
     from ..pipeline import run_plan
 
-    _numba_config_from_environment()
+    threads_from_environment()
     try:
         rec = job.recording.recording() if isinstance(job.recording, SceneSpec) else read_recording(job.recording)
         _, metrics = run_plan(rec, job.plan, progress_mode="quiet")

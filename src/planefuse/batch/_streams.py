@@ -46,7 +46,9 @@ class CameraStream:
         from ..io import read_recording
         from ..pipeline._streams import _background_or_none
         from ..vision import CameraFrontEnd, camera_instants
+        from ._jobs import threads_from_environment
 
+        threads_from_environment()
         rec = read_recording(root)
         cams = {c.name: c for c in rec.cameras}
         if name not in cams:

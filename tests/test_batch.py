@@ -202,3 +202,25 @@ def test_camera_stream_on_a_worker_follows_the_frame_stride(tmp_path):
     for (fa, sa), (fb, sb) in zip(got, want):
         assert sa == sb
         np.testing.assert_array_equal(fa, fb)
+
+
+def test_workers_take_their_opencv_threads_from_the_cluster_environment(monkeypatch):
+    """A batch worker is one core: ``threads_from_environment`` (run by every task) gives OpenCV the cluster's
+    single thread, which OpenCV, already imported, would not read again by itself."""
+    import cv2
+
+    from planefuse.batch._cluster import SINGLE_THREAD_ENV
+    from planefuse.batch._jobs import threads_from_environment
+
+    before = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(2)
+        monkeypatch.setenv("OPENCV_FOR_THREADS_NUM", SINGLE_THREAD_ENV["OPENCV_FOR_THREADS_NUM"])
+        threads_from_environment()
+        assert cv2.getNumThreads() == 1
+        cv2.setNumThreads(2)
+        monkeypatch.delenv("OPENCV_FOR_THREADS_NUM")
+        threads_from_environment()  # no cluster environment: left as the process set it
+        assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(before)

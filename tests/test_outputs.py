@@ -265,6 +265,33 @@ def test_writer_input_errors_and_mot_layout(tmp_path):
     assert zarr.open_group(tmp_path / "occupancy.zarr", mode="r")["occupancy"].shape == (4,) + stack.shape
 
 
+def test_interruption_between_a_steps_tables_and_its_occupancy_leaves_them_in_step(tmp_path):
+    """Regression (seen once in CI): Ctrl-C after a step's tracks were recorded but before its occupancy left
+    tracks.csv one step ahead of occupancy.zarr and run_state.json."""
+    stack = PlaneStack.from_extent([0.0, 1.0], (0, 4), (0, 3), 0.5)
+    with pytest.raises(KeyboardInterrupt):
+        with OutputWriter(tmp_path, stack, config_hash="h", chunk_steps=4) as w:
+            for k in range(6):
+                w.write_tracks(k, 0.1 * k, [1], [[0.5 * k, 1.0]])
+                w.write_detections(k, GroundDetections(0.1 * k, [[0.5 * k, 1.0]], [0.5], source="bof"))
+                if k == 5:
+                    raise KeyboardInterrupt  # step 5's occupancy never written
+                w.write_occupancy(k, 0.1 * k, np.zeros(stack.shape))
+    assert zarr.open_group(tmp_path / "occupancy.zarr", mode="r")["occupancy"].shape[0] == 5
+    assert read_table(tmp_path / "tracks.csv")["step"].tolist() == [0, 1, 2, 3, 4]
+    assert read_table(tmp_path / "detections.csv")["step"].tolist() == [0, 1, 2, 3, 4]
+    assert np.loadtxt(tmp_path / "tracks_mot.txt", delimiter=",", ndmin=2)[:, 0].tolist() == [1, 2, 3, 4, 5]
+    assert json.loads((tmp_path / "run_state.json").read_text())["status"] == "interrupted"
+    # rows held back are written with their step
+    w = OutputWriter(tmp_path / "b", stack, config_hash="h", chunk_steps=4)
+    w.write_tracks(0, 0.0, [1], [[0.5, 1.0]])
+    w.flush("running")
+    assert read_table(tmp_path / "b" / "tracks.csv")["step"].size == 0
+    w.write_occupancy(0, 0.0, np.zeros(stack.shape))
+    w.finish()
+    assert read_table(tmp_path / "b" / "tracks.csv")["step"].tolist() == [0]
+
+
 def test_progress_modes():
     buf = io.StringIO()
     with progress_steps("json", stream=buf, json_interval_s=0.0) as p:

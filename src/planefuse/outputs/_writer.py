@@ -187,11 +187,18 @@ class _Table:
     def truncate(self, step: int) -> None:
         self.rows = [r for r in self.rows if r[0] < step]
 
-    def csv_text(self) -> str:
+    def upto(self, step: int) -> list[tuple]:
+        """The rows of the steps before ``step`` (rows come in step order)."""
+        n = len(self.rows)
+        while n and self.rows[n - 1][0] >= step:
+            n -= 1
+        return self.rows[:n]
+
+    def csv_text(self, rows: list[tuple]) -> str:
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(self.columns)
-        w.writerows(self.rows)
+        w.writerows(rows)
         return buf.getvalue()
 
 
@@ -487,17 +494,21 @@ class OutputWriter:
     def _write_tables(self) -> None:
         if not self._tables_dirty:
             return  # flush, finish and chunk commits may follow each other without new rows
-        atomic_write_text(self.out_dir / "detections.csv", self._dets.csv_text())
-        atomic_write_text(self.out_dir / "tracks.csv", self._tracks.csv_text())
-        for name, table, id_col in (("detections_mot.txt", self._dets, None), ("tracks_mot.txt", self._tracks, 2)):
+        # only the steps whose occupancy is written: an interruption between a step's tables and its occupancy
+        # (Ctrl-C) must not leave the tables one step ahead of the store and run_state.json
+        dets, tracks = self._dets.upto(self._steps_written), self._tracks.upto(self._steps_written)
+        atomic_write_text(self.out_dir / "detections.csv", self._dets.csv_text(dets))
+        atomic_write_text(self.out_dir / "tracks.csv", self._tracks.csv_text(tracks))
+        for name, table_rows, id_col in (("detections_mot.txt", dets, None), ("tracks_mot.txt", tracks, 2)):
             rows = np.asarray([(r[0], -1 if id_col is None else r[id_col], r[2 if id_col is None else 3],
                                 r[3 if id_col is None else 4], r[5] if id_col is None else 1.0)
-                               for r in table.rows], dtype=float).reshape(-1, 5)
+                               for r in table_rows], dtype=float).reshape(-1, 5)
             mot = mot_rows(rows[:, 0], rows[:, 1], rows[:, 2:4], rows[:, 4], self.person_radius_m)
             with atomic_open(self.out_dir / name, "w") as f:
                 np.savetxt(f, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"],
                            delimiter=",")
-        self._tables_dirty = False
+        # rows held back (their step's occupancy not yet written) are written with their step
+        self._tables_dirty = len(dets) < len(self._dets.rows) or len(tracks) < len(self._tracks.rows)
 
     def _commit(self, checkpoint: Callable[[], Mapping[str, np.ndarray]] | None) -> None:
         if checkpoint is not None:

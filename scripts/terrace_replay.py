@@ -90,9 +90,8 @@ def main(argv=None) -> int:
     ap.add_argument("--first", type=int, default=0, help="first frame (0-based; tuning: 0-1499)")
     ap.add_argument("--last", type=int, default=1500, help="end frame (exclusive)")
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
-    ap.add_argument("--score-from", type=int, default=None, metavar="F",
-                    help="score only frames >= F (the frames before warm the system up, as a deployed system runs "
-                         "continuously; default: score from --first)")
+    ap.add_argument("--warmup-from", type=int, default=None, metavar="F",
+                    help="a warm run, as scripts/terrace.py's: run from frame F, score only the frames from --first")
     ap.add_argument("--background-median-s", type=float, default=None, metavar="S",
                     help="import with an empty-scene estimate: the median of each video's first S seconds [s]")
     ap.add_argument("--config", type=Path, default=T.CONFIG)
@@ -105,11 +104,9 @@ def main(argv=None) -> int:
     if not (args.data / "epfl_video" / "terrace1-c0.mp4").is_file() or not pom_root.is_dir():
         print(f"skipped: the terrace data is absent under {args.data}", file=sys.stderr)
         return 0
-    frames = np.arange(args.first, args.last, args.step)
-    scored = frames if args.score_from is None else frames[frames >= args.score_from]
-    if not len(scored):
-        ap.error(f"--score-from {args.score_from} leaves no frame of {args.first}..{args.last} to score")
-    truth = T.terrace_truth(pom_root, frames)
+    scored = np.arange(args.first, args.last, args.step)
+    frames = T.warm_frames(args.warmup_from, args.first, args.last, args.step)
+    truth = T.terrace_truth(pom_root, scored)
     base = T.with_sets(T.load_base_config(args.config), args.set)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-replay-"))
     try:

@@ -266,16 +266,14 @@ class MeanFieldSolver:
         sil, p = self.silhouettes, self.params
         sizes = sil.image_sizes
         fg = _check_images(foregrounds, sizes, "foregrounds", binary=False)
+        if observed is not None and len(observed) != len(sizes):
+            raise ValueError(f"observed: expected {len(sizes)} masks (None for all observed), got {len(observed)}")
         weighted = observed is not None and any(o is not None for o in observed)
         if weighted:
-            if len(observed) != len(sizes):
-                raise ValueError(f"observed: expected {len(sizes)} masks (None for all observed), got {len(observed)}")
             w_img = _check_images([np.ones(s, bool) if o is None else o for o, s in zip(observed, sizes)], sizes,
                                   "observed", binary=True)
             W = np.concatenate([w.ravel() for w in w_img])
         else:
-            if observed is not None and len(observed) != len(sizes):
-                raise ValueError(f"observed: expected {len(sizes)} masks (None for all observed), got {len(observed)}")
             W = self._ones  # all observed: the kernel does not read W (weighted False)
         B = np.concatenate([f.ravel() for f in fg])
         B32 = B.astype(np.float32)

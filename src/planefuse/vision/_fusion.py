@@ -101,17 +101,11 @@ def _fuse_kernel(fg_q, lut, active, table, weights, out):  # pragma: no cover - 
         if not active[c]:
             continue
         row = lut[c]
-        w = weights[c]
-        if w == 1.0:
-            for n in range(n_cell):
-                k = row[n]
-                if k >= 0:
-                    out[n] += table[fg_q[k]]
-        else:
-            for n in range(n_cell):
-                k = row[n]
-                if k >= 0:
-                    out[n] += w * table[fg_q[k]]
+        w = weights[c]  # 1.0 for a camera at full weight: the product is exact, the sums the unweighted ones
+        for n in range(n_cell):
+            k = row[n]
+            if k >= 0:
+                out[n] += w * table[fg_q[k]]
 
 
 class CameraFusion:

@@ -18,6 +18,7 @@ end or the solver is refused (it needs a new capture). Tuning only: frames 0-149
 from __future__ import annotations
 
 import argparse
+import pickle
 import shutil
 import sys
 import tempfile
@@ -84,6 +85,24 @@ def replay(stack, messages, qs, sensor, params) -> list:
     return outs
 
 
+def _load_capture(path: Path | None, key) -> tuple | None:
+    """The capture kept in ``path`` if it was made with ``key`` (frames, configuration, background), else None."""
+    if path is None or not path.is_file():
+        return None
+    with path.open("rb") as f:
+        kept_key, kept = pickle.load(f)
+    if kept_key != key:
+        print(f"{path}: made with other frames or settings; capturing again", file=sys.stderr)
+        return None
+    return kept
+
+
+def _save_capture(path: Path | None, key, kept: tuple) -> None:
+    if path is not None:
+        with path.open("wb") as f:
+            pickle.dump((key, kept), f, protocol=pickle.HIGHEST_PROTOCOL)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=T.REPO.parent / "shared" / "data")
@@ -97,6 +116,9 @@ def main(argv=None) -> int:
     ap.add_argument("--config", type=Path, default=T.CONFIG)
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=YAML",
                     help="change of the captured configuration (repeatable)")
+    ap.add_argument("--capture", type=Path, default=None, metavar="FILE",
+                    help="keep the capture in FILE (pickle) and reuse it when FILE exists with the same frames, "
+                         "configuration and --set changes")
     ap.add_argument("--try", dest="tries", action="append", default=[], metavar="FIELD=YAML[;FIELD=YAML]",
                     help="a variant replayed on the capture (filter, clustering, tracker, evidence mapping)")
     args = ap.parse_args(argv)
@@ -111,7 +133,12 @@ def main(argv=None) -> int:
     tmp = Path(tempfile.mkdtemp(prefix="terrace-replay-"))
     try:
         rec = read_recording(T.import_terrace(tmp, args.data, frames, args.background_median_s))
-        messages, qs, sensor, cams, _, stack = capture(rec, base)
+        key = (list(map(int, frames)), base, args.background_median_s)
+        kept = _load_capture(args.capture, key)
+        if kept is None:
+            kept = capture(rec, base)
+            _save_capture(args.capture, key, kept)
+        messages, qs, sensor, cams, _, stack = kept
         by_cam = {T._frame_of(d.time_s): d.xy_m for d in cams}
         fr = [f for f in scored if f in by_cam]
         s = T.score(truth, fr, [by_cam[f] for f in fr])

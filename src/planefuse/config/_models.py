@@ -203,6 +203,23 @@ class CameraSensorConfig(_Model):
         "learnt (a ghost of a background object that moved still heals)", unit="frames",
         expected="an integer >= 1", library="system.camera_params.foreground.selective_max_frames",
     )
+    person_detector: Literal["hog"] | None = _field(
+        description="A person detector beside the background subtraction: 'hog' = OpenCV's HOG people detector "
+        "(in opencv-contrib from OpenCV 5); the bodies of its boxes are foreground; null = none",
+        expected="null or 'hog'", library="system.camera_params.foreground.person_detector",
+    )
+    person_upscale: float = _field(
+        description="With person_detector: enlargement of the frame before detection (the detector's window is "
+        "128 px tall)", expected="> 0", library="system.camera_params.foreground.person_upscale",
+    )
+    person_min_score: float = _field(
+        description="With person_detector: smallest SVM score of a kept box", expected="a finite number",
+        library="system.camera_params.foreground.person_min_score",
+    )
+    person_likelihood: float = _field(
+        description="With person_detector: foreground likelihood at least given to a detected body",
+        expected="in [0, 1]", library="system.camera_params.foreground.person_likelihood",
+    )
     open_px: int = _field(
         description="Side of the morphological opening removing speckle from the foreground; 0 = none", unit="px",
         expected="an integer >= 0", library="system.camera_params.foreground.open_px",

@@ -21,6 +21,7 @@ __all__ = [
     "BackgroundSubtractor",
     "ForegroundParams",
     "GainCompensator",
+    "PersonDetector",
     "foreground_from_boxes",
     "foreground_from_mask",
     "read_mot_detections",
@@ -116,6 +117,20 @@ class ForegroundParams:
         learns the people then in view as background, and the camera model's "people" on those frames are its
         ghosts (EPFL terrace, frames 1000-1499 from a cold start: filtered MODA -0.08 with protection from the
         first frame; docs/results.md).
+    person_detector : {None, "hog"}
+        A person detector run on every frame beside the subtractor: ``"hog"`` is OpenCV's HOG + linear SVM people
+        detector (Dalal & Triggs 2005, trained on INRIA Person; its model ships inside OpenCV: the core module in
+        OpenCV 4, ``opencv-contrib`` from OpenCV 5). The body of each box it finds (the middle half of its width,
+        the middle three quarters of its height: the detector's 64 x 128 px window has that margin around the
+        person) gets at least ``person_likelihood``, so that a person who stands still and has faded into the
+        background model is still foreground. None: background subtraction alone.
+    person_upscale : float
+        Factor the frame is enlarged by before detection: the detector's window is 128 px tall, people in a 288 px
+        high frame are often 40-120 px.
+    person_min_score : float
+        Smallest SVM score [unitless margin] of a box that is kept.
+    person_likelihood : float
+        Foreground likelihood at least given to the body of a detected box, in [0, 1].
     """
 
     method: str = "knn"
@@ -138,6 +153,10 @@ class ForegroundParams:
     downscale: int = 1
     selective_update: bool = False
     selective_max_frames: int = 50
+    person_detector: str | None = None
+    person_upscale: float = 2.0
+    person_min_score: float = 0.3
+    person_likelihood: float = 0.9
 
     def __post_init__(self) -> None:
         require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
@@ -150,6 +169,9 @@ class ForegroundParams:
                 f"needs method 'knn' (the decision on protected pixels uses its dist2Threshold), got {self.method!r}")
         require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
                 f"must be (rows, cols) >= 1, got {self.gain_blocks}")
+        require(self.person_detector in (None, "hog"), self, "person_detector",
+                f"must be None or 'hog', got {self.person_detector!r}")
+        check_fields(self, person_upscale=">0", person_min_score="finite", person_likelihood="[0,1]")
 
 
 class BackgroundSubtractor:
@@ -213,6 +235,7 @@ class BackgroundSubtractor:
         #: running average of the frames' background pixels (model size, float32): the background protected
         #: pixels are fed and compared with
         self._mean_background: np.ndarray | None = None
+        self._people = PersonDetector(params) if params.person_detector is not None else None
 
     def protect(self, people) -> None:
         """Keep the pixels ``people`` (height_px, width_px) bool -- where the camera model explains the image by
@@ -358,6 +381,13 @@ class BackgroundSubtractor:
             Foreground likelihood in ``[floor, ceiling]``.
         """
         img = self._check(frame)
+        like = self._subtract(img, quantised)
+        if self._people is not None:
+            self._people.mark(img, like, quantised)
+        return like
+
+    def _subtract(self, img: np.ndarray, quantised: bool) -> np.ndarray:
+        """The subtractor's likelihood of the checked frame ``img`` (:meth:`apply` without the person detector)."""
         relearning = self._relearn_left > 0
         mask = self._learn(img, self._rate)
         p = self.params
@@ -386,6 +416,49 @@ class BackgroundSubtractor:
             like = cv2.resize(like, (self.width_px, self.height_px), interpolation=cv2.INTER_LINEAR)
         like = _soften(like, self.params.blur_px, self.params.floor, self.params.ceiling, own=True)
         return quantise_foreground(like) if quantised else like
+
+
+class PersonDetector:
+    """OpenCV's HOG people detector marking the bodies of the people it finds in a foreground likelihood
+    (:attr:`ForegroundParams.person_detector`).
+
+    Parameters
+    ----------
+    params : ForegroundParams
+        ``person_upscale``, ``person_min_score`` and ``person_likelihood`` are used.
+    """
+
+    def __init__(self, params: ForegroundParams) -> None:
+        if not hasattr(cv2, "HOGDescriptor"):
+            raise ValueError(f"person_detector 'hog' needs OpenCV's HOG people detector, absent from this OpenCV "
+                             f"{cv2.__version__} (OpenCV 5 moved it to opencv-contrib-python-headless)")
+        self.params = params
+        self._hog = cv2.HOGDescriptor()
+        self._hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
+        self._level = float(params.person_likelihood)
+        self._quantised_level = int(quantise_foreground(np.float32([self._level])).ravel()[0])
+
+    def boxes(self, frame: np.ndarray) -> np.ndarray:
+        """Boxes of the people in ``frame`` (grey or BGR uint8), shape (K, 4): left, top, width, height [px] in the
+        frame's pixels, and their scores (K,)."""
+        k = self.params.person_upscale
+        img = frame if k == 1 else cv2.resize(frame, None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
+        rects, scores = self._hog.detectMultiScale(img, winStride=(8, 8), padding=(8, 8), scale=1.05)
+        rects = np.asarray(rects, dtype=float).reshape(-1, 4) / k
+        scores = np.asarray(scores, dtype=float).reshape(-1)
+        keep = scores >= self.params.person_min_score
+        return rects[keep], scores[keep]
+
+    def mark(self, frame: np.ndarray, like: np.ndarray, quantised: bool) -> None:
+        """Raise ``like`` (the frame's foreground likelihood, float or quantised) to at least ``person_likelihood``
+        on the bodies of the people found in ``frame``, in place."""
+        level = self._quantised_level if quantised else self._level
+        h, w = like.shape
+        for x, y, bw, bh in self.boxes(frame)[0]:
+            c0, c1 = max(0, int(round(x + bw / 4))), min(w, int(round(x + 3 * bw / 4)))
+            r0, r1 = max(0, int(round(y + bh / 8))), min(h, int(round(y + 7 * bh / 8)))
+            if c1 > c0 and r1 > r0:
+                np.maximum(like[r0:r1, c0:c1], level, out=like[r0:r1, c0:c1])
 
 
 class GainCompensator:

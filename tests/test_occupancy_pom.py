@@ -23,6 +23,7 @@ from planefuse.occupancy import (
     read_pom_masks,
     run_pom,
     write_pom,
+    write_pom_result,
 )
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -278,3 +279,17 @@ def test_run_pom_reads_grey_levels_as_read_pom_masks_does(tmp_path, rng):
     solver = MeanFieldSolver(cfg.silhouettes, cfg.params)
     for f, res in run_pom(cfg, write=False):
         assert np.array_equal(res.marginals, solver.solve(read_pom_masks(cfg, f)).marginals)
+
+
+def test_result_file_lines_are_printf_g(tmp_path, rng):
+    """``proba-f<frame>.dat`` holds ``<location> <probability>`` per line with C's ``%g`` (6 significant digits,
+    exponent below 1e-4), as POM writes it; the one-format-for-all-lines writer gives every line that a format
+    per line gives, for values across the range (0, tiny, near 1, exactly 1)."""
+    q = np.concatenate([[0.0, 1.0, 1e-300, 5e-324, 0.9999995, 1 - 1e-6, 1e-4, 9.99999e-5, 0.5], rng.random(500) ** 9])
+    path = tmp_path / "proba-f3.dat"
+    write_pom_result(path, q)
+    lines = path.read_text().splitlines()
+    assert lines == [f"{k} {'%g' % v}" for k, v in enumerate(q)]
+    assert lines[:3] == ["0 0", "1 1", "2 1e-300"] and lines[4] == "4 1"
+    write_pom_result(path, np.zeros(0))
+    assert path.read_text() == ""

@@ -231,6 +231,12 @@ _RECT_CASES = [
     "RECTANGLE 0 notvisible -1\n", "RECTANGLE RECTANGLE 0 1 2 3 4 5\n", "RECTANGLE 0 0 1 2 3 4 # note\n",
     "FOO 1\nRECTANGLE 0 0 1 2 3\n", "RECTANGLE 0 0 1 2 3\nFOO 1\n", "RECTANGLE 0 0 1 2 3 99999999999999999999\n",
     "RECTANGLE \n",
+    "RECTANGLE 0 0 1 2 3 4\r\nRECTANGLE 1 2 notvisible\r\n",                         # Windows line ends
+    "RECTANGLE 0 0 1 2 3 4\n\nRECTANGLE 1 2 notvisible\n",                           # a blank line in the run
+    "RECTANGLE 0 0 1 2 3 4\nPRIOR 0.2\nRECTANGLE 1 2 notvisible\n",                  # run interrupted
+    "RECTANGLE 0 0 1 2 3 4\x0cRECTANGLE 1 2 notvisible\n", "RECTANGLE 0 0 1 2 3 4\n# é\n",
+    "RECTANGLE 0 0 -1 -1 -1 -1\nRECTANGLE 0 1 1 notvisible\n", "RECTANGLE 0 2 1 2 3 4",   # no final newline
+    "RECTANGLE 0 0 1 2 3 4\nPROCESS 0 2\nFOO\n", "RECTANGLE 0 0 1 2 3 4\n  RECTANGLE 0 1 1 2 3 4\n",
 ]
 
 
@@ -251,8 +257,9 @@ def test_bulk_read_of_rectangles_equals_line_by_line(tmp_path, rects):
 
 
 def test_bulk_read_of_a_large_file_equals_line_by_line(tmp_path, rng):
-    """200 x 200 locations in 4 cameras (the benchmark's size), some not visible: the same configuration."""
-    from planefuse.occupancy._pom import _parse
+    """200 x 200 locations in 4 cameras (the benchmark's size), some not visible: the same configuration; a file
+    written by ``write_pom`` is read by the bulk path (one run of RECTANGLE lines, each written the plain way)."""
+    from planefuse.occupancy._pom import _bulk_rectangles, _parse, _rectangle_run
 
     C, K = 4, 40000
     x0, y0 = rng.integers(0, 300, (C, K)), rng.integers(0, 200, (C, K))
@@ -266,6 +273,8 @@ def test_bulk_read_of_a_large_file_equals_line_by_line(tmp_path, rng):
     assert np.array_equal(a.silhouettes.boxes_px, b.silhouettes.boxes_px)
     assert (a.params, a.process, a.camera_ids, a.silhouettes.image_sizes) == \
         (b.params, b.process, b.camera_ids, b.silhouettes.image_sizes)
+    start, end = _rectangle_run(path.read_text())
+    assert _bulk_rectangles(path.read_text()[start:end], C * K) is not None
 
 
 def test_run_pom_reads_grey_levels_as_read_pom_masks_does(tmp_path, rng):

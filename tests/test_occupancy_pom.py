@@ -242,7 +242,7 @@ _RECT_CASES = [
 
 @pytest.mark.parametrize("rects", _RECT_CASES)
 def test_bulk_read_of_rectangles_equals_line_by_line(tmp_path, rects):
-    """``read_pom`` reads the ``RECTANGLE `` lines at once (np.loadtxt, vectorised checks) and falls back to the
+    """``read_pom`` reads the ``RECTANGLE `` lines at once (a strict scanner, vectorised checks) and falls back to the
     line-by-line reading where one would fail: the same boxes, or the same error naming the same line."""
     from planefuse.occupancy._pom import _parse
 

@@ -23,6 +23,7 @@ from planefuse.occupancy import (
     read_pom_masks,
     run_pom,
     write_pom,
+    write_pom_result,
 )
 
 BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -230,12 +231,18 @@ _RECT_CASES = [
     "RECTANGLE 0 notvisible -1\n", "RECTANGLE RECTANGLE 0 1 2 3 4 5\n", "RECTANGLE 0 0 1 2 3 4 # note\n",
     "FOO 1\nRECTANGLE 0 0 1 2 3\n", "RECTANGLE 0 0 1 2 3\nFOO 1\n", "RECTANGLE 0 0 1 2 3 99999999999999999999\n",
     "RECTANGLE \n",
+    "RECTANGLE 0 0 1 2 3 4\r\nRECTANGLE 1 2 notvisible\r\n",                         # Windows line ends
+    "RECTANGLE 0 0 1 2 3 4\n\nRECTANGLE 1 2 notvisible\n",                           # a blank line in the run
+    "RECTANGLE 0 0 1 2 3 4\nPRIOR 0.2\nRECTANGLE 1 2 notvisible\n",                  # run interrupted
+    "RECTANGLE 0 0 1 2 3 4\x0cRECTANGLE 1 2 notvisible\n", "RECTANGLE 0 0 1 2 3 4\n# é\n",
+    "RECTANGLE 0 0 -1 -1 -1 -1\nRECTANGLE 0 1 1 notvisible\n", "RECTANGLE 0 2 1 2 3 4",   # no final newline
+    "RECTANGLE 0 0 1 2 3 4\nPROCESS 0 2\nFOO\n", "RECTANGLE 0 0 1 2 3 4\n  RECTANGLE 0 1 1 2 3 4\n",
 ]
 
 
 @pytest.mark.parametrize("rects", _RECT_CASES)
 def test_bulk_read_of_rectangles_equals_line_by_line(tmp_path, rects):
-    """``read_pom`` reads the ``RECTANGLE `` lines at once (np.loadtxt, vectorised checks) and falls back to the
+    """``read_pom`` reads the ``RECTANGLE `` lines at once (a strict scanner, vectorised checks) and falls back to the
     line-by-line reading where one would fail: the same boxes, or the same error naming the same line."""
     from planefuse.occupancy._pom import _parse
 
@@ -250,8 +257,9 @@ def test_bulk_read_of_rectangles_equals_line_by_line(tmp_path, rects):
 
 
 def test_bulk_read_of_a_large_file_equals_line_by_line(tmp_path, rng):
-    """200 x 200 locations in 4 cameras (the benchmark's size), some not visible: the same configuration."""
-    from planefuse.occupancy._pom import _parse
+    """200 x 200 locations in 4 cameras (the benchmark's size), some not visible: the same configuration; a file
+    written by ``write_pom`` is read by the bulk path (one run of RECTANGLE lines, each written the plain way)."""
+    from planefuse.occupancy._pom import _bulk_rectangles, _parse, _rectangle_run
 
     C, K = 4, 40000
     x0, y0 = rng.integers(0, 300, (C, K)), rng.integers(0, 200, (C, K))
@@ -265,6 +273,8 @@ def test_bulk_read_of_a_large_file_equals_line_by_line(tmp_path, rng):
     assert np.array_equal(a.silhouettes.boxes_px, b.silhouettes.boxes_px)
     assert (a.params, a.process, a.camera_ids, a.silhouettes.image_sizes) == \
         (b.params, b.process, b.camera_ids, b.silhouettes.image_sizes)
+    start, end = _rectangle_run(path.read_text())
+    assert _bulk_rectangles(path.read_text()[start:end], C * K) is not None
 
 
 def test_run_pom_reads_grey_levels_as_read_pom_masks_does(tmp_path, rng):
@@ -278,3 +288,17 @@ def test_run_pom_reads_grey_levels_as_read_pom_masks_does(tmp_path, rng):
     solver = MeanFieldSolver(cfg.silhouettes, cfg.params)
     for f, res in run_pom(cfg, write=False):
         assert np.array_equal(res.marginals, solver.solve(read_pom_masks(cfg, f)).marginals)
+
+
+def test_result_file_lines_are_printf_g(tmp_path, rng):
+    """``proba-f<frame>.dat`` holds ``<location> <probability>`` per line with C's ``%g`` (6 significant digits,
+    exponent below 1e-4), as POM writes it; the one-format-for-all-lines writer gives every line that a format
+    per line gives, for values across the range (0, tiny, near 1, exactly 1)."""
+    q = np.concatenate([[0.0, 1.0, 1e-300, 5e-324, 0.9999995, 1 - 1e-6, 1e-4, 9.99999e-5, 0.5], rng.random(500) ** 9])
+    path = tmp_path / "proba-f3.dat"
+    write_pom_result(path, q)
+    lines = path.read_text().splitlines()
+    assert lines == [f"{k} {'%g' % v}" for k, v in enumerate(q)]
+    assert lines[:3] == ["0 0", "1 1", "2 1e-300"] and lines[4] == "4 1"
+    write_pom_result(path, np.zeros(0))
+    assert path.read_text() == ""

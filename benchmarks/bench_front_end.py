@@ -8,11 +8,13 @@ at level 1 and JPEG 95 by ``cv2.imwrite``, then read back the way a recording is
 Subtractors: every one OpenCV headless ships (``cv2.createBackgroundSubtractor*``: MOG2 and KNN; the contrib ones,
 ``cv2.bgsegm``, are not in the headless wheel), with and without shadow detection, on the full frame, on the frame
 reduced by 2 per direction (``cv2.INTER_AREA``, what ``ForegroundParams.downscale = 2`` feeds KNN) and on the grey
-frame; each model first learns 10 frames, then ``apply`` is timed at the steady learning rate 1/500.
+frame; each model first learns 10 frames, then ``apply`` is timed at the steady learning rate 1/500. KNN also with
+fewer background samples per pixel (``setNSamples``: ``ForegroundParams.knn_samples``, default 7) and with one
+matching sample instead of 2 (``setkNNSamples``). Every subtractor once per round, ``--repeats`` rounds, minimum.
 
 CPU time (``time.process_time``), one thread (OpenCV's set to 1), the process pinned to one core.
 
-Usage: ``PYTHONPATH=src python benchmarks/bench_front_end.py [--frames 100] [--duration-s 4]``
+Usage: ``PYTHONPATH=src python benchmarks/bench_front_end.py [--frames 100] [--duration-s 4] [--repeats 3]``
 """
 
 from __future__ import annotations
@@ -69,6 +71,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=100)
     ap.add_argument("--duration-s", type=float, default=4.0)
+    ap.add_argument("--repeats", type=int, default=3, help="rounds of the subtractors (interleaved), minimum")
     args = ap.parse_args()
     os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
     cv2.setNumThreads(1)
@@ -89,17 +92,34 @@ def main() -> None:
     subtractors = {
         "KNN (default), shadows": lambda: cv2.createBackgroundSubtractorKNN(500, 400.0, True),
         "KNN, no shadows": lambda: cv2.createBackgroundSubtractorKNN(500, 400.0, False),
+        "KNN, 5 samples per pixel": lambda: _knn(n_samples=5),
+        "KNN, 3 samples per pixel (knn_samples: 3)": lambda: _knn(n_samples=3),
+        "KNN, 1 matching sample (kNNSamples 1)": lambda: _knn(knn=1),
         "MOG2, shadows": lambda: cv2.createBackgroundSubtractorMOG2(500, 16.0, True),
         "MOG2, no shadows": lambda: cv2.createBackgroundSubtractorMOG2(500, 16.0, False),
     }
     others = sorted(a for a in dir(cv2) if a.startswith("createBackgroundSubtractor")) + \
         (sorted(a for a in dir(cv2.bgsegm) if a.startswith("create")) if hasattr(cv2, "bgsegm") else [])
     print(f"\nOpenCV {cv2.__version__}: {', '.join(others)}\n")
+    inputs = {"full": frames, "half": half, "grey": grey}
+    ms: dict[tuple[str, str], list[float]] = {}
+    for _ in range(args.repeats):
+        for name, make in subtractors.items():
+            for kind, data in inputs.items():
+                ms.setdefault((name, kind), []).append(apply_ms(make, data))
     print(f"| subtractor | full {w}x{h} [ms per frame] | 1/2 resolution [ms] | grey [ms] |")
     print("|---|---|---|---|")
-    for name, make in subtractors.items():
-        print(f"| {name} | {apply_ms(make, frames):.2f} | {apply_ms(make, half):.2f} | {apply_ms(make, grey):.2f} |")
+    for name in subtractors:
+        print(f"| {name} | " + " | ".join(f"{min(ms[name, kind]):.2f}" for kind in inputs) + " |")
+    print(f"\nmin of {args.repeats} interleaved rounds; load average at the end {os.getloadavg()[0]:.1f}")
 
+
+def _knn(n_samples: int = 7, knn: int = 2):
+    """OpenCV's default KNN subtractor with ``n_samples`` samples per pixel, ``knn`` of which must match."""
+    model = cv2.createBackgroundSubtractorKNN(500, 400.0, True)
+    model.setNSamples(n_samples)
+    model.setkNNSamples(knn)
+    return model
 
 if __name__ == "__main__":
     main()

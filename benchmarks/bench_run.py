@@ -46,8 +46,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main when this branch started (2026-12-03, issue 19's third pass)
-BEFORE = "d6630e0"
+#: main when this branch started (2026-12-03, issue 19's fourth pass, s6-19)
+BEFORE = "2f2aa07"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}

@@ -224,3 +224,42 @@ def test_workers_take_their_opencv_threads_from_the_cluster_environment(monkeypa
         assert cv2.getNumThreads() == 2
     finally:
         cv2.setNumThreads(before)
+
+
+#: A user's sweep script: its main module imports planefuse (so numba) at the top, as ``scripts/held_out.py`` does;
+#: a spawned worker imports it again before dask's nanny applies the worker's environment.
+_SWEEP_SCRIPT = """
+import json, os
+import numba.np.ufunc.parallel
+from planefuse.batch import batch_client
+
+def pool():
+    return numba.np.ufunc.parallel.NUM_THREADS, os.environ.get("NUMBA_NUM_THREADS")
+
+if __name__ == "__main__":
+    mine = lambda: {k: v for k, v in os.environ.items() if not k.startswith("__DASK")}
+    before = mine()
+    with batch_client(n_workers=1) as client:
+        during = mine()
+        (worker,) = client.run(pool).values()
+    print(json.dumps({"worker": worker, "during": during == before, "after": mine() == before}))
+"""
+
+
+def test_local_cluster_workers_start_single_threaded_and_leave_the_client_environment(tmp_path):
+    """Regression: a LocalCluster's nanny applied the single-thread environment after the spawned worker had
+    imported numba (with the client's main module), whose pool then ran one OpenMP thread per core in every
+    worker (two workers, four spinning threads on two cores: 1.5x the CPU seconds of a sweep). The workers now
+    start with it; the client's own environment is left as it was (dask's nanny copies its pre-spawn variables
+    into it, and numba raises at its next compilation if ``NUMBA_NUM_THREADS`` changes under a launched pool)."""
+    import json
+
+    script = tmp_path / "sweep.py"
+    script.write_text(_SWEEP_SCRIPT)
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS")}
+    env["PYTHONPATH"] = SRC + os.pathsep + os.environ.get("PYTHONPATH", "")
+    env["NUMBA_NUM_THREADS"] = "2"  # the client's pool, whatever this machine's cores
+    out = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=300,
+                         check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got == {"worker": [1, "1"], "during": True, "after": True}

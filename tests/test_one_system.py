@@ -90,6 +90,7 @@ CHANGED = {
     "sensors.cameras.foreground_ceiling": 0.9,
     "sensors.cameras.subtraction_downscale": 2,
     "sensors.cameras.frame_stride": 2,
+    "sensors.cameras.knn_samples": 3,
     "sensors.cameras.generative_people_per_m2": 0.1,
     "sensors.cameras.generative_sigma": 0.01,
     "sensors.cameras.generative_radius_m": 0.3,

@@ -12,8 +12,11 @@ from ._jobs import BatchJob, JobResult, run_job
 __all__ = ["batch_client", "run_batch"]
 
 #: Worker environment for a LocalCluster: one thread per library in each worker process, so that
-#: ``n_workers`` processes use ``n_workers`` cores and a run gives the same numbers on any worker
-#: (:func:`planefuse.batch._jobs.threads_from_environment` applies the numba and OpenCV ones in each task).
+#: ``n_workers`` processes use ``n_workers`` cores and a run gives the same numbers on any worker. It must be in
+#: the process's environment when it starts: numba sizes its thread pool from ``NUMBA_NUM_THREADS`` when it is
+#: imported, which a spawned worker does (importing the client's main module) before dask applies a nanny's
+#: ``env``; set then, each worker ran numba's parallel kernels on one OpenMP thread per core, two workers four
+#: spinning threads on two cores (:func:`batch_client` gives it as dask's ``pre-spawn-environ``).
 SINGLE_THREAD_ENV = {name: "1" for name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                                              "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM")}
 
@@ -54,9 +57,45 @@ def batch_client(scheduler: str | None = None, n_workers: int | None = None) -> 
     env = dict(SINGLE_THREAD_ENV)
     if os.environ.get("PYTHONPATH"):
         env["PYTHONPATH"] = os.environ["PYTHONPATH"]
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                      env=env) as cluster, Client(cluster) as client:
-        yield client
+    with _pre_spawn_environ(env) as restore:
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, env=env)
+        restore()
+        with cluster, Client(cluster) as client:
+            yield client
+
+
+@contextmanager
+def _pre_spawn_environ(env: dict[str, str]) -> Iterator:
+    """Give ``env`` to the worker processes a LocalCluster spawns, from their first instruction, and leave this
+    process's environment as it was.
+
+    ``env`` becomes part of dask's ``distributed.nanny.pre-spawn-environ``, which each nanny reads when it is
+    made (so a worker it restarts gets it too; this process's variables of the same names would win there, so
+    they are set to ``env`` meanwhile). The nanny copies it into this process's ``os.environ`` before it spawns
+    a worker, and leaves it there: here ``NUMBA_NUM_THREADS=1`` in a process whose numba pool may already run
+    more threads, and numba re-reads its environment at every compilation and raises on a different pool size.
+    So the variables this process had are put back once the cluster started (call the yielded ``restore()``)
+    and again on exit (a nanny restarting a worker sets them again).
+    """
+    import dask
+
+    pre_spawn = {**dask.config.get("distributed.nanny.pre-spawn-environ"), **env}
+    keys = set(pre_spawn) | {"PYTHONHASHSEED"}  # the nanny also sets a hash seed
+    saved = {k: os.environ.get(k) for k in keys}
+    os.environ.update(env)
+
+    def restore() -> None:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+    try:
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": pre_spawn}):
+            yield restore
+    finally:
+        restore()
 
 
 def run_batch(jobs: Sequence[BatchJob], scheduler: str | None = None, n_workers: int | None = None,

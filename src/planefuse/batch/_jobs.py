@@ -100,16 +100,18 @@ class JobResult:
 
 
 def threads_from_environment() -> None:
-    """Make numba and OpenCV take their thread counts from the environment now, before any kernel starts.
+    """Give OpenCV the environment's thread count, and numba's configuration the environment's, before any kernel.
 
-    A dask worker process is spawned, imports the batch's main module (and numba, which reads
-    ``NUMBA_NUM_THREADS`` then: unset, so one per core), and only afterwards gets the cluster's environment
-    (``NUMBA_NUM_THREADS=1``). If a kernel started the pool before numba re-read its environment, the next
-    re-read raised "Cannot set NUMBA_NUM_THREADS to a different value once the threads have been launched"
-    (seen once in an 18-run sweep). Re-reading first, in every task, starts the pool with the cluster's value;
-    where nothing changed it is a no-op. OpenCV's pool has one thread per core unless
-    ``OPENCV_FOR_THREADS_NUM`` says otherwise, which it reads once: each of two single-threaded workers on two
-    cores otherwise ran OpenCV (background subtraction, morphology, warps) on two threads.
+    A worker whose environment arrives after it imported numba (a nanny's ``env``: the spawned process imports
+    the client's main module first) has a numba pool sized from the environment it started with: numba reads
+    ``NUMBA_NUM_THREADS`` for that once, at import, which is why :func:`planefuse.batch.batch_client` gives its
+    LocalCluster's workers their environment before they start. What re-reading the configuration here still
+    does: numba re-reads it at each compilation and raised "Cannot set NUMBA_NUM_THREADS to a different value
+    once the threads have been launched" (seen once in an 18-run sweep) when a kernel started the pool before
+    that; re-reading before any kernel makes the configured and launched values agree. OpenCV's pool has one
+    thread per core unless ``OPENCV_FOR_THREADS_NUM`` says otherwise, which it reads once: each of two
+    single-threaded workers on two cores otherwise ran OpenCV (background subtraction, morphology, warps) on two
+    threads.
     """
     import numba
 

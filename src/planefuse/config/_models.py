@@ -245,6 +245,10 @@ class CameraSensorConfig(_Model):
         "of the pixels), the likelihood interpolated back to full size; 1 = full resolution",
         expected="an integer >= 1", library="system.camera_params.foreground.downscale",
     )
+    knn_samples: int = _field(
+        description="KNN background samples kept per pixel (OpenCV's nSamples; fewer are faster, 3 = 17 % less "
+        "KNN time than 7)", expected="an integer >= 2", library="system.camera_params.foreground.knn_samples",
+    )
     frame_stride: int = _field(
         description="Process every k-th synchronised camera instant (the others are not read; the background "
         "models learn from the processed frames); 1 = every frame",

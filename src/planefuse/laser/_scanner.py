@@ -453,4 +453,7 @@ def scans_from_arrays(times_s, angles_rad, ranges_m, tilt_rad, T_world_laser, ra
         raise ValueError(f"T_world_laser must be (4, 4) or (S, 4, 4) = {(t.size, 4, 4)}, got {T.shape}")
     if nan_is_no_return:
         r = np.where(np.isnan(r), np.inf, r)
-    return [LaserScan(float(t[k]), a, r[k], tilt[k], range_min_m, range_max_m, T[k]) for k in range(t.size)]
+    scans = [LaserScan(float(t[k]), a, r[k], tilt[k], range_min_m, range_max_m) for k in range(t.size)]
+    for scan, T_world_laser_k in zip(scans, T):  # checked above as one stack, not again scan by scan
+        object.__setattr__(scan, "T_world_laser", T_world_laser_k)
+    return scans

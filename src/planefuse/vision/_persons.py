@@ -93,6 +93,18 @@ def _disc(radius_cells: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=16)
+def _offsets(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column offsets (int64, read-only, cached) of the cells within ``radius_cells`` of a centre, in
+    row-major order over the square of side ``2 ceil(radius_cells) + 1``."""
+    r = int(np.ceil(radius_cells))
+    dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
+    within = dy * dy + dx * dx <= radius_cells * radius_cells
+    dy, dx = dy[within].astype(np.int64), dx[within].astype(np.int64)
+    dy.flags.writeable = dx.flags.writeable = False
+    return dy, dx
+
+
+@lru_cache(maxsize=16)
 def _disc_u8(radius_cells: float) -> np.ndarray:
     """:func:`_disc` as an OpenCV structuring element (uint8, read-only, cached)."""
     disc = _disc(radius_cells).astype(np.uint8)
@@ -200,17 +212,16 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
             keep[i + 1:] &= d2 > r_cells * r_cells
     iy, ix, s = iy[keep], ix[keep], s[keep]
     # Saturated agreement forms plateaus: place each person at the centroid of its plateau (the cells
-    # within the NMS radius scoring within `plateau` of the peak), not at an arbitrary tied cell.
-    r = int(np.ceil(r_cells))
-    fy, fx = iy.astype(float), ix.astype(float)
-    for i in range(len(s)):
-        y0, y1 = max(iy[i] - r, 0), min(iy[i] + r + 1, stack.ny)
-        x0, x1 = max(ix[i] - r, 0), min(ix[i] + r + 1, stack.nx)
-        # np.mgrid[y0:y1, x0:x1]'s values, broadcast instead of built
-        yy, xx = np.broadcast_arrays(np.arange(y0, y1)[:, None], np.arange(x0, x1)[None, :])
-        near = (yy - iy[i]) ** 2 + (xx - ix[i]) ** 2 <= r_cells * r_cells
-        top_cells = near & (score[y0:y1, x0:x1] >= s[i] - _PLATEAU)
-        fy[i], fx[i] = yy[top_cells].mean(), xx[top_cells].mean()
+    # within the NMS radius scoring within `plateau` of the peak), not at an arbitrary tied cell. All peaks at
+    # once: (peaks, disc cells) index grids, cells off the grid masked out; the centroids are integer sums
+    # divided by the count, the values np.mean gives.
+    dy, dx = _offsets(r_cells)
+    yy, xx = iy[:, None] + dy, ix[:, None] + dx
+    inside = (yy >= 0) & (yy < stack.ny) & (xx >= 0) & (xx < stack.nx)
+    near = score[np.clip(yy, 0, stack.ny - 1), np.clip(xx, 0, stack.nx - 1)]
+    top_cells = inside & (near >= (s - _PLATEAU)[:, None])
+    n = np.count_nonzero(top_cells, axis=1)
+    fy, fx = (yy * top_cells).sum(axis=1) / n, (xx * top_cells).sum(axis=1) / n
     edges = np.asarray(stack.band_edges_m)
     return GroundDetections(
         float(time_s),

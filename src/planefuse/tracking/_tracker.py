@@ -18,6 +18,19 @@ Where the BOF knows nothing about the motion (``var >= var0``: no temporal filte
 ``var_lik > velocity_max_std_m_s^2``, the cluster is a *position* measurement only (``H`` = the first two
 rows of ``I_4``); a blob holding two people moving apart (a spread of velocities) weighs little.
 
+Temporally correlated velocities. The BOF's velocity law in a cell is the product of every frame of evidence over
+its memory, ``tau_v = 1 / velocity_noise_rate_hz`` (the rate at which its mass changes velocity hypothesis): two
+clusters of the same person ``dt`` apart carry, for ``dt < tau_v``, mostly the same evidence about the motion.
+Fused as independent measurements at every step, that evidence was counted ``tau_v / dt`` times: the track's
+velocity became as certain as the BOF's and as late, carried on at a stop or a turn (the BOF's velocity lags it by
+a fraction of a second) onto the next person or past the person's new position, an identity switch. The velocity
+block of ``R`` is therefore scaled, for association and update alike, as the pipeline weights a camera's frames
+(:mod:`planefuse.tracking._async`)::
+
+    R_vv <- R_vv max(1, tau_v / dt)
+
+i.e. one whole velocity measurement per ``tau_v``. A new track still takes its cluster's velocity with ``R``.
+
 Each step (``dt`` since the last one):
 
 1. predict (filterpy ``predict``)::
@@ -54,7 +67,10 @@ Each step (``dt`` since the last one):
    another confirmed track moving differently (velocities at least ``share_min_relative_speed_m_s``
    apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
    row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
-   (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
+   (the blob's centre lies between the two people), so each keeps its own velocity through the merge. A merge
+   begins only for a track that had evidence of its own (a cluster, support or a share) at the previous step: a
+   track already lost, its covariance grown, would be dragged onto whoever walks by (a person standing unseen,
+   pulled onto a passer-by, then switched with them);
 6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the
    column evidence ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its prediction, away (more than
    ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
@@ -69,8 +85,11 @@ Each step (``dt`` since the last one):
    filter's evidence too weak), may take a cluster no track took inside its position gate, with the distance cap
    widened to ``gate_m + reacquire_speed_m_s (k + 1) dt``; every gated pair is formed (the alternative is a new
    track on the same cluster, not a ghost), globally by the costs of step 3. The track becomes *tentative*
-   again, as a track born on that cluster would be (reported after ``confirm_hits`` hits in a row, ended at its
-   first miss: a ghost it took dies as a ghost's track would), but keeps its id;
+   again, as a track born on that cluster would be (reported after ``confirm_hits`` hits in a row: a ghost it
+   took is not reported), but keeps its id. At a miss before it is confirmed again it is *lost* again, its misses
+   counted on from where they stood before the re-acquisition (deleted after ``max_misses`` as before), rather than
+   ended: where the filter holds a person weakly (a turn, a stop: a cluster every other step), ending it handed the
+   person a new id at the next cluster;
 8. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
@@ -84,7 +103,8 @@ Track management (states of a track)
 * **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its
   prediction and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
   ``last cluster confidence x 0.5^misses``;
-* **re-acquired**: a lost confirmed track that took a free cluster (step 7): tentative again, same id;
+* **re-acquired**: a lost confirmed track that took a free cluster (step 7): tentative again, same id; at a miss,
+  coasting again with its misses before the re-acquisition plus one;
 * **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
 
 Step counts are in output steps (scale them with the output rate).
@@ -105,7 +125,8 @@ from .._state import StateDict, float_or_none, get, optional_float
 from ._bof import BOFParams, velocity_grid_m_s
 from ._clustering import Clusters
 
-__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks", "cluster_measurements", "velocity_prior_variance_m2_s2"]
+__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks", "cluster_measurements", "velocity_correlation_time_s",
+           "velocity_prior_variance_m2_s2"]
 
 _H_POS = np.eye(2, 4)  # position rows of the state
 
@@ -242,6 +263,7 @@ class _Track:
     confirmed: bool = False
     shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
     supported_s: float = 0.0  # time [s] this track has been supported by weak evidence since its last cluster
+    lost_misses: int = 0  # re-acquired (tentative again): the misses it had when it was re-acquired, else 0
 
 
 def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):
@@ -266,6 +288,12 @@ def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_pri
     return z, R, has_v
 
 
+def velocity_correlation_time_s(bof: BOFParams) -> float:
+    """Memory [s] of the BOF's velocity law, ``1 / velocity_noise_rate_hz`` (infinite without velocity noise): the
+    time over which the velocities of its clusters carry the same evidence (module docstring)."""
+    return 1.0 / bof.velocity_noise_rate_hz if bof.velocity_noise_rate_hz > 0 else float("inf")
+
+
 def velocity_prior_variance_m2_s2(bof: BOFParams) -> float:
     """Variance [m^2/s^2] per axis of the BOF's uniform law over its velocity hypotheses, ``mean(v_k,x^2)``."""
     return float(np.mean(velocity_grid_m_s(bof)[:, 0] ** 2))
@@ -284,13 +312,18 @@ class MultiPersonTracker:
         Prior variance [m^2/s^2] per axis of the velocity law behind the clusters' velocities (the BOF's
         uniform law over its hypotheses, :func:`velocity_prior_variance_m2_s2`), divided out of them; None:
         the cluster velocities are likelihoods already.
+    velocity_correlation_s : float, optional
+        ``tau_v`` [s]: the time over which the clusters' velocities carry the same evidence (the BOF's velocity
+        memory, :func:`velocity_correlation_time_s`); their covariance is scaled by ``max(1, tau_v / dt)`` (module
+        docstring); None: independent from step to step.
     """
 
     def __init__(self, params: TrackerParams | None = None, extent_m=None,
-                 velocity_prior_var_m2_s2: float | None = None) -> None:
+                 velocity_prior_var_m2_s2: float | None = None, velocity_correlation_s: float | None = None) -> None:
         self.params = params if params is not None else TrackerParams()
         self.extent_m = extent_m
         self.velocity_prior_var_m2_s2 = velocity_prior_var_m2_s2
+        self.velocity_correlation_s = velocity_correlation_s
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
         self._next_id = 1
@@ -339,18 +372,19 @@ class MultiPersonTracker:
             for tr in self.tracks:
                 tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
         z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
+        R_step = self._decorrelate(R, dt)  # for associations and updates; a birth takes one velocity, R
         free = np.ones(len(clusters), bool)
         owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
         matched: set[int] = set()
         for group in ([tr for tr in self.tracks if tr.confirmed], [tr for tr in self.tracks if not tr.confirmed]):
-            for ti, ci in self._associate(group, z, R, has_v, free):
+            for ti, ci in self._associate(group, z, R_step, has_v, free):
                 tr = group[ti]
                 free[ci] = False
                 matched.add(tr.id)
                 if tr.confirmed:
                     owner[ci] = tr
                 else:
-                    self._update(tr, z[ci], R[ci], clusters, ci, position_only=not has_v[ci])
+                    self._update(tr, z[ci], R_step[ci], clusters, ci, position_only=not has_v[ci])
         taken = z[~free, :2]
         for tr in self.tracks:  # step 6 before 5: a mode of its own is better evidence than a shared blob
             if tr.id in matched:
@@ -360,16 +394,18 @@ class MultiPersonTracker:
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
-            self._update(tr, z[ci], R[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
+            self._update(tr, z[ci], R_step[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
                          merged=ci in sharers)
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
                 matched.add(sharer.id)
-        self._reacquire(matched, z, R, has_v, free, clusters, dt)
+        self._reacquire(matched, z, R_step, has_v, free, clusters, dt)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:
                 tr.misses += 1
+                if not tr.confirmed and tr.lost_misses:  # re-acquired, missed again: lost as before, not ended
+                    tr.confirmed, tr.misses, tr.lost_misses = True, tr.lost_misses + 1, 0
                 if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.x[:2]):
                     continue
             alive.append(tr)
@@ -405,8 +441,18 @@ class MultiPersonTracker:
             tr.supported_s = 0.0
             # tentative again, as a track born on this cluster would be: reported after confirm_hits hits in a row,
             # ended at its first miss (a ghost it took), but under its own id
-            tr.confirmed, tr.hits = False, 0
+            tr.confirmed, tr.hits, tr.lost_misses = False, 0, tr.misses
             self._update(tr, z[ci], R[ci], clusters, ci, position_only=True)
+
+    def _decorrelate(self, R: np.ndarray, dt: float) -> np.ndarray:
+        """The clusters' measurement covariances ``R`` (N, 4, 4) with the velocity block scaled by
+        ``max(1, tau / dt)`` (module docstring, "Temporally correlated velocities")."""
+        tau = self.velocity_correlation_s
+        if tau is None or dt <= 0 or tau <= dt:
+            return R
+        out = R.copy()
+        out[:, 2:, 2:] *= tau / dt
+        return out
 
     def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
                 position_only: bool = False, merged: bool = False) -> None:
@@ -423,6 +469,8 @@ class MultiPersonTracker:
         tr.hits += 1
         tr.misses = 0
         tr.confirmed = tr.confirmed or tr.hits >= self.params.confirm_hits
+        if tr.confirmed:
+            tr.lost_misses = 0
 
     def _sharers(self, owner: dict[int, _Track], matched: set[int], z: np.ndarray, R: np.ndarray,
                  dt: float) -> dict[int, list[_Track]]:
@@ -433,7 +481,9 @@ class MultiPersonTracker:
             return out
         cis = np.array(list(owner))
         for tr in self.tracks:
-            if not tr.confirmed or tr.id in matched or tr.shared_s + dt > p.max_shared_s:
+            # a merge begins where the track still had evidence of its own at the previous step: a track already
+            # lost, whose covariance has grown, would be pulled onto whoever walks by
+            if not tr.confirmed or tr.id in matched or tr.misses > 0 or tr.shared_s + dt > p.max_shared_s:
                 continue
             y = z[cis, :2] - tr.x[:2]
             S = tr.P[:2, :2] + R[cis, :2, :2] + p.merged_position_std_m**2 * np.eye(2)
@@ -503,7 +553,7 @@ class MultiPersonTracker:
 
     # -- checkpoint ------------------------------------------------------------------------------------------------
     _TRACK_FIELDS = ("id", "x", "P", "height", "confidence", "hits", "misses", "confirmed", "shared_s",
-                     "supported_s")
+                     "supported_s", "lost_misses")
 
     def state_dict(self) -> StateDict:
         """Every track (tentative ones included: state ``x`` (N, 4), covariance ``P`` (N, 4, 4) and the
@@ -522,6 +572,7 @@ class MultiPersonTracker:
             "confirmed": np.array([t.confirmed for t in tr], dtype=bool),
             "shared_s": np.array([t.shared_s for t in tr], dtype=float),
             "supported_s": np.array([t.supported_s for t in tr], dtype=float),
+            "lost_misses": np.array([t.lost_misses for t in tr], dtype=np.int64),
         }
 
     def load_state_dict(self, state) -> None:
@@ -538,7 +589,8 @@ class MultiPersonTracker:
             _Track(int(cols["id"][i]), np.array(cols["x"][i], dtype=float), np.array(cols["P"][i], dtype=float),
                    float(cols["height"][i]), float(cols["confidence"][i]), hits=int(cols["hits"][i]),
                    misses=int(cols["misses"][i]), confirmed=bool(cols["confirmed"][i]),
-                   shared_s=float(cols["shared_s"][i]), supported_s=float(cols["supported_s"][i]))
+                   shared_s=float(cols["shared_s"][i]), supported_s=float(cols["supported_s"][i]),
+                   lost_misses=int(cols["lost_misses"][i]))
             for i in range(n)
         ]
         self.time_s = float_or_none(get(state, "time_s", "tracker"))

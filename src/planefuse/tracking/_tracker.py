@@ -22,14 +22,16 @@ Temporally correlated velocities. The BOF's velocity law in a cell is the produc
 its memory, ``tau_v = 1 / velocity_noise_rate_hz`` (the rate at which its mass changes velocity hypothesis): two
 clusters of the same person ``dt`` apart carry, for ``dt < tau_v``, mostly the same evidence about the motion.
 Fused as independent measurements at every step, that evidence was counted ``tau_v / dt`` times: the track's
-velocity became as certain as the BOF's and as late, carried on at a stop or a turn (the BOF's velocity lags it by
-a fraction of a second) onto the next person or past the person's new position, an identity switch. The velocity
-block of ``R`` is therefore scaled, for association and update alike, as the pipeline weights a camera's frames
+velocity became as certain as the BOF's and as late, carried on at a stop or a turn (the BOF's velocity lags the
+person's by up to its memory) onto the next person or past the person's new position, an identity switch. In the Kalman
+update (step 4) the velocity block of ``R`` is therefore scaled, as the pipeline weights a camera's frames
 (:mod:`planefuse.tracking._async`)::
 
     R_vv <- R_vv max(1, tau_v / dt)
 
-i.e. one whole velocity measurement per ``tau_v``. A new track still takes its cluster's velocity with ``R``.
+i.e. one whole velocity measurement per ``tau_v`` enters a track's state. Association (steps 3, 7) weighs each
+step's hypotheses once, against each other, and accumulates nothing: it takes ``R`` (the cluster's velocity still
+tells two people crossing apart), as does a new track (step 8: its first and only velocity so far).
 
 Each step (``dt`` since the last one):
 
@@ -61,8 +63,8 @@ Each step (``dt`` since the last one):
    identity switch; the ``ln det`` term makes a wide (coasting) track a worse explanation than a tight one
    at the same Mahalanobis distance. Confirmed tracks are served first, tentative ones get the remaining
    clusters;
-4. update every matched track (filterpy ``update``, Joseph form) with its cluster; height and confidence
-   are copied from it;
+4. update every matched track (filterpy ``update``, Joseph form) with its cluster (velocity block of ``R``
+   scaled by ``max(1, tau_v / dt)``, above); height and confidence are copied from it;
 5. merged people: a confirmed track left without a cluster whose position gate holds a cluster taken by
    another confirmed track moving differently (velocities at least ``share_min_relative_speed_m_s``
    apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
@@ -314,8 +316,8 @@ class MultiPersonTracker:
         the cluster velocities are likelihoods already.
     velocity_correlation_s : float, optional
         ``tau_v`` [s]: the time over which the clusters' velocities carry the same evidence (the BOF's velocity
-        memory, :func:`velocity_correlation_time_s`); their covariance is scaled by ``max(1, tau_v / dt)`` (module
-        docstring); None: independent from step to step.
+        memory, :func:`velocity_correlation_time_s`); their covariance is scaled by ``max(1, tau_v / dt)`` in the Kalman
+        update (module docstring); None: independent from step to step.
     """
 
     def __init__(self, params: TrackerParams | None = None, extent_m=None,
@@ -372,19 +374,19 @@ class MultiPersonTracker:
             for tr in self.tracks:
                 tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
         z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
-        R_step = self._decorrelate(R, dt)  # for associations and updates; a birth takes one velocity, R
+        R_upd = self._decorrelate(R, dt)  # what a Kalman update takes in; association and birth take R
         free = np.ones(len(clusters), bool)
         owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
         matched: set[int] = set()
         for group in ([tr for tr in self.tracks if tr.confirmed], [tr for tr in self.tracks if not tr.confirmed]):
-            for ti, ci in self._associate(group, z, R_step, has_v, free):
+            for ti, ci in self._associate(group, z, R, has_v, free):
                 tr = group[ti]
                 free[ci] = False
                 matched.add(tr.id)
                 if tr.confirmed:
                     owner[ci] = tr
                 else:
-                    self._update(tr, z[ci], R_step[ci], clusters, ci, position_only=not has_v[ci])
+                    self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=not has_v[ci])
         taken = z[~free, :2]
         for tr in self.tracks:  # step 6 before 5: a mode of its own is better evidence than a shared blob
             if tr.id in matched:
@@ -394,12 +396,12 @@ class MultiPersonTracker:
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
-            self._update(tr, z[ci], R_step[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
+            self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
                          merged=ci in sharers)
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
                 matched.add(sharer.id)
-        self._reacquire(matched, z, R_step, has_v, free, clusters, dt)
+        self._reacquire(matched, z, R, has_v, free, clusters, dt)
         alive = []
         for tr in self.tracks:
             if tr.id not in matched:

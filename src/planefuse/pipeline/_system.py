@@ -25,9 +25,8 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 7  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
+CHECKPOINT_FORMAT = 6  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
 #                       4: the report's laser-point stride; 5: the tracks' supported time; 6: cameras weighted each
-#                       (by the time since their own previous live frame); 7: re-acquired tracks' lost misses
 
 
 def system_laser_model() -> LaserSensorModel:

@@ -87,11 +87,8 @@ Each step (``dt`` since the last one):
    filter's evidence too weak), may take a cluster no track took inside its position gate, with the distance cap
    widened to ``gate_m + reacquire_speed_m_s (k + 1) dt``; every gated pair is formed (the alternative is a new
    track on the same cluster, not a ghost), globally by the costs of step 3. The track becomes *tentative*
-   again, as a track born on that cluster would be (reported after ``confirm_hits`` hits in a row: a ghost it
-   took is not reported), but keeps its id. At a miss before it is confirmed again it is *lost* again, its misses
-   counted on from where they stood before the re-acquisition (deleted after ``max_misses`` as before), rather than
-   ended: where the filter holds a person weakly (a turn, a stop: a cluster every other step), ending it handed the
-   person a new id at the next cluster;
+   again, as a track born on that cluster would be (reported after ``confirm_hits`` hits in a row, ended at its
+   first miss: a ghost it took dies as a ghost's track would), but keeps its id;
 8. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
@@ -105,8 +102,7 @@ Track management (states of a track)
 * **coasting**: confirmed, without a cluster (or support) for ``misses`` consecutive steps: it moves on its
   prediction and ``P`` grows; reported while ``misses <= max_coast_report``, with confidence
   ``last cluster confidence x 0.5^misses``;
-* **re-acquired**: a lost confirmed track that took a free cluster (step 7): tentative again, same id; at a miss,
-  coasting again with its misses before the re-acquisition plus one;
+* **re-acquired**: a lost confirmed track that took a free cluster (step 7): tentative again, same id;
 * **deleted**: a coasting track with ``misses > max_misses``, or whose prediction leaves the grid.
 
 Step counts are in output steps (scale them with the output rate).
@@ -265,7 +261,6 @@ class _Track:
     confirmed: bool = False
     shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
     supported_s: float = 0.0  # time [s] this track has been supported by weak evidence since its last cluster
-    lost_misses: int = 0  # re-acquired (tentative again): the misses it had when it was re-acquired, else 0
 
 
 def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):
@@ -406,8 +401,6 @@ class MultiPersonTracker:
         for tr in self.tracks:
             if tr.id not in matched:
                 tr.misses += 1
-                if not tr.confirmed and tr.lost_misses:  # re-acquired, missed again: lost as before, not ended
-                    tr.confirmed, tr.misses, tr.lost_misses = True, tr.lost_misses + 1, 0
                 if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.x[:2]):
                     continue
             alive.append(tr)
@@ -443,7 +436,7 @@ class MultiPersonTracker:
             tr.supported_s = 0.0
             # tentative again, as a track born on this cluster would be: reported after confirm_hits hits in a row,
             # ended at its first miss (a ghost it took), but under its own id
-            tr.confirmed, tr.hits, tr.lost_misses = False, 0, tr.misses
+            tr.confirmed, tr.hits = False, 0
             self._update(tr, z[ci], R[ci], clusters, ci, position_only=True)
 
     def _decorrelate(self, R: np.ndarray, dt: float) -> np.ndarray:
@@ -471,8 +464,6 @@ class MultiPersonTracker:
         tr.hits += 1
         tr.misses = 0
         tr.confirmed = tr.confirmed or tr.hits >= self.params.confirm_hits
-        if tr.confirmed:
-            tr.lost_misses = 0
 
     def _sharers(self, owner: dict[int, _Track], matched: set[int], z: np.ndarray, R: np.ndarray,
                  dt: float) -> dict[int, list[_Track]]:
@@ -555,7 +546,7 @@ class MultiPersonTracker:
 
     # -- checkpoint ------------------------------------------------------------------------------------------------
     _TRACK_FIELDS = ("id", "x", "P", "height", "confidence", "hits", "misses", "confirmed", "shared_s",
-                     "supported_s", "lost_misses")
+                     "supported_s")
 
     def state_dict(self) -> StateDict:
         """Every track (tentative ones included: state ``x`` (N, 4), covariance ``P`` (N, 4, 4) and the
@@ -574,7 +565,6 @@ class MultiPersonTracker:
             "confirmed": np.array([t.confirmed for t in tr], dtype=bool),
             "shared_s": np.array([t.shared_s for t in tr], dtype=float),
             "supported_s": np.array([t.supported_s for t in tr], dtype=float),
-            "lost_misses": np.array([t.lost_misses for t in tr], dtype=np.int64),
         }
 
     def load_state_dict(self, state) -> None:
@@ -591,8 +581,7 @@ class MultiPersonTracker:
             _Track(int(cols["id"][i]), np.array(cols["x"][i], dtype=float), np.array(cols["P"][i], dtype=float),
                    float(cols["height"][i]), float(cols["confidence"][i]), hits=int(cols["hits"][i]),
                    misses=int(cols["misses"][i]), confirmed=bool(cols["confirmed"][i]),
-                   shared_s=float(cols["shared_s"][i]), supported_s=float(cols["supported_s"][i]),
-                   lost_misses=int(cols["lost_misses"][i]))
+                   shared_s=float(cols["shared_s"][i]), supported_s=float(cols["supported_s"][i]))
             for i in range(n)
         ]
         self.time_s = float_or_none(get(state, "time_s", "tracker"))

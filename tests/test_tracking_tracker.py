@@ -445,11 +445,11 @@ def _u_turn(velocity_correlation_s: float | None, turn_s: float) -> list[int]:
 
 @pytest.mark.parametrize("turn_s", [0.4, 0.6, 0.8, 1.0])
 def test_a_walker_turning_back_keeps_his_id_though_the_bof_velocity_lags(turn_s):
-    """Regression (baseline, tuning seeds 1 and 3, 30 s: five of twelve identity switches): the BOF's velocity of a
-    cluster is a posterior over the last second of evidence, and the tracker fused it at every 0.2 s step as if
-    new: five times the same evidence, a track velocity as certain as the BOF's and as late. At a turn the track
-    ran on in the old direction beyond its gate and a new track was born on the person. With the velocity
-    covariance scaled by ``tau_v / dt`` the track follows its clusters' positions through the turn: one id."""
+    """Regression (baseline, tuning seeds 1-3, 30 s: four of twelve identity switches, all at turns): the BOF's
+    velocity of a cluster is a posterior over the last second of evidence, and the tracker fused it at every 0.2 s
+    step as if new: five times the same evidence, a track velocity as certain as the BOF's and as late. At a turn
+    the track ran on in the old direction beyond its gate and a new track was born on the person. With the velocity
+    covariance scaled by ``tau_v / dt`` in the update the track follows its clusters through the turn: one id."""
     ids = _u_turn(velocity_correlation_time_s(BOFParams()), turn_s)
     assert {i for i in ids[3:]} == {ids[3]} != {-1}
     before = {i for i in _u_turn(None, turn_s)[3:] if i != -1}  # each velocity as an independent measurement
@@ -457,10 +457,10 @@ def test_a_walker_turning_back_keeps_his_id_though_the_bof_velocity_lags(turn_s)
 
 
 def test_a_lost_track_does_not_share_a_passer_by_s_cluster():
-    """Regression (baseline, tuning seed 1, t = 8.2 s: two identity switches): a person standing unseen for 1.6 s
-    (his clusters gone) while a walker passes 0.45 m from him. His track, lost and with a grown covariance, took
-    the walker's cluster as a merged blob (step 5), was dragged along and, when the stander's clusters came back,
-    the two tracks traded people. A merge begins only for a track with evidence of its own at the previous step:
+    """Regression (baseline, tuning seed 1, 30 s, t = 8.2 s, with the velocity scaling: two identity switches): a
+    person standing unseen for 1.6 s (his clusters gone) while a walker passes 0.45 m from him. His track, lost and
+    with a grown covariance, took the walker's cluster as a merged blob (step 5), was dragged along and, when the
+    stander's clusters came back, the two tracks traded people. A merge begins only for a track with evidence of its own at the previous step:
     the walker keeps one id, and the stander's id is never on the walker."""
     tr = MultiPersonTracker(TrackerParams(), extent_m=(-10, 10, -10, 10), velocity_prior_var_m2_s2=1.0)
     stander = np.array([3.0, 0.0])

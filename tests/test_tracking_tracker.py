@@ -474,3 +474,24 @@ def test_a_lost_track_does_not_share_a_passer_by_s_cluster():
     stander_ids = {s for _, s in ids if s != -1}
     assert len(walker_ids) == 1 and len(stander_ids) == 1 and walker_ids != stander_ids
 
+
+
+def test_velocity_correlation_time_without_velocity_noise_keeps_velocities_out_of_the_state():
+    """A BOF without velocity noise never forgets a velocity: ``tau_v`` is infinite and the clusters' velocities
+    never enter a track's state (its velocity comes from positions, finite); a non-positive ``tau_v`` is refused."""
+    tau_v = velocity_correlation_time_s(BOFParams(velocity_noise_rate_hz=0.0))
+    assert np.isinf(tau_v)
+    runs = {}
+    for name, tau, vmax in (("inf", tau_v, 2.0), ("position only", None, 1e-3)):
+        tr = MultiPersonTracker(TrackerParams(velocity_max_std_m_s=vmax), extent_m=(-10, 10, -10, 10),
+                                velocity_prior_var_m2_s2=1.0, velocity_correlation_s=tau)
+        for t in np.arange(20) * 0.2:  # clusters whose (confident) velocity 0.5 m/s lags their motion, 0.8 m/s
+            out = tr.step(_clusters(t, [1.0 + 0.8 * t, 0.0], [0.5, 0.0], var=[0.05, 0.05]))
+        runs[name] = out
+    assert np.all(np.isfinite(runs["inf"].velocity_m_s))
+    # as with position-only clusters, but for the birth, which takes its cluster's velocity
+    np.testing.assert_allclose(runs["inf"].velocity_m_s, runs["position only"].velocity_m_s, atol=1e-4)
+    np.testing.assert_allclose(runs["inf"].velocity_m_s[0], [0.8, 0.0], atol=0.05)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="velocity_correlation_s"):
+            MultiPersonTracker(velocity_correlation_s=bad)

@@ -312,7 +312,8 @@ class MultiPersonTracker:
     velocity_correlation_s : float, optional
         ``tau_v`` [s]: the time over which the clusters' velocities carry the same evidence (the BOF's velocity
         memory, :func:`velocity_correlation_time_s`); their covariance is scaled by ``max(1, tau_v / dt)`` in the Kalman
-        update (module docstring); None: independent from step to step.
+        update (module docstring); infinite: the velocities never enter a track's state; None: independent from
+        step to step.
     """
 
     def __init__(self, params: TrackerParams | None = None, extent_m=None,
@@ -320,6 +321,8 @@ class MultiPersonTracker:
         self.params = params if params is not None else TrackerParams()
         self.extent_m = extent_m
         self.velocity_prior_var_m2_s2 = velocity_prior_var_m2_s2
+        if velocity_correlation_s is not None and not velocity_correlation_s > 0:
+            raise ValueError(f"velocity_correlation_s must be > 0 s or None, got {velocity_correlation_s!r}")
         self.velocity_correlation_s = velocity_correlation_s
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
@@ -369,7 +372,7 @@ class MultiPersonTracker:
             for tr in self.tracks:
                 tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
         z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
-        R_upd = self._decorrelate(R, dt)  # what a Kalman update takes in; association and birth take R
+        R_upd, has_v_upd = self._decorrelate(R, has_v, dt)  # what an update takes in; association and birth take R
         free = np.ones(len(clusters), bool)
         owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
         matched: set[int] = set()
@@ -381,7 +384,7 @@ class MultiPersonTracker:
                 if tr.confirmed:
                     owner[ci] = tr
                 else:
-                    self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=not has_v[ci])
+                    self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=not has_v_upd[ci])
         taken = z[~free, :2]
         for tr in self.tracks:  # step 6 before 5: a mode of its own is better evidence than a shared blob
             if tr.id in matched:
@@ -391,7 +394,7 @@ class MultiPersonTracker:
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
-            self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
+            self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=ci in sharers or not has_v_upd[ci],
                          merged=ci in sharers)
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
@@ -439,15 +442,18 @@ class MultiPersonTracker:
             tr.confirmed, tr.hits = False, 0
             self._update(tr, z[ci], R[ci], clusters, ci, position_only=True)
 
-    def _decorrelate(self, R: np.ndarray, dt: float) -> np.ndarray:
+    def _decorrelate(self, R: np.ndarray, has_v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """The clusters' measurement covariances ``R`` (N, 4, 4) with the velocity block scaled by
-        ``max(1, tau / dt)`` (module docstring, "Temporally correlated velocities")."""
+        ``max(1, tau / dt)`` (module docstring, "Temporally correlated velocities"), and which velocities are
+        informative, (N,) bool: none for an infinite ``tau`` (a filter that never forgets a velocity)."""
         tau = self.velocity_correlation_s
         if tau is None or dt <= 0 or tau <= dt:
-            return R
+            return R, has_v
+        if np.isinf(tau):
+            return R, np.zeros_like(has_v)
         out = R.copy()
         out[:, 2:, 2:] *= tau / dt
-        return out
+        return out, has_v
 
     def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
                 position_only: bool = False, merged: bool = False) -> None:

@@ -36,6 +36,7 @@ from planefuse.tracking import (
     MultiPersonTracker,
     cluster_occupancy,
     evidence_from_people,
+    velocity_correlation_time_s,
     velocity_prior_variance_m2_s2,
 )
 
@@ -69,7 +70,8 @@ def bench(stack: PlaneStack, n_people: int, n_steps: int, warm: int = 3) -> dict
     bof_params, cp = BOFParams(), ClusterParams(threshold=1.5)
     bof = BayesianOccupancyFilter(stack, bof_params)
     prev = load_previous_tracker()
-    kalman = MultiPersonTracker(None, stack.extent_m, velocity_prior_variance_m2_s2(bof_params))
+    kalman = MultiPersonTracker(None, stack.extent_m, velocity_prior_variance_m2_s2(bof_params),
+                                velocity_correlation_time_s(bof_params))
     previous = prev.MultiPersonTracker(prev.TrackerParams(), stack.extent_m)
     t_cl_prev, t_cl_new, t_kf, t_nn = [], [], [], []
     heights = np.full(n_people, 1.7)

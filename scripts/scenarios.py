@@ -77,7 +77,7 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
     from planefuse.eval import system_metrics
     from planefuse.pipeline import run_system
     from planefuse.sim import scenario_config, simulate
-    from planefuse.tracking import MultiPersonTracker, velocity_prior_variance_m2_s2
+    from planefuse.tracking import MultiPersonTracker, velocity_correlation_time_s, velocity_prior_variance_m2_s2
 
     scene = scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s)
     rec = simulate(scene)
@@ -92,8 +92,9 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
     dets = [o.detections.xy_m for o in outs]
     extent = result.stack.extent_m
     # the "no filter" run's BOF still holds the uniform velocity law: its prior is the same
-    prior_var = velocity_prior_variance_m2_s2(params.tracking.bof)
-    makers = {name: (lambda tp=tp: MultiPersonTracker(tp, extent, prior_var)) for name, tp in trackers.items()}
+    bof = params.tracking.bof
+    prior_var, tau_v = velocity_prior_variance_m2_s2(bof), velocity_correlation_time_s(bof)
+    makers = {name: (lambda tp=tp: MultiPersonTracker(tp, extent, prior_var, tau_v)) for name, tp in trackers.items()}
     if previous_source is not None:
         prev = load_previous_tracker(previous_source)
         makers["previous"] = lambda: prev.MultiPersonTracker(prev.TrackerParams(), extent)

@@ -9,6 +9,7 @@ import pytest
 from planefuse.eval import tracking_metrics
 from planefuse.grid import PlaneStack
 from planefuse.tracking import (
+    BOFParams,
     ClusterParams,
     Clusters,
     MultiPersonTracker,
@@ -18,6 +19,7 @@ from planefuse.tracking import (
     cluster_occupancy,
     evidence_from_people,
     track_evidence,
+    velocity_correlation_time_s,
     velocity_variance_m2_s2,
 )
 
@@ -415,3 +417,81 @@ def test_a_lost_track_reacquires_its_person_where_he_reappears_off_its_predictio
     assert ids[-1][1] == ids[5][1] != -1 and ids[-1][1] not in walker_ids
     previous = {w for w, _ in _stop_and_turn(TrackerParams(reacquire_speed_m_s=None)) if w != -1}
     assert len(previous) == 2
+
+
+def _u_turn(velocity_correlation_s: float | None, turn_s: float) -> list[int]:
+    """Matched id of a walker per 0.2 s step (1.2 m/s along -y) who turns back (his velocity rotated by 180 deg
+    over ``turn_s``) at t = 2 s. His clusters sit on him, but their velocity is the BOF's: a first-order lag of
+    1 s (the BOF's velocity memory, ``1 / velocity_noise_rate_hz``) of his own, with the confident posterior
+    variance 0.12 m^2/s^2 a walking blob gets."""
+    tau_v = velocity_correlation_time_s(BOFParams())
+    assert tau_v == pytest.approx(1.0)
+    tr = MultiPersonTracker(TrackerParams(), extent_m=(-10, 10, -10, 10), velocity_prior_var_m2_s2=1.0,
+                            velocity_correlation_s=velocity_correlation_s)
+    dt = 0.2
+    xy, v = np.array([0.0, 5.0]), np.array([0.3, -1.2])
+    v_bof = v.copy()
+    ids = []
+    for k in range(30):
+        t = k * dt
+        if 2.0 - 1e-9 <= t < 2.0 + turn_s - 1e-9:
+            a = np.pi * dt / turn_s
+            v = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]) @ v
+        xy = xy + v * dt if k else xy
+        v_bof = v_bof + (v - v_bof) * (1 - np.exp(-dt / tau_v))
+        ids.append(_matched_ids(tr.step(_clusters(t, xy, v_bof, var=[0.12, 0.12])), [xy])[0])
+    return ids
+
+
+@pytest.mark.parametrize("turn_s", [0.4, 0.6, 0.8, 1.0])
+def test_a_walker_turning_back_keeps_his_id_though_the_bof_velocity_lags(turn_s):
+    """Regression (baseline, tuning seeds 1-3, 30 s: four of twelve identity switches, all at turns): the BOF's
+    velocity of a cluster is a posterior over the last second of evidence, and the tracker fused it at every 0.2 s
+    step as if new: five times the same evidence, a track velocity as certain as the BOF's and as late. At a turn
+    the track ran on in the old direction beyond its gate and a new track was born on the person. With the velocity
+    covariance scaled by ``tau_v / dt`` in the update the track follows its clusters through the turn: one id."""
+    ids = _u_turn(velocity_correlation_time_s(BOFParams()), turn_s)
+    assert {i for i in ids[3:]} == {ids[3]} != {-1}
+    before = {i for i in _u_turn(None, turn_s)[3:] if i != -1}  # each velocity as an independent measurement
+    assert len(before) == 2
+
+
+def test_a_lost_track_does_not_share_a_passer_by_s_cluster():
+    """Regression (baseline, tuning seed 1, 30 s, t = 8.2 s, with the velocity scaling: two identity switches): a
+    person standing unseen for 1.6 s (his clusters gone) while a walker passes 0.45 m from him. His track, lost and
+    with a grown covariance, took the walker's cluster as a merged blob (step 5), was dragged along and, when the
+    stander's clusters came back, the two tracks traded people. A merge begins only for a track with evidence of its own at the previous step:
+    the walker keeps one id, and the stander's id is never on the walker."""
+    tr = MultiPersonTracker(TrackerParams(), extent_m=(-10, 10, -10, 10), velocity_prior_var_m2_s2=1.0)
+    stander = np.array([3.0, 0.0])
+    ids = []
+    for t in np.arange(25) * 0.2:
+        walker = np.array([1.25 * t, 0.45])
+        xy = [walker] + ([] if 1.0 - 1e-9 <= t < 2.6 - 1e-9 else [stander])
+        ids.append(_matched_ids(tr.step(_clusters(t, xy, np.zeros((len(xy), 2)), var=np.ones((len(xy), 2)))),
+                                [walker, stander]))
+    walker_ids = {w for w, _ in ids if w != -1}
+    stander_ids = {s for _, s in ids if s != -1}
+    assert len(walker_ids) == 1 and len(stander_ids) == 1 and walker_ids != stander_ids
+
+
+
+def test_velocity_correlation_time_without_velocity_noise_keeps_velocities_out_of_the_state():
+    """A BOF without velocity noise never forgets a velocity: ``tau_v`` is infinite and the clusters' velocities
+    never enter a track's state (its velocity comes from positions, finite); a non-positive ``tau_v`` is refused."""
+    tau_v = velocity_correlation_time_s(BOFParams(velocity_noise_rate_hz=0.0))
+    assert np.isinf(tau_v)
+    runs = {}
+    for name, tau, vmax in (("inf", tau_v, 2.0), ("position only", None, 1e-3)):
+        tr = MultiPersonTracker(TrackerParams(velocity_max_std_m_s=vmax), extent_m=(-10, 10, -10, 10),
+                                velocity_prior_var_m2_s2=1.0, velocity_correlation_s=tau)
+        for t in np.arange(20) * 0.2:  # clusters whose (confident) velocity 0.5 m/s lags their motion, 0.8 m/s
+            out = tr.step(_clusters(t, [1.0 + 0.8 * t, 0.0], [0.5, 0.0], var=[0.05, 0.05]))
+        runs[name] = out
+    assert np.all(np.isfinite(runs["inf"].velocity_m_s))
+    # as with position-only clusters, but for the birth, which takes its cluster's velocity
+    np.testing.assert_allclose(runs["inf"].velocity_m_s, runs["position only"].velocity_m_s, atol=1e-4)
+    np.testing.assert_allclose(runs["inf"].velocity_m_s[0], [0.8, 0.0], atol=0.05)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="velocity_correlation_s"):
+            MultiPersonTracker(velocity_correlation_s=bad)

@@ -22,7 +22,8 @@ from ._bof_numpy import bof_predict_numpy, bof_update_numpy
 from ._clustering import ClusterParams, Clusters, cluster_occupancy, column_log_odds, velocity_variance_m2_s2
 from ._pipeline import EvidenceTracker, TrackerOutput, TrackingParams, track_evidence
 from ._synthetic import evidence_from_people
-from ._tracker import MultiPersonTracker, TrackerParams, Tracks, cluster_measurements, velocity_prior_variance_m2_s2
+from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, cluster_measurements, velocity_correlation_time_s,
+                       velocity_prior_variance_m2_s2)
 
 __all__ = [
     "AsyncEvidenceBuffer",
@@ -52,6 +53,7 @@ __all__ = [
     "transition_probabilities",
     "velocity_grid_m_s",
     "velocity_variance_m2_s2",
+    "velocity_correlation_time_s",
     "velocity_prior_variance_m2_s2",
     "cluster_measurements",
 ]

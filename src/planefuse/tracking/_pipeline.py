@@ -19,7 +19,8 @@ from ..grid import LOG_ODDS_CLIP, Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
 from ._clustering import ClusterParams, Clusters, cluster_occupancy
-from ._tracker import MultiPersonTracker, TrackerParams, Tracks, velocity_prior_variance_m2_s2
+from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, velocity_correlation_time_s,
+                       velocity_prior_variance_m2_s2)
 from .._params import check_fields
 
 __all__ = ["EvidenceTracker", "TrackerOutput", "TrackingParams", "track_evidence"]
@@ -137,7 +138,8 @@ class EvidenceTracker:
                                           correlation_s=self.params.evidence_correlation_s)
         self.bof = BayesianOccupancyFilter(stack, self.params.bof)
         self.tracker = MultiPersonTracker(self.params.tracker, stack.extent_m,
-                                          velocity_prior_variance_m2_s2(self.params.bof))
+                                          velocity_prior_variance_m2_s2(self.params.bof),
+                                          velocity_correlation_time_s(self.params.bof))
         self.next_output_s: float | None = None
         self.sensors: list[str] = []
         #: outputs given so far (the index of the next output step)

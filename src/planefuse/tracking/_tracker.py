@@ -18,6 +18,21 @@ Where the BOF knows nothing about the motion (``var >= var0``: no temporal filte
 ``var_lik > velocity_max_std_m_s^2``, the cluster is a *position* measurement only (``H`` = the first two
 rows of ``I_4``); a blob holding two people moving apart (a spread of velocities) weighs little.
 
+Temporally correlated velocities. The BOF's velocity law in a cell is the product of every frame of evidence over
+its memory, ``tau_v = 1 / velocity_noise_rate_hz`` (the rate at which its mass changes velocity hypothesis): two
+clusters of the same person ``dt`` apart carry, for ``dt < tau_v``, mostly the same evidence about the motion.
+Fused as independent measurements at every step, that evidence was counted ``tau_v / dt`` times: the track's
+velocity became as certain as the BOF's and as late, carried on at a stop or a turn (the BOF's velocity lags the
+person's by up to its memory) onto the next person or past the person's new position, an identity switch. In the Kalman
+update (step 4) the velocity block of ``R`` is therefore scaled, as the pipeline weights a camera's frames
+(:mod:`planefuse.tracking._async`)::
+
+    R_vv <- R_vv max(1, tau_v / dt)
+
+i.e. one whole velocity measurement per ``tau_v`` enters a track's state. Association (steps 3, 7) weighs each
+step's hypotheses once, against each other, and accumulates nothing: it takes ``R`` (the cluster's velocity still
+tells two people crossing apart), as does a new track (step 8: its first and only velocity so far).
+
 Each step (``dt`` since the last one):
 
 1. predict (filterpy ``predict``)::
@@ -48,13 +63,16 @@ Each step (``dt`` since the last one):
    identity switch; the ``ln det`` term makes a wide (coasting) track a worse explanation than a tight one
    at the same Mahalanobis distance. Confirmed tracks are served first, tentative ones get the remaining
    clusters;
-4. update every matched track (filterpy ``update``, Joseph form) with its cluster; height and confidence
-   are copied from it;
+4. update every matched track (filterpy ``update``, Joseph form) with its cluster (velocity block of ``R``
+   scaled by ``max(1, tau_v / dt)``, above); height and confidence are copied from it;
 5. merged people: a confirmed track left without a cluster whose position gate holds a cluster taken by
    another confirmed track moving differently (velocities at least ``share_min_relative_speed_m_s``
    apart: people crossing, not a duplicate of the owner) *shares* it for at most ``max_shared_s`` in a
    row: both are updated with its position only, with the extra variance ``merged_position_std_m^2``
-   (the blob's centre lies between the two people), so each keeps its own velocity through the merge;
+   (the blob's centre lies between the two people), so each keeps its own velocity through the merge. A merge
+   begins only for a track that had evidence of its own (a cluster, support or a share) at the previous step: a
+   track already lost, its covariance grown, would be dragged onto whoever walks by (a person standing unseen,
+   pulled onto a passer-by, then switched with them);
 6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the
    column evidence ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its prediction, away (more than
    ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
@@ -105,7 +123,8 @@ from .._state import StateDict, float_or_none, get, optional_float
 from ._bof import BOFParams, velocity_grid_m_s
 from ._clustering import Clusters
 
-__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks", "cluster_measurements", "velocity_prior_variance_m2_s2"]
+__all__ = ["MultiPersonTracker", "TrackerParams", "Tracks", "cluster_measurements", "velocity_correlation_time_s",
+           "velocity_prior_variance_m2_s2"]
 
 _H_POS = np.eye(2, 4)  # position rows of the state
 
@@ -266,6 +285,12 @@ def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_pri
     return z, R, has_v
 
 
+def velocity_correlation_time_s(bof: BOFParams) -> float:
+    """Memory [s] of the BOF's velocity law, ``1 / velocity_noise_rate_hz`` (infinite without velocity noise): the
+    time over which the velocities of its clusters carry the same evidence (module docstring)."""
+    return 1.0 / bof.velocity_noise_rate_hz if bof.velocity_noise_rate_hz > 0 else float("inf")
+
+
 def velocity_prior_variance_m2_s2(bof: BOFParams) -> float:
     """Variance [m^2/s^2] per axis of the BOF's uniform law over its velocity hypotheses, ``mean(v_k,x^2)``."""
     return float(np.mean(velocity_grid_m_s(bof)[:, 0] ** 2))
@@ -284,13 +309,21 @@ class MultiPersonTracker:
         Prior variance [m^2/s^2] per axis of the velocity law behind the clusters' velocities (the BOF's
         uniform law over its hypotheses, :func:`velocity_prior_variance_m2_s2`), divided out of them; None:
         the cluster velocities are likelihoods already.
+    velocity_correlation_s : float, optional
+        ``tau_v`` [s]: the time over which the clusters' velocities carry the same evidence (the BOF's velocity
+        memory, :func:`velocity_correlation_time_s`); their covariance is scaled by ``max(1, tau_v / dt)`` in the Kalman
+        update (module docstring); infinite: the velocities never enter a track's state; None: independent from
+        step to step.
     """
 
     def __init__(self, params: TrackerParams | None = None, extent_m=None,
-                 velocity_prior_var_m2_s2: float | None = None) -> None:
+                 velocity_prior_var_m2_s2: float | None = None, velocity_correlation_s: float | None = None) -> None:
         self.params = params if params is not None else TrackerParams()
         self.extent_m = extent_m
         self.velocity_prior_var_m2_s2 = velocity_prior_var_m2_s2
+        if velocity_correlation_s is not None and not velocity_correlation_s > 0:
+            raise ValueError(f"velocity_correlation_s must be > 0 s or None, got {velocity_correlation_s!r}")
+        self.velocity_correlation_s = velocity_correlation_s
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
         self._next_id = 1
@@ -339,6 +372,7 @@ class MultiPersonTracker:
             for tr in self.tracks:
                 tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
         z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
+        R_upd, has_v_upd = self._decorrelate(R, has_v, dt)  # what an update takes in; association and birth take R
         free = np.ones(len(clusters), bool)
         owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
         matched: set[int] = set()
@@ -350,7 +384,7 @@ class MultiPersonTracker:
                 if tr.confirmed:
                     owner[ci] = tr
                 else:
-                    self._update(tr, z[ci], R[ci], clusters, ci, position_only=not has_v[ci])
+                    self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=not has_v_upd[ci])
         taken = z[~free, :2]
         for tr in self.tracks:  # step 6 before 5: a mode of its own is better evidence than a shared blob
             if tr.id in matched:
@@ -360,7 +394,7 @@ class MultiPersonTracker:
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike
-            self._update(tr, z[ci], R[ci], clusters, ci, position_only=ci in sharers or not has_v[ci],
+            self._update(tr, z[ci], R_upd[ci], clusters, ci, position_only=ci in sharers or not has_v_upd[ci],
                          merged=ci in sharers)
             for sharer in sharers.get(ci, ()):
                 self._update_shared(sharer, z[ci, :2], R[ci, :2, :2], dt)
@@ -408,6 +442,19 @@ class MultiPersonTracker:
             tr.confirmed, tr.hits = False, 0
             self._update(tr, z[ci], R[ci], clusters, ci, position_only=True)
 
+    def _decorrelate(self, R: np.ndarray, has_v: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The clusters' measurement covariances ``R`` (N, 4, 4) with the velocity block scaled by
+        ``max(1, tau / dt)`` (module docstring, "Temporally correlated velocities"), and which velocities are
+        informative, (N,) bool: none for an infinite ``tau`` (a filter that never forgets a velocity)."""
+        tau = self.velocity_correlation_s
+        if tau is None or dt <= 0 or tau <= dt:
+            return R, has_v
+        if np.isinf(tau):
+            return R, np.zeros_like(has_v)
+        out = R.copy()
+        out[:, 2:, 2:] *= tau / dt
+        return out, has_v
+
     def _update(self, tr: _Track, z: np.ndarray, R: np.ndarray, clusters: Clusters, ci: int,
                 position_only: bool = False, merged: bool = False) -> None:
         """Kalman update of a track that took cluster ``ci`` (a hit); ``merged``: the cluster is shared."""
@@ -433,7 +480,9 @@ class MultiPersonTracker:
             return out
         cis = np.array(list(owner))
         for tr in self.tracks:
-            if not tr.confirmed or tr.id in matched or tr.shared_s + dt > p.max_shared_s:
+            # a merge begins where the track still had evidence of its own at the previous step: a track already
+            # lost, whose covariance has grown, would be pulled onto whoever walks by
+            if not tr.confirmed or tr.id in matched or tr.misses > 0 or tr.shared_s + dt > p.max_shared_s:
                 continue
             y = z[cis, :2] - tr.x[:2]
             S = tr.P[:2, :2] + R[cis, :2, :2] + p.merged_position_std_m**2 * np.eye(2)

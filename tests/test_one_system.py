@@ -135,6 +135,7 @@ CHANGED = {
     "models.detection.clutter_density_per_m2": 0.5,
     "models.detection.support_threshold": None,
     "models.detection.reacquire_speed_m_s": 0.5,
+    "models.detection.velocity_decorrelation": False,
     "models.detection.match_distance_m": 1.0,
     "outputs.zarr": False,
     "outputs.chunk_steps": 7,

@@ -456,6 +456,11 @@ class DetectionModelConfig(_Model):
         "gate_m + this x the time it has been lost (tentative again, under its own id); null = never", unit="m/s",
         expected="null or >= 0", library="system.tracking.tracker.reacquire_speed_m_s",
     )
+    velocity_decorrelation: bool = _field(
+        description="Count the filter's cluster velocities once per the filter's velocity memory in the tracks' "
+        "Kalman update (they repeat the same evidence from step to step); false: each step's velocity is new",
+        library="system.tracking.tracker.velocity_decorrelation",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

@@ -177,6 +177,11 @@ class TrackerParams:
         Radius [m] of the disc whose column evidence gives a supported track's position.
     max_supported_s : float
         Longest time [s] a track is supported since its last cluster.
+    velocity_decorrelation : bool
+        Scale the clusters' velocity covariance by ``max(1, tau_v / dt)`` in the Kalman update (module docstring,
+        "Temporally correlated velocities") where the caller gives ``tau_v`` (the pipeline: the BOF's velocity
+        memory); False: every step's cluster velocity is an independent measurement. On (chosen on simulated seeds
+        1-3); off for the EPFL terrace (chosen on its frames 0-1499, ``scripts/terrace.yaml``).
     reacquire_speed_m_s : float or None
         Re-acquisition (step 7): a confirmed track lost for ``k >= 1`` steps may take a cluster no track took
         within its covariance gate and ``gate_m + reacquire_speed_m_s x (k + 1) dt`` [m] of its prediction (a
@@ -203,6 +208,7 @@ class TrackerParams:
     person_radius_m: float = 0.3
     max_supported_s: float = 2.0
     reacquire_speed_m_s: float | None = 2.5  # chosen on seeds 1-3 (docs/results.md)
+    velocity_decorrelation: bool = True  # chosen on seeds 1-3 (docs/results.md)
 
     def __post_init__(self) -> None:
         check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
@@ -447,7 +453,7 @@ class MultiPersonTracker:
         ``max(1, tau / dt)`` (module docstring, "Temporally correlated velocities"), and which velocities are
         informative, (N,) bool: none for an infinite ``tau`` (a filter that never forgets a velocity)."""
         tau = self.velocity_correlation_s
-        if tau is None or dt <= 0 or tau <= dt:
+        if tau is None or not self.params.velocity_decorrelation or dt <= 0 or tau <= dt:
             return R, has_v
         if np.isinf(tau):
             return R, np.zeros_like(has_v)

@@ -449,9 +449,9 @@ class PersonDetector:
         self._level = float(params.person_likelihood)
         self._quantised_level = int(quantise_foreground(np.float32([self._level])).ravel()[0])
 
-    def boxes(self, frame: np.ndarray) -> np.ndarray:
+    def boxes(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Boxes of the people in ``frame`` (grey or BGR uint8), shape (K, 4): left, top, width, height [px] in the
-        frame's pixels, and their scores (K,)."""
+        frame's pixels, and their SVM scores, shape (K,)."""
         k = self.params.person_upscale
         img = frame if k == 1 else cv2.resize(frame, None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
         rects, scores = self._hog.detectMultiScale(img, winStride=(8, 8), padding=(8, 8), scale=1.05)

@@ -71,10 +71,38 @@ def test_sudden_change_gives_no_evidence_then_relearns(rng):
     assert outs[-1].mean() < 0.1 and bs.n_sudden_changes == 1
 
 
+def _frames_until_learnt(params, plate, scene, rng, most=200):
+    """Frames of ``scene`` a model primed with ``plate`` needs until it calls < 10 % of the image foreground."""
+    bs = BackgroundSubtractor(128, 96, params)
+    bs.prime(plate.astype(np.uint8))
+    for n in range(1, most + 1):
+        if bs.apply(_frame(scene, rng)).mean() < 0.1:
+            return n
+    return most + 1
+
+
+def test_estimated_plate_is_corrected_at_the_automatic_rate(rng):
+    """A plate that is not the scene (an estimate: other light, people in it): primed with ``primed_rate``
+    "steady" the model takes its history's pace to learn the real scene, "automatic" goes on with OpenCV's
+    fast start and learns it within tens of frames; both learn the scene eventually, and a plate that is the
+    scene gives no foreground either way."""
+    plate, scene = _scene(rng), _scene(rng)  # two different floors
+    steady = ForegroundParams(history=500, primed_rate="steady")
+    automatic = ForegroundParams(history=500, primed_rate="automatic")
+    n_auto = _frames_until_learnt(automatic, plate, scene, rng)
+    n_steady = _frames_until_learnt(steady, plate, scene, rng, most=400)
+    assert n_auto < 100
+    assert n_steady > 2 * n_auto
+    for params in (steady, automatic):
+        bs = BackgroundSubtractor(128, 96, params)
+        bs.prime(scene.astype(np.uint8))
+        assert bs.apply(_frame(scene, rng)).mean() < 0.1
+
+
 def test_foreground_params_reject_bad_values():
     for kw, match in [(dict(gain_blocks=(0, 3)), "gain_blocks"), (dict(gain_rate=0.0), "gain_rate"),
                       (dict(relearn_fraction=1.5), "relearn_fraction"), (dict(relearn_frames=0), "relearn_frames"),
-                      (dict(relearn_rate=2.0), "relearn_rate")]:
+                      (dict(relearn_rate=2.0), "relearn_rate"), (dict(primed_rate="fast"), "primed_rate")]:
         with pytest.raises(ValueError, match=match):
             ForegroundParams(**kw)
 

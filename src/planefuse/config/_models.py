@@ -162,6 +162,12 @@ class CameraSensorConfig(_Model):
         description="Background model's learning rate per frame; -1 = automatic (1 / frames seen, then 1 / "
         "history_frames)", expected="-1 or in [0, 1]", library="system.camera_params.foreground.learning_rate",
     )
+    primed_rate: Literal["steady", "automatic"] = _field(
+        description="How an automatic background model learns after the recording's empty-scene image primed it: "
+        "steady (1 / history_frames: a real empty scene) or automatic (OpenCV's fast start goes on: an estimated "
+        "scene, `planefuse import --background-median-s`)", expected="steady or automatic",
+        library="system.camera_params.foreground.primed_rate",
+    )
     shadow_likelihood: float = _field(
         description="Foreground likelihood of a shadow-labelled pixel (detect_shadows): low = background lit "
         "differently; 0.5 = unknown (dark clothes on a light floor are labelled shadow)", expected="in [0, 1]",

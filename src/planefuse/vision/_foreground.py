@@ -72,6 +72,12 @@ class ForegroundParams:
         a person (camouflage), its "foreground" ``1 - ceiling`` of noise.
     learning_rate : float
         OpenCV learning rate (-1 = automatic from ``history``).
+    primed_rate : {"steady", "automatic"}
+        How an automatic model (``learning_rate`` -1) learns after :meth:`BackgroundSubtractor.prime`: ``"steady"``
+        at ``1 / history`` per frame, for a real image of the empty scene (people who stop are not absorbed);
+        ``"automatic"`` goes on with OpenCV's fast start (``1 / min(2 n, history)`` after ``n`` frames, the plate's
+        included), for an *estimated* plate (``planefuse import --background-median-s``), which may hold people
+        and another light than the frames that follow, and has to be corrected quickly.
     gain_compensation : bool
         Divide every frame by a smooth per-channel gain field before the subtractor sees it, so that a camera's
         automatic exposure or white balance, or a cloud, does not turn the whole image into foreground. The
@@ -150,6 +156,7 @@ class ForegroundParams:
     floor: float = 0.02
     ceiling: float = 0.98
     learning_rate: float = -1.0
+    primed_rate: str = "steady"
     gain_compensation: bool = False
     gain_blocks: tuple[int, int] = (1, 1)
     gain_rate: float = 0.05
@@ -167,6 +174,8 @@ class ForegroundParams:
 
     def __post_init__(self) -> None:
         require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
+        require(self.primed_rate in ("steady", "automatic"), self, "primed_rate",
+                f"must be 'steady' or 'automatic', got {self.primed_rate!r}")
         check_fields(self, history="int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
                      ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
@@ -282,14 +291,15 @@ class BackgroundSubtractor:
         With ``params.learning_rate < 0`` (automatic) OpenCV learns at ``1 / frames seen``, fast at
         start so that a cold model converges; once primed the model already holds the background, so
         :meth:`apply` then learns at the steady ``1 / history`` instead (people standing still are not
-        absorbed within a few frames).
+        absorbed within a few frames), unless ``params.primed_rate`` is ``"automatic"`` (an estimated plate:
+        OpenCV's fast start goes on, counting the plate's frames).
         """
         if n_frames < 1:
             raise ValueError(f"{self.name}: n_frames must be >= 1, got {n_frames}")
         img = self._check(empty_frame)
         for i in range(int(n_frames)):
             self._learn(img, 1.0 if i == 0 else -1.0)
-        if self.params.learning_rate < 0:
+        if self.params.learning_rate < 0 and self.params.primed_rate == "steady":
             self._rate = 1.0 / self.params.history
 
     def _check(self, frame) -> np.ndarray:

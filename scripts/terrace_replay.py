@@ -111,8 +111,9 @@ def main(argv=None) -> int:
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
     ap.add_argument("--warmup-from", type=int, default=None, metavar="F",
                     help="a warm run, as scripts/terrace.py's: run from frame F, score only the frames from --first")
-    ap.add_argument("--background-median-s", type=float, default=None, metavar="S",
-                    help="import with an empty-scene estimate: the median of each video's first S seconds [s]")
+    ap.add_argument("--background-median-s", type=float, default=T.BACKGROUND_MEDIAN_S, metavar="S",
+                    help="import with an empty-scene estimate: the median of each video's first S seconds [s]; 0 = "
+                         f"none (default {T.BACKGROUND_MEDIAN_S:g}, as scripts/terrace.py)")
     ap.add_argument("--config", type=Path, default=T.CONFIG)
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=YAML",
                     help="change of the captured configuration (repeatable)")
@@ -132,8 +133,8 @@ def main(argv=None) -> int:
     base = T.with_sets(T.load_base_config(args.config), args.set)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-replay-"))
     try:
-        rec = read_recording(T.import_terrace(tmp, args.data, frames, args.background_median_s))
-        key = (list(map(int, frames)), base, args.background_median_s)
+        rec = read_recording(T.import_terrace(tmp, args.data, frames, args.background_median_s or None))
+        key = (list(map(int, frames)), base, args.background_median_s or None)
         kept = _load_capture(args.capture, key)
         if kept is None:
             kept = capture(rec, base)

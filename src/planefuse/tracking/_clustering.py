@@ -31,17 +31,18 @@ column. Modes of ``S`` above ``threshold`` (local maxima at least
   above it to the height where the profile crosses 0.5 [m] (NaN if no plane reaches 0.5);
 * confidence: ``logistic(S(mode) - threshold)``.
 
-Positions from the step's own evidence (:func:`positions_from_step_evidence`, ``ClusterParams.position_from_step_evidence``).
-The filtered occupancy is the posterior over every frame of evidence of the last second or so: its mode is a
-smoothed, lagging estimate of a person's position (behind a walker; at a stop or a turn carried on along the old
-motion by the prediction, whose camera evidence is weighted by its correlation time). The tracker's Kalman filter
-does the temporal filtering of positions itself: fed the filter's modes, it filters twice, as if each step's mode
-were a new measurement. Measured on the tuning seeds 1-3 (30 s baseline scenes, 6 people): the filtered clusters
-lie 0.08 m from people walking steadily (0.06 m behind) and 0.13 m from people stopping or turning (0.07 m *ahead*
-along the old motion), the unfiltered ones 0.04 and 0.03 m. So the BOF decides *which* people there are (the modes, their confidence,
-velocity and height), and each mode's *position* is then moved by mean-shift, the same flat disc, from the BOF's
-mode on ``max(S_step, 0)``, ``S_step`` the column evidence of the log-odds fused since the previous output step
-alone (:func:`column_log_odds` of ``logistic(logit p0 + sum of the step's log-odds)``). Where the step's evidence
+Positions from the step's own evidence (:func:`positions_from_step_evidence`,
+``ClusterParams.position_from_step_evidence``). The filtered occupancy is the posterior over every frame of evidence
+of the last second or so: its mode is a smoothed, lagging estimate of a person's position (behind a walker; at a
+stop or a turn carried on along the old motion by the prediction, whose camera evidence is weighted by its
+correlation time). The tracker's Kalman filter does the temporal filtering of positions itself: fed the filter's
+modes, it filters twice, as if each step's mode were a new measurement. Measured on the tuning seeds 1-3 (30 s
+baseline scenes, 6 people): the filtered clusters lie 0.08 m from people walking steadily (0.06 m behind) and
+0.13 m from people stopping or turning (0.07 m *ahead* along the old motion), the unfiltered ones 0.04 and 0.03 m.
+So the BOF decides *which* people there are (the modes, their confidence, velocity and height), and each mode's
+*position* is then moved by mean-shift, the same flat disc, from the BOF's mode on ``max(S_step, 0)``, ``S_step``
+the column evidence of the log-odds fused since the previous output step alone (:func:`column_log_odds` of
+``logistic(logit p0 + sum of the step's log-odds)``). Where the step's evidence
 has no positive mass in the disc (a person hidden, a camera gone) the BOF's mode stays.
 """
 

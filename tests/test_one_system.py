@@ -137,6 +137,7 @@ CHANGED = {
     "models.detection.support_threshold": None,
     "models.detection.reacquire_speed_m_s": 0.5,
     "models.detection.velocity_decorrelation": False,
+    "models.detection.position_from_step_evidence": False,
     "models.detection.match_distance_m": 1.0,
     "outputs.zarr": False,
     "outputs.chunk_steps": 7,

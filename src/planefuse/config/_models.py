@@ -467,6 +467,11 @@ class DetectionModelConfig(_Model):
         "Kalman update (they repeat the same evidence from step to step); false: each step's velocity is new",
         library="system.tracking.tracker.velocity_decorrelation",
     )
+    position_from_step_evidence: bool = _field(
+        description="Take each person's position from the evidence fused since the previous output step, by "
+        "mean-shift from the filter's mode (the filter's own mode lags a walker and runs on at a stop or a turn); "
+        "false: the filter's mode", library="system.tracking.cluster.position_from_step_evidence",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

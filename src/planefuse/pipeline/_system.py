@@ -25,8 +25,9 @@ __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_
            "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
-CHECKPOINT_FORMAT = 6  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
-#                       4: the report's laser-point stride; 5: the tracks' supported time; 6: cameras weighted each
+CHECKPOINT_FORMAT = 7  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
+#                       4: the report's laser-point stride; 5: the tracks' supported time; 6: cameras weighted each;
+#                       7: the evidence fused since the last output step (cluster positions)
 
 
 def system_laser_model() -> LaserSensorModel:
@@ -366,7 +367,9 @@ class SystemRun:
                      evidence_correlation_s={**self._correlation_s(), **params.tracking.evidence_correlation_s})
         if not params.use_filter:
             # "no filter" ablation: the grid forgets everything between fused steps (and nothing is weighted)
-            tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={})
+            # and the clusters, the modes of the last batch's evidence, are not moved onto the step's evidence
+            tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={},
+                         cluster=replace(tp.cluster, position_from_step_evidence=False))
         static = (cells_filled_by_occluders(self.stack, params.occluder_boxes_m) if params.occluder_boxes_m
                   else None)
         self.tracker = EvidenceTracker(self.stack, tp, static_cells=static)

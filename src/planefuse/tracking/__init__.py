@@ -19,7 +19,8 @@ from ._bof import (
     velocity_grid_m_s,
 )
 from ._bof_numpy import bof_predict_numpy, bof_update_numpy
-from ._clustering import ClusterParams, Clusters, cluster_occupancy, column_log_odds, velocity_variance_m2_s2
+from ._clustering import (ClusterParams, Clusters, cluster_occupancy, column_log_odds, positions_from_step_evidence,
+                          velocity_variance_m2_s2)
 from ._pipeline import EvidenceTracker, TrackerOutput, TrackingParams, track_evidence
 from ._synthetic import evidence_from_people
 from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, cluster_measurements, velocity_correlation_time_s,
@@ -47,6 +48,7 @@ __all__ = [
     "bof_update_numpy",
     "cluster_occupancy",
     "column_log_odds",
+    "positions_from_step_evidence",
     "evidence_from_people",
     "track_evidence",
     "EvidenceTracker",

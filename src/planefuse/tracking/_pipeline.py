@@ -4,7 +4,8 @@
 any order within ``params.window_s`` (re-ordered by :class:`AsyncEvidenceBuffer`), fuses every batch of
 simultaneous messages into the filter (predict over the elapsed time, then one update with the summed
 log-odds, each message weighted by its share of its sensor's error correlation time) and, at each output
-step, clusters the filtered planes and advances the tracker.
+step, clusters the filtered planes (each cluster's position taken from the step's own evidence,
+``ClusterParams.position_from_step_evidence``) and advances the tracker.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from .._state import StateDict, float_or_none, get, optional_float, strings, sub
 from ..grid import LOG_ODDS_CLIP, Evidence, GroundDetections, PlaneStack
 from ._async import AsyncEvidenceBuffer, EvidenceBatch
 from ._bof import BayesianOccupancyFilter, BOFParams
-from ._clustering import ClusterParams, Clusters, cluster_occupancy
+from ._clustering import ClusterParams, Clusters, cluster_occupancy, positions_from_step_evidence
 from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, velocity_correlation_time_s,
                        velocity_prior_variance_m2_s2)
 from .._params import check_fields
@@ -142,6 +143,8 @@ class EvidenceTracker:
                                           velocity_correlation_time_s(self.params.bof))
         self.next_output_s: float | None = None
         self.sensors: list[str] = []
+        #: sum of the log-odds fused since the previous output (the step's own evidence), None: none yet or not kept
+        self.step_log_odds: np.ndarray | None = None
         #: outputs given so far (the index of the next output step)
         self.n_outputs = 0
 
@@ -167,6 +170,8 @@ class EvidenceTracker:
         if self.static_cells is not None:  # no person in an occluder: what sensors say there is about the occluder
             log_odds = np.where(self.static_cells, np.float32(-LOG_ODDS_CLIP), log_odds)
         self.bof.update(log_odds)
+        if params.cluster.position_from_step_evidence:
+            self.step_log_odds = log_odds.copy() if self.step_log_odds is None else self.step_log_odds + log_odds
         self.sensors.extend(s for s in batch.sensors if s not in self.sensors)
         period = params.output_period_s
         if period is not None and self.next_output_s is not None and batch.time_s < self.next_output_s - 1e-9:
@@ -182,6 +187,10 @@ class EvidenceTracker:
         state = self.bof.state
         clusters = cluster_occupancy(batch.time_s, occ, vel, stack, params.bof.prior_occupancy, params.cluster,
                                      (state.occ_v, state.velocities_m_s))
+        if self.step_log_odds is not None:
+            clusters = positions_from_step_evidence(clusters, self.step_log_odds, stack, params.bof.prior_occupancy,
+                                                    params.cluster)
+            self.step_log_odds = None
         tracks = self.tracker.step(clusters)
         sensors = tuple(self.sensors)
         self.sensors.clear()
@@ -199,6 +208,8 @@ class EvidenceTracker:
             "next_output_s": optional_float(self.next_output_s),
             "sensors": strings(self.sensors),
             "n_outputs": np.asarray(self.n_outputs, dtype=np.int64),
+            "step_log_odds": (np.zeros((0,) + self.stack.shape, np.float32) if self.step_log_odds is None
+                              else self.step_log_odds),
         }
 
     def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
@@ -209,6 +220,11 @@ class EvidenceTracker:
         self.next_output_s = float_or_none(get(state, "next_output_s", "evidence tracker"))
         self.sensors = [str(s) for s in get(state, "sensors", "evidence tracker")]
         self.n_outputs = int(get(state, "n_outputs", "evidence tracker"))
+        step = np.asarray(get(state, "step_log_odds", "evidence tracker"), dtype=np.float32)
+        if step.shape not in ((0,) + self.stack.shape, self.stack.shape):
+            raise ValueError(f"evidence tracker state: step_log_odds must have shape {self.stack.shape} (or none), "
+                             f"got {step.shape}")
+        self.step_log_odds = step.copy() if step.shape == self.stack.shape else None
 
 
 def track_evidence(

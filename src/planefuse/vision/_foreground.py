@@ -155,7 +155,7 @@ class ForegroundParams:
         Foreground likelihood at least given to the body of a detected box, in [0, 1].
     """
 
-    method: str = "knn"
+    method: str = "mean"
     history: int = 500
     threshold: float | None = None
     detect_shadows: bool = True
@@ -347,12 +347,15 @@ class BackgroundSubtractor:
         if self.params.downscale > 1:
             img = cv2.resize(img, self._model_size, interpolation=cv2.INTER_AREA)
         protect = self._take_protection() if self.params.selective_update else None
-        if self._relearn_left > 0:  # the scene is being relearnt: nothing is kept out
+        relearning = self._relearn_left > 0
+        if relearning:  # the scene is being relearnt: nothing is kept out
             rate = self.params.relearn_rate
             self._relearn_left -= 1
             protect = None
         compensated = img if self._gain is None else self._gain.compensate(img)
-        if protect is None:
+        if relearning and isinstance(self._model, MeanBackground):  # its foreground too, at the relearning rate
+            mask = self._model.apply(compensated, learningRate=rate, foreground_rate=1.0)
+        elif protect is None:
             mask = self._model.apply(compensated, learningRate=rate)
         else:
             mask = self._apply_selective(compensated, protect, rate)

@@ -48,13 +48,16 @@ class MeanBackground:
         self._mean: np.ndarray | None = None
         self._n_seen = 0
 
-    def apply(self, frame: np.ndarray, learningRate: float = -1.0) -> np.ndarray:  # noqa: N803 - OpenCV's name
+    def apply(self, frame: np.ndarray, learningRate: float = -1.0,  # noqa: N803 - OpenCV's name
+              foreground_rate: float | None = None) -> np.ndarray:
         """Classify ``frame`` (H, W) or (H, W, 3) uint8 against the background, then learn it.
 
         ``learningRate`` in [0, 1] is the running average's rate for this frame (1 restarts the model from the
-        frame); negative is automatic, ``1 / min(frames seen, history)``. Returns the (H, W) uint8 mask: 0
+        frame); negative is automatic, ``1 / min(frames seen, history)``. ``foreground_rate`` replaces the
+        model's own for this frame (1 while a changed scene is relearnt). Returns the (H, W) uint8 mask: 0
         background, 127 shadow, 255 foreground (all 255 on the first frame, when nothing is known yet).
         """
+        fg = self.foreground_rate if foreground_rate is None else float(foreground_rate)
         self._n_seen += 1
         rate = 1.0 / min(self._n_seen, self.history) if learningRate < 0 else float(learningRate)
         if self._mean is None or self._mean.shape != frame.shape or rate >= 1.0:
@@ -63,8 +66,12 @@ class MeanBackground:
         mask = np.empty(frame.shape[:2], np.uint8)
         kernel = _learn_grey if frame.ndim == 2 else _learn_bgr
         kernel(frame, self._mean, np.float32(self.threshold), self.detect_shadows, np.float32(SHADOW_TAU),
-               np.float32(rate), np.float32(rate * self.foreground_rate), mask)
+               np.float32(rate), np.float32(rate * fg), mask)
         return mask
+
+    def getDist2Threshold(self) -> float:  # noqa: N802 - OpenCV KNN's name for the same quantity
+        """The squared colour distance threshold [grey levels squared]."""
+        return self.threshold
 
     def background(self) -> np.ndarray | None:
         """The background colours (H, W[, 3]) float32 learnt so far (None before the first frame)."""

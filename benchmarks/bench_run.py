@@ -205,7 +205,7 @@ def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1,
              stride: int = 1, method: str = "") -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
-                       + ["--stride", str(stride)] + (["--method", method] if method else [])
+                       + ["--stride", str(stride), "--method", method]
                        + (["--profile"] if profile else []) + (["--stages"] if stages else []),
                        env=env, capture_output=True, text=True)
     if p.returncode:

@@ -65,7 +65,7 @@ class MeanBackground:
             return np.full(frame.shape[:2], 255, np.uint8)
         mask = np.empty(frame.shape[:2], np.uint8)
         kernel = _learn_grey if frame.ndim == 2 else _learn_bgr
-        kernel(frame, self._mean, np.float32(self.threshold), self.detect_shadows, np.float32(SHADOW_TAU),
+        kernel(np.ascontiguousarray(frame), self._mean, np.float32(self.threshold), self.detect_shadows, np.float32(SHADOW_TAU),
                np.float32(rate), np.float32(rate * fg), mask)
         return mask
 
@@ -79,47 +79,42 @@ class MeanBackground:
 
 
 # The kernels: one pass over the pixels, the mask against ``mean``, then ``mean += q (x - mean)`` with ``q = rate``
-# on background pixels and ``fg_rate`` on the others. BGR spelt out channel by channel: twice as fast as a loop
-# over the channels (0.21 against 0.43 ms per 360x288 frame), the same bits.
+# on background pixels and ``fg_rate`` on the others. Written over the flat pixel index, channels spelt out and
+# without branches (every pixel computes the shadow test; error_model "numpy": 0 / 0 is NaN, which fails every
+# comparison, as the test of mm > 0 also says), so that LLVM vectorises the loop: 0.07 ms per 360x288 BGR frame
+# against 0.20 for the same equations with branches and 0.43 with a loop over the channels, the same bits.
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _learn_bgr(img, mean, threshold, shadows, tau, rate, fg_rate, mask):  # pragma: no cover - numba
-    h, w = mask.shape
-    for r in range(h):
-        for k in range(w):
-            x0, x1, x2 = np.float32(img[r, k, 0]), np.float32(img[r, k, 1]), np.float32(img[r, k, 2])
-            m0, m1, m2 = mean[r, k, 0], mean[r, k, 1], mean[r, k, 2]
-            d0, d1, d2 = x0 - m0, x1 - m1, x2 - m2
-            q, value = rate, 0
-            if d0 * d0 + d1 * d1 + d2 * d2 > threshold:
-                q, value = fg_rate, 255
-                mm = m0 * m0 + m1 * m1 + m2 * m2
-                if shadows and mm > 0:
-                    # x ~ a mu with tau <= a <= 1: a darker copy of the background, a shadow (OpenCV's rule)
-                    a = (x0 * m0 + x1 * m1 + x2 * m2) / mm
-                    if tau <= a <= 1:
-                        e0, e1, e2 = x0 - a * m0, x1 - a * m1, x2 - a * m2
-                        if e0 * e0 + e1 * e1 + e2 * e2 < threshold * a * a:
-                            value = 127
-            mask[r, k] = value
-            mean[r, k, 0] = m0 + q * d0
-            mean[r, k, 1] = m1 + q * d1
-            mean[r, k, 2] = m2 + q * d2
+    n = mask.size
+    x, m, out = img.reshape(3 * n), mean.reshape(3 * n), mask.reshape(n)
+    for i in range(n):
+        j = 3 * i
+        x0, x1, x2 = np.float32(x[j]), np.float32(x[j + 1]), np.float32(x[j + 2])
+        m0, m1, m2 = m[j], m[j + 1], m[j + 2]
+        d0, d1, d2 = x0 - m0, x1 - m1, x2 - m2
+        fg = d0 * d0 + d1 * d1 + d2 * d2 > threshold
+        # x ~ a mu with tau <= a <= 1: a darker copy of the background, a shadow (OpenCV's rule)
+        mm = m0 * m0 + m1 * m1 + m2 * m2
+        a = (x0 * m0 + x1 * m1 + x2 * m2) / mm
+        e0, e1, e2 = x0 - a * m0, x1 - a * m1, x2 - a * m2
+        shadow = shadows and fg and mm > 0 and tau <= a and a <= 1 and e0 * e0 + e1 * e1 + e2 * e2 < threshold * a * a
+        out[i] = 127 if shadow else (255 if fg else 0)
+        q = fg_rate if fg else rate
+        m[j] = m0 + q * d0
+        m[j + 1] = m1 + q * d1
+        m[j + 2] = m2 + q * d2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _learn_grey(img, mean, threshold, shadows, tau, rate, fg_rate, mask):  # pragma: no cover - numba
-    h, w = mask.shape
-    for r in range(h):
-        for k in range(w):
-            x = np.float32(img[r, k])
-            m = mean[r, k]
-            d = x - m
-            q, value = rate, 0
-            if d * d > threshold:
-                q, value = fg_rate, 255
-                # grey: x = a m exactly, so a shadow is any darkening to no less than tau m
-                if shadows and m > 0 and tau * m <= x <= m:
-                    value = 127
-            mask[r, k] = value
-            mean[r, k] = m + q * d
+    n = mask.size
+    x, m, out = img.reshape(n), mean.reshape(n), mask.reshape(n)
+    for i in range(n):
+        xi, mi = np.float32(x[i]), m[i]
+        d = xi - mi
+        fg = d * d > threshold
+        # grey: x = a m exactly, so a shadow is any darkening to no less than tau m
+        shadow = shadows and fg and mi > 0 and tau * mi <= xi and xi <= mi
+        out[i] = 127 if shadow else (255 if fg else 0)
+        m[i] = mi + (fg_rate if fg else rate) * d

@@ -9,10 +9,11 @@ background subtraction, registration, filter, tracker, tables and metrics; figur
 run in its own process pinned to one core with one thread per library (numba, OpenMP, BLAS, OpenCV):
 
 * ``before``: the tree of ``--before`` (a commit, exported with ``git archive`` into a temporary folder), on the
-  first recording;
+  last recording (BMP: what ``planefuse simulate`` writes since the third pass);
 * ``after``: this checkout's ``src`` on every recording (the first: code only), and on the last recording with the
   cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its scores are printed
-  beside it).
+  beside it), and on the last recording with the subtractor ``--method`` (default ``knn``, the before tree's
+  default detector, so that row must give the before row's results: the other changes are speed only).
 
 Each process first runs a 1.5 s simulated scene (numba compilation, caches), then times the run. CPU time is the
 process's user + system time (``resource.getrusage``), the honest measure on a shared machine; repeats are
@@ -273,7 +274,7 @@ def main() -> None:
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, "src"], check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(tmp / "before")], input=archive, check=True)
-        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1, 1, ""))
+        runs.append((f"before ({args.before}), {last}", tmp / "before" / "src", recs[last], 1, 1, ""))
     runs += [(f"after (this checkout), {name}", after, path, 1, 1, "") for name, path in recs.items()]
     if args.method:
         runs.append((f"after, {last}, foreground_method {args.method}", after, recs[last], 1, 1, args.method))

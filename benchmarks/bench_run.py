@@ -265,7 +265,7 @@ def main() -> None:
         else:
             recs["JPEG"] = tmp / "rec-jpg"
             rec.write(recs["JPEG"], image_format="jpg")
-    first, last = next(iter(recs)), list(recs)[-1]
+    last = list(recs)[-1]
     after = ROOT / "src"
     # label, source tree, recording, downscale, frame stride, subtractor ('' = the tree's default)
     runs: list[tuple[str, Path, Path, int, int, str]] = []

@@ -7,7 +7,7 @@ at level 1 and JPEG 95 by ``cv2.imwrite``, then read back the way a recording is
 
 Subtractors: OpenCV's MOG2 and KNN (``cv2.createBackgroundSubtractor*``), contrib's CNT (``cv2.bgsegm``, in
 ``opencv-contrib-python-headless``, with ``ForegroundParams.method = "cnt"``'s settings) and planefuse's numba
-running-average model (``method = "mean"``, the default; :class:`planefuse.vision._mean_background.MeanBackground`,
+running-average model (``method = "mean"``; :class:`planefuse.vision._mean_background.MeanBackground`,
 foreground learnt at 0.2 of the rate), with and without shadow detection, on the full frame, on the frame
 reduced by 2 per direction (``cv2.INTER_AREA``, what ``ForegroundParams.downscale = 2`` feeds KNN) and on the grey
 frame; each model first learns 10 frames, then ``apply`` is timed at the steady learning rate 1/500. KNN also with
@@ -94,12 +94,12 @@ def main() -> None:
     half = [cv2.resize(f, (w // 2, h // 2), interpolation=cv2.INTER_AREA) for f in frames]
     grey = [cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) for f in frames]
     subtractors = {
-        "KNN (OpenCV's defaults; planefuse's before the mean model), shadows": lambda: cv2.createBackgroundSubtractorKNN(500, 400.0, True),
+        "KNN (default), shadows": lambda: cv2.createBackgroundSubtractorKNN(500, 400.0, True),
         "KNN, no shadows": lambda: cv2.createBackgroundSubtractorKNN(500, 400.0, False),
         "KNN, 5 samples per pixel": lambda: _knn(n_samples=5),
         "KNN, 3 samples per pixel (knn_samples: 3)": lambda: _knn(n_samples=3),
         "KNN, 1 matching sample (kNNSamples 1)": lambda: _knn(knn=1),
-        "mean (numba running average, the default), shadows": lambda: MeanBackground(400.0, 500, True, 0.2),
+        "mean (numba running average), shadows": lambda: MeanBackground(400.0, 500, True, 0.2),
         "mean, no shadows": lambda: MeanBackground(400.0, 500, False, 0.2),
         "CNT (contrib; grey inside)": lambda: cv2.bgsegm.createBackgroundSubtractorCNT(15, True, 500, True),
         "MOG2, shadows": lambda: cv2.createBackgroundSubtractorMOG2(500, 16.0, True),

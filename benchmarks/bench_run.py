@@ -12,8 +12,8 @@ run in its own process pinned to one core with one thread per library (numba, Op
   last recording (BMP: what ``planefuse simulate`` writes since the third pass);
 * ``after``: this checkout's ``src`` on every recording (the first: code only), and on the last recording with the
   cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its scores are printed
-  beside it), and on the last recording with the subtractor ``--method`` (default ``knn``, the before tree's
-  default detector, so that row must give the before row's results: the other changes are speed only).
+  beside it), and on the last recording with the subtractor ``--method`` (default ``mean``, the numba running
+  average: a different detector, its scores beside it).
 
 Each process first runs a 1.5 s simulated scene (numba compilation, caches), then times the run. CPU time is the
 process's user + system time (``resource.getrusage``), the honest measure on a shared machine; repeats are
@@ -112,7 +112,8 @@ def stage_timers() -> dict[str, float]:
 def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False, stride: int = 1,
           method: str = "") -> None:
     """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
-    resolution where above 1, by the subtractor ``method`` where given (``ForegroundParams.method``), every ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
+    resolution where above 1, by the subtractor ``method`` where given (``ForegroundParams.method``), every
+    ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
     CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
     import resource
 
@@ -235,9 +236,9 @@ def main() -> None:
     ap.add_argument("--stages", action="store_true", help="also: CPU seconds per stage of every run")
     ap.add_argument("--cli", action="store_true",
                     help="also: the whole `planefuse run` process (start-up included), before and after")
-    ap.add_argument("--method", default="knn",
-                    help="also time the last recording with this subtractor (ForegroundParams.method; '' to skip): "
-                    "knn, the default before the running-average model, is the 'before' tree's detector")
+    ap.add_argument("--method", default="mean",
+                    help="also time the last recording with this subtractor (ForegroundParams.method; '' to skip; "
+                    "default: mean, the numba running average)")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -306,9 +307,8 @@ def main() -> None:
         cells = " | ".join("-" if sc.get(k) is None else f"{sc[k]:.3f}" for k in SCORES)
         print(f"| {label} | {best['cpu_s']:.2f} | {best['cpu_s'] / best['duration_s']:.3f} | "
               f"{base / best['cpu_s']:.2f}x | {best['peak_rss_mb']:.0f} | {best['digest']} | {cells} |")
-    for group, labels in identical_groups(runs, args.method).items():
-        digests = {r["digest"] for label in labels for r in results[label]}
-        print(f"identical results, {group}: {len(digests) == 1}")
+    same = {r["digest"] for label in identical_groups(runs) for r in results[label]}
+    print(f"identical results (before and after, default configuration, every recording): {len(same) == 1}")
     if args.stages:
         print_stages(results)
     if args.cli:
@@ -377,18 +377,14 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
 
         duration = recorded_s(read_recording(rec_dir))
         print(f"| {label} | {cpu_s:.2f} | {cpu_s / duration:.3f} | {base / cpu_s:.2f}x | {dig} |")
-    for group, labels in identical_groups(runs, "knn").items():
-        print(f"identical results, {group}: {len({d for label in labels for _, d in rows[label]}) == 1}")
+    same = {d for label in identical_groups(runs) for _, d in rows[label]}
+    print(f"identical results (every process with the default configuration): {len(same) == 1}")
 
 
-def identical_groups(runs: list, method: str) -> dict[str, list[str]]:
-    """The rows that must give the same results: the 'before' tree and this checkout with ``method`` (KNN, the
-    before tree's default subtractor), and this checkout's default on every recording (full resolution, every
-    frame)."""
-    before = [r[0] for r in runs if r[0].startswith("before") or (r[5] and r[5] == method)]
-    after = [r[0] for r in runs if r[0].startswith("after (this checkout)")]
-    return {k: v for k, v in (("before = after with " + (method or "-"), before),
-                              ("this checkout's default on every recording", after)) if len(v) > 1}
+def identical_groups(runs: list) -> list[str]:
+    """The rows that must give the same results: the 'before' tree and this checkout, both with their default
+    configuration (full resolution, every frame, the default subtractor), on every recording."""
+    return [r[0] for r in runs if r[0].startswith(("before", "after (this checkout)"))]
 
 
 def recorded_s(rec) -> float:

@@ -92,9 +92,8 @@ def test_reduced_resolution_subtractor_sees_the_frame_reduced_and_answers_at_ful
 def test_knn_samples_reach_opencv_and_fewer_still_find_the_person(rng):
     """``knn_samples`` is OpenCV's nSamples (default 7, OpenCV's own); 3 finds the same bright person."""
     h, w = 96, 128
-    knn = BackgroundSubtractor(w, h, ForegroundParams(method="knn"))
-    assert knn._model.getNSamples() == 7 == cv2.createBackgroundSubtractorKNN().getNSamples()
-    bs = BackgroundSubtractor(w, h, ForegroundParams(method="knn", history=50, knn_samples=3))
+    assert BackgroundSubtractor(w, h)._model.getNSamples() == 7 == cv2.createBackgroundSubtractorKNN().getNSamples()
+    bs = BackgroundSubtractor(w, h, ForegroundParams(history=50, knn_samples=3))
     assert bs._model.getNSamples() == 3
     bg = cv2.GaussianBlur(rng.uniform(60, 200, (h, w)).astype(np.float32), (0, 0), 3)
     for _ in range(40):

@@ -1,5 +1,5 @@
-"""The faster background models: the numba running average (``method="mean"``, the default) and OpenCV contrib's
-CNT (``method="cnt"``)."""
+"""The faster background models: the numba running average (``method="mean"``) and OpenCV contrib's CNT
+(``method="cnt"``)."""
 
 from __future__ import annotations
 
@@ -107,15 +107,15 @@ def test_mean_model_heals_a_ghost(rng):
     assert _still_person(ForegroundParams(**base, mean_foreground_rate=0.0), 400, rng)[12:38, 22:33].mean() == 1.0
 
 
-def test_mean_is_the_default_and_takes_the_knn_threshold_over_downscale():
-    assert ForegroundParams().method == "mean"
-    full, half = (BackgroundSubtractor(W, H, ForegroundParams(downscale=d)) for d in (1, 2))
+def test_mean_takes_the_knn_threshold_over_downscale():
+    full, half = (BackgroundSubtractor(W, H, ForegroundParams(method="mean", downscale=d)) for d in (1, 2))
+    assert isinstance(full._model, MeanBackground)
     assert full._model.getDist2Threshold() == 400.0 and half._model.getDist2Threshold() == 200.0
-    assert BackgroundSubtractor(W, H, ForegroundParams(threshold=900))._model.getDist2Threshold() == 900.0
+    assert BackgroundSubtractor(W, H, ForegroundParams(method="mean", threshold=900))._model.getDist2Threshold() == 900
     with pytest.raises(ValueError, match="mean_foreground_rate"):
-        ForegroundParams(mean_foreground_rate=1.5)
+        ForegroundParams(method="mean", mean_foreground_rate=1.5)
     with pytest.raises(ValueError, match="selective_update"):
-        ForegroundParams(selective_update=True)  # KNN's decision on protected pixels: method knn only
+        ForegroundParams(method="mean", selective_update=True)  # KNN's decision on protected pixels: knn only
 
 
 @pytest.mark.skipif(not hasattr(cv2, "bgsegm"), reason="OpenCV without contrib's bgsegm (CNT)")

@@ -18,7 +18,7 @@ from planefuse.vision._pipeline import camera_detections, people_masks
 H, W = 60, 80
 #: the still person: rows, cols of a block of another colour
 PERSON = (slice(20, 50), slice(30, 45))
-RAW = dict(method="knn", close_px=0, floor=0.0, ceiling=1.0, history=100)
+RAW = dict(close_px=0, floor=0.0, ceiling=1.0, history=100)
 
 
 def _scene(rng, person: bool) -> np.ndarray:
@@ -104,10 +104,10 @@ def test_bad_selective_settings_and_masks_are_refused():
     with pytest.raises(ValueError, match="selective_update.*knn"):
         ForegroundParams(method="mog2", selective_update=True)
     with pytest.raises(ValueError, match="selective_max_frames"):
-        ForegroundParams(method="knn", selective_update=True, selective_max_frames=0)
+        ForegroundParams(selective_update=True, selective_max_frames=0)
     with pytest.raises(ValueError, match="needs ForegroundParams.selective_update"):
-        BackgroundSubtractor(W, H, ForegroundParams(method="knn")).protect(_person_mask())
-    sub = BackgroundSubtractor(W, H, ForegroundParams(method="knn", selective_update=True), name="cam7")
+        BackgroundSubtractor(W, H, ForegroundParams()).protect(_person_mask())
+    sub = BackgroundSubtractor(W, H, ForegroundParams(selective_update=True), name="cam7")
     with pytest.raises(ValueError, match="cam7: people mask must be a 60x80 bool image"):
         sub.protect(np.ones((W, H), bool))
     with pytest.raises(ValueError, match="people mask"):
@@ -150,10 +150,10 @@ def _detections(sim, params: CameraParams, replay: int = 0):
 
 
 def test_the_camera_pipeline_feeds_its_people_back_and_resumes_exactly(sim):
-    fg = ForegroundParams(method="knn", selective_update=True, selective_max_frames=5)
+    fg = ForegroundParams(selective_update=True, selective_max_frames=5)
     params = CameraParams(foreground=fg, sensor_model="generative", generative=GenerativeSensorParams())
     ref = _detections(sim, params)
-    blind = _detections(sim, CameraParams(foreground=ForegroundParams(method="knn"), sensor_model="generative"))
+    blind = _detections(sim, CameraParams(foreground=ForegroundParams(), sensor_model="generative"))
     assert sum(len(d.xy_m) for _, d in ref) > 0
     # the feedback changes the evidence (people kept in the foreground) once people were found
     assert any(not np.array_equal(a.log_odds, b.log_odds) for (a, _), (b, _) in zip(ref, blind))
@@ -166,6 +166,6 @@ def test_the_camera_pipeline_feeds_its_people_back_and_resumes_exactly(sim):
 
 
 def test_selective_update_needs_the_cameras(sim):
-    params = CameraParams(foreground=ForegroundParams(method="knn", selective_update=True))
+    params = CameraParams(foreground=ForegroundParams(selective_update=True))
     with pytest.raises(ValueError, match="selective_update needs the calibrated cameras"):
         next(camera_detections(recording_frames(sim), lookups_from_cameras(sim.cameras, STACK), STACK, params))

@@ -49,8 +49,10 @@ class ForegroundParams:
         OpenCV subtractor (``createBackgroundSubtractorKNN`` / ``...MOG2`` / ``cv2.bgsegm.create...CNT``), or
         ``"mean"``: one running-average background colour per pixel in one numba pass
         (:class:`~planefuse.vision._mean_background.MeanBackground`), KNN's decision (squared colour distance
-        against ``threshold``) and shadow rule against that mean; 4-5x faster than KNN per frame, for a
-        background of one colour per pixel (KNN's samples also hold backgrounds that alternate).
+        against ``threshold``) and shadow rule against that mean; 13x cheaper than KNN per frame and at or above
+        it on the simulator (steady lighting), but on real video (EPFL terrace, tuning frames 0-1499) it calls
+        20-70 % of the image foreground where KNN calls 1-10 %: its slow average does not follow a real
+        camera's exposure and light (docs/results.md, "A running-average subtractor").
         CNT (Zeevi's background subtraction by counting, in ``opencv-contrib``) works on the grey frame: a pixel
         is background once it has kept the grey level of its history (within OpenCV's fixed 30 levels) for more
         than ``cnt_min_stability`` frames; it has no threshold to set and no shadow label.
@@ -155,7 +157,7 @@ class ForegroundParams:
         Foreground likelihood at least given to the body of a detected box, in [0, 1].
     """
 
-    method: str = "mean"
+    method: str = "knn"
     history: int = 500
     threshold: float | None = None
     detect_shadows: bool = True

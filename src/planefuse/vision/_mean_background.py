@@ -11,7 +11,9 @@ mask uses OpenCV's values (0, 127 shadow, 255 foreground), so the cleaning, like
 :class:`~planefuse.vision.BackgroundSubtractor` are the same as for OpenCV's subtractors.
 
 One mean per pixel cannot hold a background that alternates between colours (leaves in the wind, a flickering
-screen), which KNN's samples can; the running average follows slow illumination changes only at its rate.
+screen), which KNN's samples can; the running average follows illumination changes only at its rate (1/history per
+frame): on the simulator (noise and a slow global drift) it is at or above KNN, on real video (EPFL terrace) it
+calls a large part of the image foreground after a camera's exposure changes (docs/results.md).
 """
 
 from __future__ import annotations
@@ -65,8 +67,8 @@ class MeanBackground:
             return np.full(frame.shape[:2], 255, np.uint8)
         mask = np.empty(frame.shape[:2], np.uint8)
         kernel = _learn_grey if frame.ndim == 2 else _learn_bgr
-        kernel(np.ascontiguousarray(frame), self._mean, np.float32(self.threshold), self.detect_shadows, np.float32(SHADOW_TAU),
-               np.float32(rate), np.float32(rate * fg), mask)
+        kernel(np.ascontiguousarray(frame), self._mean, np.float32(self.threshold), self.detect_shadows,
+               np.float32(SHADOW_TAU), np.float32(rate), np.float32(rate * fg), mask)
         return mask
 
     def getDist2Threshold(self) -> float:  # noqa: N802 - OpenCV KNN's name for the same quantity

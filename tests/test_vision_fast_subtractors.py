@@ -148,5 +148,8 @@ def test_cnt_settings_are_checked():
         ForegroundParams(method="cnt", threshold=400)
     with pytest.raises(ValueError, match="cnt_min_stability"):
         ForegroundParams(method="cnt", history=10, cnt_min_stability=10)
+    with pytest.raises(ValueError, match="cnt_min_stability"):
+        ForegroundParams(cnt_min_stability=0)
+    assert ForegroundParams(method="knn", history=10).cnt_min_stability == 15  # only CNT's own check
     with pytest.raises(ValueError, match="method"):
         ForegroundParams(method="gsoc")

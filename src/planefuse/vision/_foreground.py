@@ -196,8 +196,9 @@ class ForegroundParams:
                      knn_samples="int>=1", mean_foreground_rate="[0,1]")
         require(self.method != "cnt" or self.threshold is None, self, "threshold",
                 f"must be None for method 'cnt' (OpenCV's CNT has fixed thresholds), got {self.threshold}")
-        require(1 <= self.cnt_min_stability < self.history, self, "cnt_min_stability",
-                f"must be an integer in [1, history = {self.history}), got {self.cnt_min_stability}")
+        check_fields(self, cnt_min_stability="int>=1")
+        require(self.method != "cnt" or self.cnt_min_stability < self.history, self, "cnt_min_stability",
+                f"must be below history = {self.history} for method 'cnt', got {self.cnt_min_stability}")
         require(self.knn_samples >= 2, self, "knn_samples",
                 f"must be >= 2 (a pixel is background when 2 samples match), got {self.knn_samples}")
         require(not self.selective_update or self.method == "knn", self, "selective_update",

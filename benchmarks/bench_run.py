@@ -9,10 +9,11 @@ background subtraction, registration, filter, tracker, tables and metrics; figur
 run in its own process pinned to one core with one thread per library (numba, OpenMP, BLAS, OpenCV):
 
 * ``before``: the tree of ``--before`` (a commit, exported with ``git archive`` into a temporary folder), on the
-  first recording;
+  last recording (BMP: what ``planefuse simulate`` writes since the third pass);
 * ``after``: this checkout's ``src`` on every recording (the first: code only), and on the last recording with the
   cameras' background subtraction at 1/``--downscale`` resolution (a different detector: its scores are printed
-  beside it).
+  beside it), and on the last recording with the subtractor ``--method`` (default ``mean``, the numba running
+  average: a different detector, its scores beside it).
 
 Each process first runs a 1.5 s simulated scene (numba compilation, caches), then times the run. CPU time is the
 process's user + system time (``resource.getrusage``), the honest measure on a shared machine; repeats are
@@ -46,8 +47,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main when this branch started (2026-12-03, issue 19's fourth pass, s6-19)
-BEFORE = "2f2aa07"
+#: main when this branch started (2026-12-03, issue 19's fifth pass, s7-19)
+BEFORE = "a77e042"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
@@ -55,7 +56,7 @@ SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM
 #: the module's global that its callers look up (the name where it is used). Time is exclusive: a stage called
 #: inside another (the KNN model inside the foreground) is not counted twice.
 STAGES = (
-    ("KNN model (priming included)", "planefuse.vision._foreground", "BackgroundSubtractor._learn"),
+    ("background model (priming included)", "planefuse.vision._foreground", "BackgroundSubtractor._learn"),
     ("foreground cleaning, likelihood", "planefuse.vision._foreground", "BackgroundSubtractor.apply"),
     ("frame read + decode", "planefuse.io._streams", "_read_png"),
     ("frame read + decode", "planefuse.io._video", "VideoFrames.__call__"),
@@ -108,9 +109,11 @@ def stage_timers() -> dict[str, float]:
     return spent
 
 
-def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False, stride: int = 1) -> None:
+def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False, stride: int = 1,
+          method: str = "") -> None:
     """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
-    resolution where above 1, every ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
+    resolution where above 1, by the subtractor ``method`` where given (``ForegroundParams.method``), every
+    ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
     CPU timers (:data:`STAGES`) where asked; prints a JSON line."""
     import resource
 
@@ -143,6 +146,8 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
     cam = params.camera_params
     if downscale > 1:
         cam = replace(cam, foreground=replace(cam.foreground, downscale=downscale))
+    if method:
+        cam = replace(cam, foreground=replace(cam.foreground, method=method))
     if stride > 1:  # (a tree before frame_stride has none)
         cam = replace(cam, frame_stride=stride)
     params = replace(params, camera_params=cam)
@@ -199,10 +204,10 @@ def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path
 
 
 def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False,
-             stride: int = 1) -> dict:
+             stride: int = 1, method: str = "") -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
-                       + ["--stride", str(stride)]
+                       + ["--stride", str(stride), "--method", method]
                        + (["--profile"] if profile else []) + (["--stages"] if stages else []),
                        env=env, capture_output=True, text=True)
     if p.returncode:
@@ -231,10 +236,13 @@ def main() -> None:
     ap.add_argument("--stages", action="store_true", help="also: CPU seconds per stage of every run")
     ap.add_argument("--cli", action="store_true",
                     help="also: the whole `planefuse run` process (start-up included), before and after")
+    ap.add_argument("--method", default="mean",
+                    help="also time the last recording with this subtractor (ForegroundParams.method; '' to skip; "
+                    "default: mean, the numba running average)")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.profile, args.downscale, args.stages, args.stride)
+        child(*args.child, args.profile, args.downscale, args.stages, args.stride, args.method)
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
     recs: dict[str, Path] = {}
@@ -258,29 +266,33 @@ def main() -> None:
         else:
             recs["JPEG"] = tmp / "rec-jpg"
             rec.write(recs["JPEG"], image_format="jpg")
-    first, last = next(iter(recs)), list(recs)[-1]
+    last = list(recs)[-1]
     after = ROOT / "src"
-    runs: list[tuple[str, Path, Path, int, int]] = []  # label, source tree, recording, downscale, frame stride
+    # label, source tree, recording, downscale, frame stride, subtractor ('' = the tree's default)
+    runs: list[tuple[str, Path, Path, int, int, str]] = []
     if args.before:
         (tmp / "before").mkdir()
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", args.before, "src"], check=True,
                                  capture_output=True).stdout
         subprocess.run(["tar", "-x", "-C", str(tmp / "before")], input=archive, check=True)
-        runs.append((f"before ({args.before}), {first}", tmp / "before" / "src", recs[first], 1, 1))
-    runs += [(f"after (this checkout), {name}", after, path, 1, 1) for name, path in recs.items()]
+        runs.append((f"before ({args.before}), {last}", tmp / "before" / "src", recs[last], 1, 1, ""))
+    runs += [(f"after (this checkout), {name}", after, path, 1, 1, "") for name, path in recs.items()]
+    if args.method:
+        runs.append((f"after, {last}, foreground_method {args.method}", after, recs[last], 1, 1, args.method))
     if args.downscale > 1:
-        runs.append((f"after, {last}, KNN at 1/{args.downscale} resolution", after, recs[last], args.downscale, 1))
+        runs.append((f"after, {last}, subtraction at 1/{args.downscale} resolution", after, recs[last], args.downscale,
+                     1, ""))
     if args.stride > 1:
-        runs.append((f"after, {last}, frame_stride {args.stride}", after, recs[last], 1, args.stride))
+        runs.append((f"after, {last}, frame_stride {args.stride}", after, recs[last], 1, args.stride, ""))
         if args.downscale > 1:
-            runs.append((f"after, {last}, frame_stride {args.stride}, KNN at 1/{args.downscale}", after, recs[last],
-                         args.downscale, args.stride))
+            runs.append((f"after, {last}, frame_stride {args.stride}, subtraction at 1/{args.downscale}", after,
+                         recs[last], args.downscale, args.stride, ""))
     results: dict[str, list[dict]] = {label: [] for label, *_ in runs}
     for r in range(args.repeats):
-        for k, (label, src, rec_dir, downscale, stride) in enumerate(runs):
+        for k, (label, src, rec_dir, downscale, stride, method) in enumerate(runs):
             profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
             results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages,
-                                           stride))
+                                           stride, method))
     some = next(iter(results.values()))[0]
     print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
           f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")
@@ -295,9 +307,8 @@ def main() -> None:
         cells = " | ".join("-" if sc.get(k) is None else f"{sc[k]:.3f}" for k in SCORES)
         print(f"| {label} | {best['cpu_s']:.2f} | {best['cpu_s'] / best['duration_s']:.3f} | "
               f"{base / best['cpu_s']:.2f}x | {best['peak_rss_mb']:.0f} | {best['digest']} | {cells} |")
-    same = {label: {r["digest"] for r in rs} for label, rs in results.items()
-            if "KNN at" not in label and "frame_stride" not in label}
-    print(f"identical results (every run at full resolution, every frame): {len(set().union(*same.values())) == 1}")
+    same = {r["digest"] for label in identical_groups(runs) for r in results[label]}
+    print(f"identical results (before and after, default configuration, every recording): {len(same) == 1}")
     if args.stages:
         print_stages(results)
     if args.cli:
@@ -330,7 +341,7 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
 
     rows: dict[str, list[tuple[float, str]]] = {label: [] for label, *_ in runs}
     for r in range(repeats):
-        for k, (label, src, rec_dir, downscale, stride) in enumerate(runs):
+        for k, (label, src, rec_dir, downscale, stride, method) in enumerate(runs):
             cfg = tmp / f"cli-{k}.yaml"
             out = tmp / f"cli-out-{k}-{r}"
             env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
@@ -342,6 +353,8 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
                 conf["sensors"]["cameras"]["subtraction_downscale"] = downscale
             if stride > 1:
                 conf["sensors"]["cameras"]["frame_stride"] = stride
+            if method:
+                conf["sensors"]["cameras"]["foreground_method"] = method
             cfg.write_text(yaml.safe_dump(conf, sort_keys=False))
             core = str(min(os.sched_getaffinity(0)))
             with open(tmp / f"cli-{k}-{r}.log", "w+") as log:
@@ -364,8 +377,14 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
 
         duration = recorded_s(read_recording(rec_dir))
         print(f"| {label} | {cpu_s:.2f} | {cpu_s / duration:.3f} | {base / cpu_s:.2f}x | {dig} |")
-    same = {d for label, rs in rows.items() if "KNN at" not in label and "frame_stride" not in label for _, d in rs}
-    print(f"identical results (every process at full resolution, every frame): {len(same) == 1}")
+    same = {d for label in identical_groups(runs) for _, d in rows[label]}
+    print(f"identical results (every process with the default configuration): {len(same) == 1}")
+
+
+def identical_groups(runs: list) -> list[str]:
+    """The rows that must give the same results: the 'before' tree and this checkout, both with their default
+    configuration (full resolution, every frame, the default subtractor), on every recording."""
+    return [r[0] for r in runs if r[0].startswith(("before", "after (this checkout)"))]
 
 
 def recorded_s(rec) -> float:

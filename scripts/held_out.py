@@ -2,7 +2,7 @@
 (bilinear sub-cell motion, dense grid) and no temporal filter. Prints a Markdown table.
 
 Usage: ``PYTHONPATH=src python scripts/held_out.py [--seeds 1,2,3,4,5,6] [--duration-s 10]
-[--probe | --downscale | --stride | --mog2] [--workers N | --scheduler tcp://HOST:8786 | --serial]``
+[--probe | --downscale | --stride | --mog2 | --subtractors] [--workers N | --scheduler tcp://HOST:8786 | --serial]``
 
 Every (seed, configuration) run is one task of :func:`planefuse.batch.run_batch` (a dask LocalCluster of one
 worker per core by default, or a running scheduler); the metrics are the serial runs' (``--serial`` runs them in
@@ -11,7 +11,9 @@ this process).
 ``--probe`` scores instead the clustering / tracker variants of the probe in docs/results.md; ``--downscale`` the
 cameras' background subtraction at full, half and third resolution (``ForegroundParams.downscale``); ``--stride``
 the cameras at every instant, every 2nd and every 3rd (``CameraParams.frame_stride``), and every 2nd with the
-half-resolution subtraction; ``--mog2`` OpenCV's other background subtractor (MOG2) against KNN.
+half-resolution subtraction; ``--mog2`` OpenCV's other background subtractor (MOG2) against KNN; ``--subtractors``
+the faster ones against KNN: the numba running-average model (``foreground_method: mean``) with its foreground
+pixels learnt at 0.2 of the rate, never, and like the background, and OpenCV contrib's CNT.
 
 The filter's defaults were chosen on seeds 1-3 (tuning); seeds 4 and above are held out. Scores as in
 :func:`planefuse.eval.system_metrics` (first second skipped, 0.5 m match distance).
@@ -64,6 +66,14 @@ MOG2 = {
         _BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, method="mog2", threshold=t)))
        for t in (16.0, 9.0)},
 }
+#: the faster background models against KNN (``--subtractors``)
+SUBTRACTORS = {
+    "KNN (OpenCV)": replace(_BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, method="knn"))),
+    **{f"mean, foreground rate {r:g}": replace(_BASE, camera_params=replace(_BASE.camera_params, foreground=replace(
+        _F, method="mean", mean_foreground_rate=r))) for r in (0.2, 0.0, 1.0)},
+    "CNT (OpenCV contrib), minPixelStability 15": replace(_BASE, camera_params=replace(
+        _BASE.camera_params, foreground=replace(_F, method="cnt"))),
+}
 KEYS = ("moda", "precision", "recall", "mota", "idf1")
 
 
@@ -77,13 +87,15 @@ def main() -> None:
     ap.add_argument("--stride", action="store_true",
                     help="the cameras at every instant and every k-th only (frame_stride) instead")
     ap.add_argument("--mog2", action="store_true", help="OpenCV's MOG2 subtractor against KNN instead")
+    ap.add_argument("--subtractors", action="store_true",
+                    help="the running-average model (mean) and OpenCV's CNT against KNN instead")
     ap.add_argument("--workers", type=int, default=None, help="local dask workers (default: one per core)")
     ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
     ap.add_argument("--serial", action="store_true", help="run in this process, one run after the other")
     ap.add_argument("--only", default=None, help="only the configurations whose name contains this")
     args = ap.parse_args()
     configs = PROBE if args.probe else DOWNSCALE if args.downscale else STRIDE if args.stride else \
-        MOG2 if args.mog2 else CONFIGS
+        MOG2 if args.mog2 else SUBTRACTORS if args.subtractors else CONFIGS
     if args.only is not None:
         configs = {name: p for name, p in configs.items() if args.only in name}
     seeds = [int(s) for s in args.seeds.split(",")]

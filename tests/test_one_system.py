@@ -92,6 +92,8 @@ CHANGED = {
     "sensors.cameras.frame_stride": 2,
     "sensors.cameras.knn_samples": 3,
     "sensors.cameras.primed_rate": "automatic",
+    "sensors.cameras.cnt_min_stability": 10,
+    "sensors.cameras.mean_foreground_rate": 0.5,
     "sensors.cameras.person_detector": "hog",
     "sensors.cameras.person_upscale": 1.5,
     "sensors.cameras.person_min_score": 1.0,

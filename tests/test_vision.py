@@ -106,7 +106,7 @@ def test_knn_samples_reach_opencv_and_fewer_still_find_the_person(rng):
         ForegroundParams(knn_samples=1)
 
 
-@pytest.mark.parametrize("method", ["mog2", "knn"])
+@pytest.mark.parametrize("method", ["mog2", "knn", "mean"])
 def test_priming_with_the_empty_scene_sees_people_present_from_the_start(method, rng):
     """A person standing still in view from the first frame: a cold model learns it as background
     (a ghost), one primed with the empty-scene plate keeps it foreground."""

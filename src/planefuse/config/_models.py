@@ -113,8 +113,10 @@ class CameraSensorConfig(_Model):
     """Cameras: background subtraction, then registration of the foreground on the planes (planefuse.vision)."""
 
     enabled: bool = _field(description="Use the cameras", library="system.cameras")
-    foreground_method: Literal["knn", "mog2"] = _field(
-        description="OpenCV background subtractor", expected="knn or mog2",
+    foreground_method: Literal["knn", "mog2", "cnt", "mean"] = _field(
+        description="Background subtractor: OpenCV's knn, mog2 or cnt (opencv-contrib), or mean (a running-average "
+        "background per pixel, numba: 13x cheaper than knn per frame, for steady lighting; it does not follow a "
+        "real camera's exposure changes)", expected="knn, mog2, cnt or mean",
         library="system.camera_params.foreground.method",
     )
     history_frames: int = _field(
@@ -254,6 +256,16 @@ class CameraSensorConfig(_Model):
     knn_samples: int = _field(
         description="KNN background samples kept per pixel (OpenCV's nSamples; fewer are faster, 3 = 17 % less "
         "KNN time than 7)", expected="an integer >= 2", library="system.camera_params.foreground.knn_samples",
+    )
+    cnt_min_stability: int = _field(
+        description="CNT: frames a pixel must keep its grey level to become background (OpenCV's "
+        "minPixelStability)", unit="frames", expected="an integer >= 1, below history_frames",
+        library="system.camera_params.foreground.cnt_min_stability",
+    )
+    mean_foreground_rate: float = _field(
+        description="mean: rate of learning foreground and shadow pixels into the background, relative to the "
+        "learning rate (0 = never, 1 = like background pixels)", expected="in [0, 1]",
+        library="system.camera_params.foreground.mean_foreground_rate",
     )
     frame_stride: int = _field(
         description="Process every k-th synchronised camera instant (the others are not read; the background "

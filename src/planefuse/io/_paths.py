@@ -100,7 +100,7 @@ def resolve_all_inside(folder: str | Path, relpaths: Sequence[str | Path], what:
         ``what(k)`` names path ``k`` in an error (e.g. ``"cam0/times.csv:3: image_file"``).
     """
     base = Path(folder).resolve()
-    folders: dict[str, tuple[Path, frozenset[str] | None]] = {}
+    folders: dict[str, tuple[Path, frozenset[str] | None, bool]] = {}  # real folder, its links, inside base
     out: list[str] = []
     for k, relpath in enumerate(relpaths):
         rel = str(relpath)
@@ -115,9 +115,9 @@ def resolve_all_inside(folder: str | Path, relpaths: Sequence[str | Path], what:
                     links = frozenset(e.name for e in entries if e.is_symlink())
             except OSError:  # absent (its files are then reported missing) or unreadable: every file the slow way
                 links = None
-            folders[head] = (real, links)
-        real, links = folders[head]
-        if links is None or name in links or not real.is_relative_to(base):
+            folders[head] = (real, links, real.is_relative_to(base))
+        real, links, inside = folders[head]
+        if links is None or name in links or not inside:
             out.append(os.fspath(resolve_inside(folder, rel, what(k))))  # a link, or outside: the full rule
         else:
             out.append(os.path.join(real, name))

@@ -30,6 +30,7 @@ from ._manifest import (
 from ._streams import IMU_COLUMNS, AudioStream, CameraStream, ImuData, ImuStream, LaserStream, write_laser_npz
 from ._paths import resolve_inside
 from ._timestamps import write_csv
+from ._yaml import _safe_load
 
 __all__ = ["DEFAULT_IMAGE_FORMAT", "Event", "Recording", "read_recording", "write_recording"]
 
@@ -363,5 +364,5 @@ def read_recording(path: str | Path) -> Recording:
             resolve_inside(root, m.calibration_points_file, "calibration_points_file"), columns=CONTROL_POINT_COLUMNS)
     sim = root / "simulation.yaml"
     if sim.is_file():
-        rec.provenance = yaml.safe_load(sim.read_text())
+        rec.provenance = _safe_load(sim.read_text())  # libyaml: 30x faster than the pure-Python parser
     return rec

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from .._params import check_fields, require
 from ._fusion import quantise_foreground
+from ._mean_background import MeanBackground
 
 __all__ = [
     "BackgroundSubtractor",
@@ -44,14 +45,25 @@ class ForegroundParams:
 
     Attributes
     ----------
-    method : {"mog2", "knn"}
-        OpenCV subtractor (``createBackgroundSubtractorMOG2`` / ``...KNN``).
+    method : {"knn", "mog2", "cnt", "mean"}
+        OpenCV subtractor (``createBackgroundSubtractorKNN`` / ``...MOG2`` / ``cv2.bgsegm.create...CNT``), or
+        ``"mean"``: one running-average background colour per pixel in one numba pass
+        (:class:`~planefuse.vision._mean_background.MeanBackground`), KNN's decision (squared colour distance
+        against ``threshold``) and shadow rule against that mean; 13x cheaper than KNN per frame and at or above
+        it on the simulator (steady lighting), but on real video (EPFL terrace, tuning frames 0-1499) it calls
+        20-70 % of the image foreground where KNN calls 1-10 %: its slow average does not follow a real
+        camera's exposure and light (docs/results.md, "A running-average subtractor").
+        CNT (Zeevi's background subtraction by counting, in ``opencv-contrib``) works on the grey frame: a pixel
+        is background once it has kept the grey level of its history (within OpenCV's fixed 30 levels) for more
+        than ``cnt_min_stability`` frames; it has no threshold to set and no shadow label.
     history : int
-        Frames in the background model.
+        Frames in the background model (CNT: its ``maxPixelStability``, the most frames of credit a pixel's
+        background colour can collect).
     threshold : float
         MOG2 ``varThreshold`` (squared Mahalanobis distance) or KNN
-        ``dist2Threshold`` (squared distance); ``None`` = OpenCV's default
-        (16 for MOG2, 400 for KNN), for KNN divided by ``downscale`` (an
+        ``dist2Threshold`` (squared distance; ``"mean"``: the same, to the
+        mean); ``None`` = OpenCV's default (16 for MOG2, 400 for KNN and
+        ``"mean"``), for KNN and ``"mean"`` divided by ``downscale`` (an
         average of ``downscale**2`` pixels is less noisy but blurs a person's
         edges; 200 at ``downscale`` 2 was the best of 100-400 on the default
         scene's tuning seeds 1-3, docs/results.md "Cameras").
@@ -121,6 +133,12 @@ class ForegroundParams:
         and fewer cost little: 3 took 17 % less time per 360x288 frame than 7 (0.80 against 0.97 ms, one core,
         docs/benchmarks.md "Real-time factor") and scored no worse on the default scene's tuning seeds 1-3; not
         the default until judged on the EPFL terrace's tuning frames.
+    cnt_min_stability : int
+        CNT only: frames a pixel must keep its grey level before it is background (OpenCV's
+        ``minPixelStability``; its default, 15); below ``history``.
+    mean_foreground_rate : float
+        ``"mean"`` only: rate at which pixels called foreground or shadow are learnt into the running average,
+        relative to the learning rate, in [0, 1] (0 = never, a conservative update; 1 = blind, every pixel alike).
     selective_max_frames : int
         A pixel is kept out of the model for at most this many consecutive frames, then learnt again whatever the
         camera model says (until it leaves the protected region), so that a ghost -- a background object that
@@ -167,13 +185,16 @@ class ForegroundParams:
     selective_update: bool = False
     selective_max_frames: int = 50
     knn_samples: int = 7
+    cnt_min_stability: int = 15
+    mean_foreground_rate: float = 0.2
     person_detector: str | None = None
     person_upscale: float = 2.0
     person_min_score: float = 0.3
     person_likelihood: float = 0.9
 
     def __post_init__(self) -> None:
-        require(self.method in ("mog2", "knn"), self, "method", f"must be 'mog2' or 'knn', got {self.method!r}")
+        require(self.method in ("knn", "mog2", "cnt", "mean"), self, "method",
+                f"must be 'knn', 'mog2', 'cnt' or 'mean', got {self.method!r}")
         require(self.primed_rate in ("steady", "automatic"), self, "primed_rate",
                 f"must be 'steady' or 'automatic', got {self.primed_rate!r}")
         check_fields(self, history="int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
@@ -181,7 +202,12 @@ class ForegroundParams:
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
         check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
                      relearn_frames="int>=1", downscale="int>=1", selective_max_frames="int>=1",
-                     knn_samples="int>=1")
+                     knn_samples="int>=1", mean_foreground_rate="[0,1]")
+        require(self.method != "cnt" or self.threshold is None, self, "threshold",
+                f"must be None for method 'cnt' (OpenCV's CNT has fixed thresholds), got {self.threshold}")
+        check_fields(self, cnt_min_stability="int>=1")
+        require(self.method != "cnt" or self.cnt_min_stability < self.history, self, "cnt_min_stability",
+                f"must be below history = {self.history} for method 'cnt', got {self.cnt_min_stability}")
         require(self.knn_samples >= 2, self, "knn_samples",
                 f"must be >= 2 (a pixel is background when 2 samples match), got {self.knn_samples}")
         require(not self.selective_update or self.method == "knn", self, "selective_update",
@@ -217,6 +243,11 @@ class BackgroundSubtractor:
                 varThreshold=16.0 if params.threshold is None else float(params.threshold),
                 detectShadows=params.detect_shadows,
             )
+        elif params.method == "cnt":
+            self._model = _create_cnt(params)
+        elif params.method == "mean":
+            threshold = _KNN_THRESHOLD / params.downscale if params.threshold is None else float(params.threshold)
+            self._model = MeanBackground(threshold, params.history, params.detect_shadows, params.mean_foreground_rate)
         else:
             threshold = _KNN_THRESHOLD / params.downscale if params.threshold is None else float(params.threshold)
             self._model = cv2.createBackgroundSubtractorKNN(
@@ -299,7 +330,9 @@ class BackgroundSubtractor:
         img = self._check(empty_frame)
         for i in range(int(n_frames)):
             self._learn(img, 1.0 if i == 0 else -1.0)
-        if self.params.learning_rate < 0 and self.params.primed_rate == "steady":
+        # CNT's rate is not a learning rate: a rate in (0, 1) scales its stability cap (maxPixelStability), so
+        # its automatic mode (-1, the full cap) is its steady state
+        if self.params.learning_rate < 0 and self.params.primed_rate == "steady" and self.params.method != "cnt":
             self._rate = 1.0 / self.params.history
 
     def _check(self, frame) -> np.ndarray:
@@ -327,12 +360,15 @@ class BackgroundSubtractor:
         if self.params.downscale > 1:
             img = cv2.resize(img, self._model_size, interpolation=cv2.INTER_AREA)
         protect = self._take_protection() if self.params.selective_update else None
-        if self._relearn_left > 0:  # the scene is being relearnt: nothing is kept out
+        relearning = self._relearn_left > 0
+        if relearning:  # the scene is being relearnt: nothing is kept out
             rate = self.params.relearn_rate
             self._relearn_left -= 1
             protect = None
         compensated = img if self._gain is None else self._gain.compensate(img)
-        if protect is None:
+        if relearning and isinstance(self._model, MeanBackground):  # its foreground too, at the relearning rate
+            mask = self._model.apply(compensated, learningRate=rate, foreground_rate=1.0)
+        elif protect is None:
             mask = self._model.apply(compensated, learningRate=rate)
         else:
             mask = self._apply_selective(compensated, protect, rate)
@@ -566,6 +602,18 @@ def _frame_seed(n: int) -> int:
     generator seeded with consecutive small integers gives correlated draws. Cached: every camera asks for
     the same frame numbers."""
     return int(np.random.SeedSequence(n).generate_state(1, np.uint32)[0]) & 0x7FFFFFFF
+
+
+def _create_cnt(params: ForegroundParams):
+    """OpenCV's CNT subtractor (``cv2.bgsegm``, opencv-contrib) for ``params``: history on, ``history`` frames of
+    credit at most, ``cnt_min_stability`` frames to become background."""
+    if not hasattr(cv2, "bgsegm"):
+        raise ValueError(f"foreground method 'cnt' needs cv2.bgsegm (opencv-contrib-python-headless), absent from "
+                         f"this OpenCV {cv2.__version__}")
+    # isParallel: rows split over OpenCV's threads (cv2.setNumThreads); every pixel is independent, so the mask
+    # does not depend on the number of threads
+    return cv2.bgsegm.createBackgroundSubtractorCNT(minPixelStability=params.cnt_min_stability, useHistory=True,
+                                                    maxPixelStability=params.history, isParallel=True)
 
 
 def _kernel(side_px: int):

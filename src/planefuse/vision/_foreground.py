@@ -87,8 +87,8 @@ class ForegroundParams:
     primed_rate : {"steady", "automatic"}
         How an automatic model (``learning_rate`` -1) learns after :meth:`BackgroundSubtractor.prime`: ``"steady"``
         at ``1 / history`` per frame, for a real image of the empty scene (people who stop are not absorbed);
-        ``"automatic"`` goes on with OpenCV's fast start (``1 / min(2 n, history)`` after ``n`` frames, the plate's
-        included), for an *estimated* plate (``planefuse import --background-median-s``), which may hold people
+        ``"automatic"`` goes on with the model's fast automatic start (OpenCV's ``1 / min(2 n, history)`` after ``n``
+        frames, ``"mean"``'s ``1 / min(n, history)``, the plate's included; CNT has no rate), for an *estimated* plate (``planefuse import --background-median-s``), which may hold people
         and another light than the frames that follow, and has to be corrected quickly.
     gain_compensation : bool
         Divide every frame by a smooth per-channel gain field before the subtractor sees it, so that a camera's

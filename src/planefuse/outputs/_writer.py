@@ -31,9 +31,7 @@ import io
 import json
 import os
 import shutil
-import signal
 import tempfile
-import threading
 import zipfile
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -422,9 +420,8 @@ class OutputWriter:
             self.rerun.set_time(step, time_s)
             self.rerun.log_occupancy(occ)
         if len(self._buffer) == self.chunk_steps:
-            with _interrupt_after():
-                self._flush_buffer()
-                self._commit(checkpoint)
+            self._flush_buffer()
+            self._commit(checkpoint)
             return True
         return False
 
@@ -553,10 +550,9 @@ class OutputWriter:
 
     def flush(self, status: str = "interrupted") -> None:
         """Write the steps buffered so far (a partial chunk) so all files are valid; the chunk stays unfinished."""
-        with _interrupt_after():
-            self._flush_buffer()
-            self._write_tables()
-            self._write_state(status)
+        self._flush_buffer()
+        self._write_tables()
+        self._write_state(status)
 
     # -- reading back ----------------------------------------------------------------------------------------------
     @property
@@ -593,12 +589,11 @@ class OutputWriter:
         (:func:`planefuse.pipeline.run_to_folder`), not here: it finishes with ``status="presenting"`` and
         calls :meth:`mark_finished` when they are written, so that ``finished`` is the last thing written.
         """
-        with _interrupt_after():
-            self._flush_buffer()
-            self._write_tables()
-            # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
-            self.n_chunks_done = self._steps_written // self.chunk_steps
-            self._write_state(status)
+        self._flush_buffer()
+        self._write_tables()
+        # only full chunks count as finished: a re-run of the same configuration recomputes the short tail
+        self.n_chunks_done = self._steps_written // self.chunk_steps
+        self._write_state(status)
         if self.rerun is not None:
             self.rerun.close()
             self.rerun = None
@@ -635,33 +630,6 @@ class OutputWriter:
 
 
 _COLUMN_DTYPES = {"step": np.int64, "track_id": np.int64, "source": object}
-
-
-@contextlib.contextmanager
-def _interrupt_after():
-    """Hold Ctrl-C (SIGINT) back while the block writes, then raise :class:`KeyboardInterrupt` after it.
-
-    A ``KeyboardInterrupt`` raised inside zarr's or the compressor's machinery (its I/O runs on other threads
-    that the main thread waits for) could leave a lock held, and the flush that follows an interrupt then waits
-    for ever; held back, the interrupt lands between two whole writes. Only the main thread receives signals, so
-    elsewhere, or inside another such block, this does nothing.
-    """
-    if threading.current_thread() is not threading.main_thread() or getattr(_interrupt_after, "active", False):
-        yield
-        return
-    received: list[int] = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-    _interrupt_after.active = True
-    try:
-        yield
-    finally:
-        _interrupt_after.active = False
-        signal.signal(signal.SIGINT, previous)
-        if received and previous is not signal.SIG_IGN:
-            if callable(previous):  # Python's default handler raises KeyboardInterrupt
-                previous(signal.SIGINT, None)
-            else:  # SIG_DFL
-                raise KeyboardInterrupt
 
 
 def _columns(columns: tuple[str, ...], rows: list) -> dict[str, np.ndarray]:

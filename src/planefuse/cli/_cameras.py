@@ -146,7 +146,8 @@ def simulated(
     duration_s: float = typer.Option(20.0, help="Simulated duration [s]."),
     seed: int = typer.Option(1, help="Scene seed."),
     heights: str = typer.Option("0.1,0.5,1.0,1.5", help="Plane heights [m] of the multi-plane run."),
-    method: str = typer.Option("knn", help="Background subtraction: knn, mog2, or 'masks' (exact masks)."),
+    method: str = typer.Option("knn", help="Background subtraction: knn, mog2, cnt, mean (ForegroundParams.method), "
+                                          "or 'masks' (exact masks)."),
     warmup_s: float = typer.Option(2.0, help="Seconds left out of the scores while the background is learnt [s]."),
     match_distance_m: float = typer.Option(0.5, "--match-distance-m", help="Match distance [m]."),
 ) -> None:

@@ -280,6 +280,10 @@ def test_plane_stack_indices(rng):
     assert np.all(np.abs(back - xy) <= 0.05 + 1e-12)
     iy, ix = st_.index_from_xy(np.array([[-2.0, 0.5], [np.nan, 0.0]]))
     assert (iy == -1).all() and (ix == -1).all()
+    fy, fx = st_.fractional_index_from_xy(xy)  # the inverse of xy_from_index, cell centres at whole numbers
+    np.testing.assert_allclose(st_.xy_from_index(fy, fx), xy, atol=1e-12)
+    np.testing.assert_array_equal(np.floor(fy + 0.5), st_.index_from_xy(xy)[0])
+    np.testing.assert_array_equal(np.floor(fx + 0.5), st_.index_from_xy(xy)[1])
     np.testing.assert_array_equal(st_.plane_index_from_z([0.1, 0.3, 0.9, 1.3, -0.1]), [0, 1, 2, -1, -1])
 
 

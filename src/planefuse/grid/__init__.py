@@ -8,7 +8,7 @@ from ._evidence import (
     probability_from_log_odds,
 )
 from ._occluders import cells_filled_by_occluders, cells_hidden_by_occluders, check_occluder_boxes
-from ._stack import PlaneStack
+from ._stack import PlaneStack, disc_offsets
 
 __all__ = [
     "LOG_ODDS_CLIP",
@@ -18,6 +18,7 @@ __all__ = [
     "cells_filled_by_occluders",
     "cells_hidden_by_occluders",
     "check_occluder_boxes",
+    "disc_offsets",
     "log_odds_from_probability",
     "probability_from_log_odds",
 ]

@@ -11,6 +11,7 @@ grows with world Y and the column index with world X (plot with
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -167,6 +168,12 @@ class PlaneStack:
             axis=-1,
         )
 
+    def fractional_index_from_xy(self, xy_m) -> tuple[np.ndarray, np.ndarray]:
+        """Fractional grid indices ``(iy, ix)`` (each (...,) float) of world points ``xy_m`` (..., 2) [m], cell
+        centres at whole numbers: the inverse of :meth:`xy_from_index` (no bounds check)."""
+        xy, cell = np.asarray(xy_m, dtype=float), self.cell_size_m
+        return (xy[..., 1] - self.y_min_m) / cell - 0.5, (xy[..., 0] - self.x_min_m) / cell - 0.5
+
     def plane_index_from_z(self, z_m) -> np.ndarray:
         """Index (int64, same shape as ``z_m``) of the plane whose band holds each height; -1 outside all bands."""
         z = np.asarray(z_m, dtype=float)
@@ -180,3 +187,15 @@ class PlaneStack:
         """Affine (3, 3) from world XY [m] to fractional grid coordinates (ix, iy) of cell centres."""
         s = 1.0 / self.cell_size_m
         return np.array([[s, 0.0, -self.x_min_m * s - 0.5], [0.0, s, -self.y_min_m * s - 0.5], [0, 0, 1.0]])
+
+
+@lru_cache(maxsize=16)
+def disc_offsets(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column offsets (int64, read-only, cached) of the cells within ``radius_cells`` of a centre cell
+    (``dy^2 + dx^2 <= radius_cells^2``), in row-major order over the square of side ``2 ceil(radius_cells) + 1``."""
+    r = int(np.ceil(radius_cells))
+    dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
+    within = dy * dy + dx * dx <= radius_cells * radius_cells
+    dy, dx = dy[within].astype(np.int64), dx[within].astype(np.int64)
+    dy.flags.writeable = dx.flags.writeable = False
+    return dy, dx

@@ -53,7 +53,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import ndimage
 
-from ..grid import GroundDetections, PlaneStack, log_odds_from_probability, probability_from_log_odds
+from ..grid import (GroundDetections, PlaneStack, disc_offsets, log_odds_from_probability,
+                    probability_from_log_odds)
 from .._params import check_fields
 
 __all__ = ["ClusterParams", "Clusters", "cluster_occupancy", "column_log_odds", "positions_from_step_evidence",
@@ -213,10 +214,7 @@ def velocity_variance_m2_s2(occ_v, velocities_m_s, occupancy, velocity_m_s) -> n
 def _disc_window(radius_cells: float, shape: tuple[int, int]):
     """``window(c)``: the indices ``(iy, ix)`` of the cells of a grid of ``shape`` within ``radius_cells`` of the
     cell nearest the fractional index ``c = (iy, ix)``."""
-    ri = int(np.ceil(radius_cells))
-    dy, dx = np.mgrid[-ri:ri + 1, -ri:ri + 1]
-    disc = (dy**2 + dx**2) <= radius_cells * radius_cells
-    dy, dx = dy[disc], dx[disc]
+    dy, dx = disc_offsets(radius_cells)
     ny, nx = shape
 
     def window(c):
@@ -271,18 +269,11 @@ def positions_from_step_evidence(clusters: Clusters, step_log_odds, stack: Plane
         return clusters
     p_step = probability_from_log_odds(log_odds_from_probability(prior_occupancy) + L)
     S_step = column_log_odds(p_step, stack, prior_occupancy, params)
-    iy, ix = _fractional_index(stack, clusters.xy_m)
-    centres = np.stack([iy, ix], axis=1)
+    centres = np.stack(stack.fractional_index_from_xy(clusters.xy_m), axis=1)
     _mean_shift(centres, np.maximum(S_step, 0.0), _disc_window(params.person_radius_m / stack.cell_size_m,
                                                                 S_step.shape), params.mean_shift_iterations)
     return replace(clusters, xy_m=stack.xy_from_index(centres[:, 0], centres[:, 1]))
 
-
-def _fractional_index(stack: PlaneStack, xy_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Fractional grid indices ``(iy, ix)`` of world points ``xy_m`` (N, 2) [m], the inverse of
-    :meth:`PlaneStack.xy_from_index`."""
-    cell = stack.cell_size_m
-    return (xy_m[:, 1] - stack.y_min_m) / cell - 0.5, (xy_m[:, 0] - stack.x_min_m) / cell - 0.5
 
 
 def _height_from_profile(profile: np.ndarray, heights_m: np.ndarray) -> float:

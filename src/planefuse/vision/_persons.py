@@ -39,7 +39,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from ..grid import GroundDetections, PlaneStack
+from ..grid import GroundDetections, PlaneStack, disc_offsets
 from .._params import check_fields
 
 __all__ = ["PersonParams", "ground_detections_from_log_odds", "person_score_map"]
@@ -90,18 +90,6 @@ def _disc(radius_cells: float) -> np.ndarray:
     disc = (x * x + y * y) <= radius_cells * radius_cells + 1e-9
     disc.flags.writeable = False
     return disc
-
-
-@lru_cache(maxsize=16)
-def _offsets(radius_cells: float) -> tuple[np.ndarray, np.ndarray]:
-    """Row and column offsets (int64, read-only, cached) of the cells within ``radius_cells`` of a centre, in
-    row-major order over the square of side ``2 ceil(radius_cells) + 1``."""
-    r = int(np.ceil(radius_cells))
-    dy, dx = np.mgrid[-r:r + 1, -r:r + 1]
-    within = dy * dy + dx * dx <= radius_cells * radius_cells
-    dy, dx = dy[within].astype(np.int64), dx[within].astype(np.int64)
-    dy.flags.writeable = dx.flags.writeable = False
-    return dy, dx
 
 
 @lru_cache(maxsize=16)
@@ -215,7 +203,7 @@ def ground_detections_from_log_odds(log_odds, views, stack: PlaneStack, time_s: 
     # within the NMS radius scoring within `plateau` of the peak), not at an arbitrary tied cell. All peaks at
     # once: (peaks, disc cells) index grids, cells off the grid masked out; the centroids are integer sums
     # divided by the count, the values np.mean gives.
-    dy, dx = _offsets(r_cells)
+    dy, dx = disc_offsets(r_cells)
     yy, xx = iy[:, None] + dy, ix[:, None] + dx
     inside = (yy >= 0) & (yy < stack.ny) & (xx >= 0) & (xx < stack.nx)
     near = score[np.clip(yy, 0, stack.ny - 1), np.clip(xx, 0, stack.nx - 1)]

@@ -50,7 +50,7 @@ from planefuse.grid import PlaneStack
 from planefuse.io import read_recording
 from planefuse.occupancy import GenerativeParams
 from planefuse.pipeline import run_plan
-from planefuse.vision import (BackgroundSubtractor, ForegroundParams, epfl_ground_truth_from_cameras,
+from planefuse.vision import (CameraFrontEnd, ForegroundParams, epfl_ground_truth_from_cameras,
                               load_epfl_sequence, recording_frames)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -261,15 +261,15 @@ def foreground_masks(rec, fg: ForegroundParams) -> tuple[list[np.ndarray], float
     """The front end's foreground likelihoods of every recorded frame, per camera ((F, H, W) uint8 0..255), as the
     camera pipeline computes them, and the CPU seconds it took (decode included)."""
     t0 = time.process_time()
-    subs = [BackgroundSubtractor(c.intrinsics.width_px, c.intrinsics.height_px, fg, c.name) for c in rec.cameras]
-    for sub, c in zip(subs, rec.cameras):  # primed with the recording's empty-scene image, as the run's cameras are
+    fronts = []
+    for c in rec.cameras:  # the run's own front end, primed with the recording's empty-scene image where it has one
         stream = rec.camera(c.name)
-        if stream.has_background:
-            sub.prime(stream.background())
-    out: list[list[np.ndarray]] = [[] for _ in subs]
+        fronts.append(CameraFrontEnd(c.intrinsics.width_px, c.intrinsics.height_px, fg, c.name,
+                                     background=stream.background() if stream.has_background else None))
+    out: list[list[np.ndarray]] = [[] for _ in fronts]
     for _, imgs in recording_frames(rec):
-        for c, (sub, img) in enumerate(zip(subs, imgs)):
-            out[c].append(np.round(sub.apply(img) * 255).astype(np.uint8))
+        for c, (front, img) in enumerate(zip(fronts, imgs)):
+            out[c].append(np.round(front.foreground(img) * 255).astype(np.uint8))
     return [np.stack(o) for o in out], time.process_time() - t0
 
 

@@ -38,7 +38,8 @@ from planefuse.tracking import EvidenceTracker  # noqa: E402
 from planefuse.vision import GenerativeCameraSensor  # noqa: E402
 
 #: Generative fields a replay may change (they map the kept marginals to evidence; the rest made the marginals).
-REPLAYABLE = {"generative_evidence_prior", "generative_max_log_odds", "generative_detection_mass"}
+REPLAYABLE = {"generative_evidence_prior", "generative_max_log_odds", "generative_detection_mass",
+              "generative_hidden_unknown"}
 
 
 def capture(rec, config: dict):

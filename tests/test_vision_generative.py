@@ -69,6 +69,41 @@ def test_missing_camera_gives_no_evidence_and_unseen_cells_are_unknown():
     assert (ev[:, ~seen] == 0).all()
 
 
+def test_hidden_unknown_leaves_cells_at_the_prior_unknown_and_keeps_the_rest():
+    """With an evidence reference above the model's prior, marginals left at the prior (what a person hidden
+    behind others in every view gets: his silhouettes change no synthetic image) are evidence against a body at
+    every frame; ``hidden_unknown`` makes them unknown, and leaves evidence for the people (above the band) and
+    against the ghost (below it) as the two references give them."""
+    cams, people, ghost, frames = _ghost_scene()
+    kw = dict(height_range_m=(0.0, 1.75), radius_m=0.22, evidence_prior=0.08)
+    plain = GenerativeCameraSensor(cams, STACK, GenerativeSensorParams(**kw))
+    hidden = GenerativeCameraSensor(cams, STACK, GenerativeSensorParams(**kw, hidden_unknown=True))
+    model = GenerativeCameraSensor(cams, STACK, GenerativeSensorParams(**{**kw, "evidence_prior": None}))
+    seen = plain.silhouettes.visible.any(0).reshape(STACK.ny, STACK.nx)
+    q0 = plain.marginals([None, None])                       # no image: every marginal at the prior
+    assert np.allclose(q0, plain.solver_params.prior)
+    eps = plain.solver_params.prior
+    n_disc = int((np.hypot(*np.mgrid[-2:3, -2:3]) <= 0.22 / STACK.cell_size_m).sum())
+    p0 = 1.0 - (1.0 - eps) ** n_disc                          # an interior cell's prior P_0
+    expected = np.log(p0 / (1 - p0)) - np.log(0.08 / 0.92)   # about -2.5 per frame, though nothing was seen
+    ev = plain.log_odds_from_marginals(q0)
+    assert ev[0, 50, 50] == pytest.approx(expected, abs=1e-4) and expected < -2.0
+    assert np.abs(hidden.log_odds_from_marginals(q0)).max() < 1e-6
+    q = plain.marginals(frames)
+    ev_plain, ev_hidden, ev_model = (s.log_odds_from_marginals(q) for s in (plain, hidden, model))
+    iy, ix = STACK.index_from_xy(np.vstack([people, ghost]))
+    assert (ev_hidden[:, iy[:2], ix[:2]] == ev_plain[:, iy[:2], ix[:2]]).all()   # people: against p_e
+    assert (ev_hidden[:, iy[:2], ix[:2]] > 2.0).all()
+    assert (ev_hidden[:, iy[2], ix[2]] == ev_model[:, iy[2], ix[2]]).all()      # ghost: against P_0
+    assert (ev_hidden[:, iy[2], ix[2]] < 0.0).all()
+    assert (ev_hidden[:, ~seen] == 0).all()
+    # weak support, between the references: for a body against P_0, against one against p_e; hidden_unknown: none
+    qw = q0.copy()
+    qw[48:53, 48:53] = 0.002
+    ev_plain, ev_hidden, ev_model = (s.log_odds_from_marginals(qw)[0, 50, 50] for s in (plain, hidden, model))
+    assert ev_model > 0.5 and ev_plain < -0.5 and ev_hidden == 0.0
+
+
 def test_pipeline_selects_the_generative_model():
     cams, people, _, frames = _ghost_scene()
     lookups = lookups_from_cameras(cams, STACK)

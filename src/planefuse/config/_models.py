@@ -309,6 +309,12 @@ class CameraSensorConfig(_Model):
         "(planefuse.vision.detection_evidence_prior)", expected="null, detection or in (0, 1)",
         library="system.camera_params.generative.evidence_prior",
     )
+    generative_hidden_unknown: bool = _field(
+        description="Generative model, with generative_evidence_prior: log-odds between the model's prior and "
+        "generative_evidence_prior give no evidence, so that a cell hidden behind other people in every view "
+        "(marginals left at the prior) is unknown to the filter rather than evidence against a body",
+        expected="true or false", library="system.camera_params.generative.hidden_unknown",
+    )
 
     @field_validator("foreground_method", mode="before")
     @classmethod

@@ -13,7 +13,16 @@ Its output on the stack, for the Bayesian occupancy filter (docs/cameras.md, "Ge
     L_l(X)   = clip(logit P_occ(X) - logit P_0, +-max_log_odds)     on every plane l inside the person's volume
 
 i.e. the posterior log-odds of the cell minus its prior log-odds: the log-likelihood ratio the images carry
-about the cell, in the form the BOF update adds (``bof_update``: log-odds of the evidence). Cells no camera
+about the cell, in the form the BOF update adds (``bof_update``: log-odds of the evidence). With
+``evidence_prior`` ``p_e`` the reference is ``logit p_e`` instead; with ``hidden_unknown`` as well, log-odds
+between ``logit P_0`` and ``logit p_e`` give none and the others are measured against the nearer one::
+
+    L_l(X)   = clip(min(l - lo, 0) + max(l - hi, 0), +-max_log_odds),  l = logit P_occ(X),
+               lo, hi = min, max(logit P_0, logit p_e)
+
+A person hidden behind others in every view changes no synthetic image, so the images leave his locations at
+the prior (``q = eps``, ``l = logit P_0``): unknown, where ``logit p_e`` alone would count it as evidence against
+a body at every frame. Cells no camera
 sees, and planes outside the person's height range, get 0 (unknown). People on the ground are the local
 maxima of the expected number of people within ``radius_m`` of a cell, ``M(X) = sum_{disc} q_k``, above
 ``detection_mass``, at least ``PersonParams.nms_radius_m`` apart, placed at the q-weighted centroid of their disc.
@@ -69,6 +78,12 @@ class GenerativeSensorParams:
         cameras, ghosts left at q ~ 0.3 frame after frame otherwise gain evidence at every frame and the filter
         accumulates them (EPFL terrace, frames 0-1499: filtered MODA 0.13 with None, 0.64 with 0.5;
         docs/results.md).
+    hidden_unknown : bool
+        With ``evidence_prior`` set: log-odds between the model's prior ``P_0`` and ``evidence_prior`` give no
+        evidence (module notes), so that a cell the images cannot see into -- a person hidden behind others in
+        every view, whose silhouettes change no synthetic image, keeps ``q`` at the prior -- is unknown to the
+        filter rather than evidence against a body; log-odds outside that band are measured against the
+        nearer of the two. False: everything against ``evidence_prior``.
     """
 
     people_per_m2: float = 0.05
@@ -79,6 +94,7 @@ class GenerativeSensorParams:
     detection_mass: float = 0.4
     foreground_threshold: float | None = 0.5
     evidence_prior: float | None = None
+    hidden_unknown: bool = False
 
     def __post_init__(self) -> None:
         for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass"):
@@ -143,6 +159,12 @@ def detection_evidence_prior(detection_mass: float, column_threshold: float) -> 
     return float(1.0 / (1.0 + np.exp(-logit)))
 
 
+def _logit_occupied(log_free: np.ndarray) -> np.ndarray:
+    """``logit(1 - e^a)`` of ``a = log P(no person within r)``, with expm1 for the small-mass cells."""
+    log_free = np.minimum(log_free, -1e-300)
+    return np.log(-np.expm1(log_free)) - log_free
+
+
 def _likelihood(image) -> np.ndarray:
     """Foreground likelihood in [0, 1] of a bool, uint8 (0..255) or float image."""
     a = np.asarray(image)
@@ -187,10 +209,15 @@ class GenerativeCameraSensor:
         self._disc = _disc_mask(params.radius_m / stack.cell_size_m).astype(np.float64)
         self._solver_params = params.solver_params(stack)
         # the prior's log P(no person within r) per cell, with the same truncation of the disc at the grid's edge
-        self._log_free0 = cv2.filter2D(np.full((stack.ny, stack.nx), np.log1p(-self._solver_params.prior)),
-                                       cv2.CV_64F, self._disc, borderType=cv2.BORDER_CONSTANT)
-        if params.evidence_prior is not None:  # logit(1 - e^a0) = logit(evidence_prior)
-            self._log_free0 = np.full((stack.ny, stack.nx), np.log1p(-params.evidence_prior))
+        log_free_model = cv2.filter2D(np.full((stack.ny, stack.nx), np.log1p(-self._solver_params.prior)),
+                                      cv2.CV_64F, self._disc, borderType=cv2.BORDER_CONSTANT)
+        # what the evidence is measured against (logit of P_0 or of evidence_prior), as the band of logit P_occ
+        # that gives none: one value, or, hidden_unknown, everything between the two
+        ref_model = _logit_occupied(log_free_model)
+        self._ref = (ref_model, ref_model)
+        if params.evidence_prior is not None:
+            ref = _logit_occupied(np.full((stack.ny, stack.nx), np.log1p(-params.evidence_prior)))
+            self._ref = (np.minimum(ref, ref_model), np.maximum(ref, ref_model)) if params.hidden_unknown else (ref, ref)
         band_mid = 0.5 * (np.asarray(stack.band_edges_m[:-1]) + np.asarray(stack.band_edges_m[1:]))
         lo, hi = self.person.height_range_m
         self._planes = (band_mid >= lo) & (band_mid <= hi)
@@ -231,13 +258,11 @@ class GenerativeCameraSensor:
 
     def log_odds_from_marginals(self, q: np.ndarray) -> np.ndarray:
         """Per-plane evidence (L, ny, nx) float32 from marginals (ny, nx) (module notes)."""
-        eps = self._solver_params.prior
         log_free = cv2.filter2D(np.log1p(-np.clip(q, 0.0, 1.0 - 1e-12)), cv2.CV_64F, self._disc,
                                 borderType=cv2.BORDER_CONSTANT)
-        log_free0 = self._log_free0
-        # logit(1 - e^a) - logit(1 - e^a0), written with expm1 for the small-mass cells
-        ev = (np.log(-np.expm1(np.minimum(log_free, -1e-300))) - log_free) \
-            - (np.log(-np.expm1(log_free0)) - log_free0)
+        lo, hi = self._ref
+        logit_occ = _logit_occupied(log_free)
+        ev = np.minimum(logit_occ - lo, 0.0) + np.maximum(logit_occ - hi, 0.0)
         ev = np.where(self._seen, np.clip(ev, -self.params.max_log_odds, self.params.max_log_odds), 0.0)
         out = np.zeros(self.stack.shape, np.float32)
         out[self._planes] = ev.astype(np.float32)

@@ -336,6 +336,9 @@ def main(argv=None) -> int:
     ap.add_argument("--first", type=int, default=1500, help="first frame (0-based)")
     ap.add_argument("--last", type=int, default=3000, help="end frame (exclusive)")
     ap.add_argument("--step", type=int, default=5, help="use every step-th frame")
+    ap.add_argument("--process-step", type=int, default=None, metavar="N",
+                    help="run the system on every N-th frame (N divides --step; default --step) while scoring every "
+                         "step-th: the output period stays --step frames")
     ap.add_argument("--warmup-from", type=int, default=None, metavar="F",
                     help="a warm run: import and run from frame F (every step-th, F <= first, first - F a multiple of "
                          "step) as a deployed system runs continuously, but score only the frames from --first (the "
@@ -360,7 +363,12 @@ def main(argv=None) -> int:
             print(f"skipped: {p} is absent", file=sys.stderr)
             return 0
     frames = np.arange(args.first, args.last, args.step)
-    run_frames = warm_frames(args.warmup_from, args.first, args.last, args.step)
+    process_step = args.process_step or args.step
+    if process_step < 1 or args.step % process_step:
+        raise SystemExit(f"--process-step {process_step}: must divide --step {args.step}")
+    if process_step != args.step and {"generative", "pom"} & _rows(args.rows):
+        raise SystemExit("--process-step: the generative and pom rows run on the scored frames only")
+    run_frames = warm_frames(args.warmup_from, args.first, args.last, process_step)
     if args.warmup_from is not None and args.run_dir is not None:
         raise SystemExit("--run-dir with --warmup-from: planefuse run's metrics.json would score the warm-up "
                          "frames too; run them separately")
@@ -368,6 +376,10 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     truth = terrace_truth(pom_root, frames)
     base = with_sets(load_base_config(args.config), args.set)
+    if process_step != args.step:  # outputs at the scored instants only
+        # outputs at the scored instants only; every processed frame its own update (not merged with the next)
+        base = merged(base, {"models": {"filter": {"output_period_s": args.step / FPS,
+                                                   "merge_tolerance_s": 0.25 * process_step / FPS}}})
     rows = _rows(args.rows)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-rec-"))
     results = []
@@ -426,7 +438,8 @@ def main(argv=None) -> int:
                     print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    meta = dict(first=args.first, last=args.last, step=args.step, warmup_from=args.warmup_from,
+    meta = dict(first=args.first, last=args.last, step=args.step, process_step=process_step,
+                warmup_from=args.warmup_from,
                 background_median_s=args.background_median_s or None,
                 n_frames=len(frames), config=base,
                 generative_25cm=repr(GENERATIVE))

@@ -449,6 +449,14 @@ class DetectionModelConfig(_Model):
         description="Output steps a track may go unobserved before it is ended", unit="steps",
         expected="an integer >= 0", library="system.tracking.tracker.max_misses",
     )
+    max_coast_report: int = _field(
+        description="Output steps a confirmed track without a cluster is still reported (at its prediction)",
+        unit="steps", expected="an integer >= 0", library="system.tracking.tracker.max_coast_report",
+    )
+    birth_exclusion_m: float = _field(
+        description="No track is started on a cluster closer than this to a confirmed track", unit="m",
+        expected=">= 0", library="system.tracking.tracker.birth_exclusion_m",
+    )
     gate_chi2: float = _field(
         description="Mahalanobis gate of a track's position innovation (chi-square, 2 degrees of freedom; 9.21 = "
         "99 %)", expected="> 0", library="system.tracking.tracker.gate_chi2",

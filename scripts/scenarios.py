@@ -58,12 +58,18 @@ class Case:
     modalities: str
 
 
-def _tracker_variants(sweep: bool) -> dict:
-    """Tracker name -> TrackerParams of the Kalman tracker (``--sweep``: the tuning grid)."""
+def _tracker_variants(sweep: str | None) -> dict:
+    """Tracker name -> TrackerParams of the Kalman tracker (``--sweep``: a tuning grid, ``noise`` or ``births``)."""
     base = SystemParams().tracking.tracker
-    if not sweep:
-        return {"kalman": base}
     out = {"kalman": base}
+    if sweep == "births":  # track management: births near confirmed tracks, coasting tracks reported
+        for excl in (0.5, 1.0, 1.5):
+            for coast in (1, 2):
+                if (excl, coast) != (base.birth_exclusion_m, base.max_coast_report):
+                    out[f"kalman b{excl} c{coast}"] = replace(base, birth_exclusion_m=excl, max_coast_report=coast)
+        return out
+    if sweep is None:
+        return out
     for pos in (0.1, 0.15, 0.2):
         for acc in (0.5, 1.0, 2.0):
             for gate in (0.75, 1.0):
@@ -184,8 +190,10 @@ def main() -> None:
     ap.add_argument("--filters", default="on,off", help="temporal filter on, off or both")
     ap.add_argument("--modalities", default="all", help=f"comma-separated of {', '.join(MODALITIES)}")
     ap.add_argument("--previous-tracker", action="store_true", help="also the tracker before the Kalman tracker")
-    ap.add_argument("--sweep", action="store_true",
-                    help="a grid of Kalman tracker variants, scored on the same runs (choose on seeds 1-3 only)")
+    ap.add_argument("--sweep", nargs="?", const="noise", default=None, choices=("noise", "births"),
+                    help="a grid of Kalman tracker variants, scored on the same runs (choose on seeds 1-3 only): "
+                         "noise (default: position and acceleration noise, gate) or births (birth exclusion, "
+                         "coasting tracks reported)")
     ap.add_argument("--from-csv", type=Path, default=None, help="re-summarise the rows of an earlier run")
     ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
     ap.add_argument("--n-workers", type=int, default=2)
@@ -228,7 +236,7 @@ def main() -> None:
 
 
 def _stem(args) -> str:
-    return "sweep" if args.sweep else "scenarios"
+    return {None: "scenarios", "noise": "sweep"}.get(args.sweep, f"sweep-{args.sweep}")
 
 
 def _read_rows(path: Path) -> list[dict]:

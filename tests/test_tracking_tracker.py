@@ -341,8 +341,10 @@ def test_a_person_the_filter_holds_below_the_threshold_keeps_its_track(support):
     """A person walking at 0.8 m/s along x is partly hidden for 1.4 s: no cluster, but the filter's column
     evidence still peaks at 1.0 (below the clusters' 1.5) where they are. With support the track follows that
     evidence, is reported throughout within 0.1 m and keeps its id, and neither the evidence nor the cluster
-    of another person standing 0.7 m from the path is taken; without support, it does not follow."""
-    p = TrackerParams(support_threshold=support)
+    of another person standing 0.7 m from the path is taken; without support, it does not follow. (Support is
+    looked for beyond ``birth_exclusion_m`` of the other person's cluster: 0.5 m here, the library's 1.0 m would
+    leave the walker's path near him unsupported.)"""
+    p = TrackerParams(support_threshold=support, birth_exclusion_m=0.5)
     tr = MultiPersonTracker(p, STACK.extent_m)
     dt = 0.2
     ids, reported_in_gap = [], []

@@ -376,7 +376,7 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     truth = terrace_truth(pom_root, frames)
     base = with_sets(load_base_config(args.config), args.set)
-    if process_step != args.step:  # outputs at the scored instants only
+    if process_step != args.step:
         # outputs at the scored instants only; every processed frame its own update (not merged with the next)
         base = merged(base, {"models": {"filter": {"output_period_s": args.step / FPS,
                                                    "merge_tolerance_s": 0.25 * process_step / FPS}}})

@@ -497,3 +497,21 @@ def test_velocity_correlation_time_without_velocity_noise_keeps_velocities_out_o
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="velocity_correlation_s"):
             MultiPersonTracker(velocity_correlation_s=bad)
+
+
+@pytest.mark.parametrize("exclusion_m, expect_duplicate", [(0.5, True), (1.0, False)])
+def test_a_blob_beside_a_tracked_walker_starts_no_second_track(exclusion_m, expect_duplicate):
+    """A walker (0.8 m/s along x) is tracked; from 1 s on the filter's smeared blob gives a second cluster 0.8 m
+    behind him at every step (the duplicates of the EPFL terrace and the simulated crowd). Beyond
+    ``birth_exclusion_m`` of his confirmed track it starts a track of its own, which is confirmed and reported; within
+    it (the library's 1.0 m) it does not, and the walker keeps one track."""
+    tr = MultiPersonTracker(TrackerParams(birth_exclusion_m=exclusion_m), STACK.extent_m)
+    n_reported = []
+    for t in np.arange(25) * 0.2:
+        a = np.array([0.8 + 0.8 * t, 2.5])
+        xy = [a] if t < 1.0 else [a, a - [0.8, 0.0]]
+        c = Clusters(float(t), np.array(xy), np.zeros((len(xy), 2)), np.full(len(xy), 1.7), np.ones(len(xy)),
+                     np.zeros((STACK.ny, STACK.nx)))
+        n_reported.append(len(tr.step(c).ids))
+    assert n_reported[5] == 1
+    assert (max(n_reported[5:]) == 2) == expect_duplicate

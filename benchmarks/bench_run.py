@@ -150,10 +150,11 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
         cam = replace(cam, foreground=replace(cam.foreground, method=method))
     if stride > 1:  # (a tree before frame_stride has none)
         cam = replace(cam, frame_stride=stride)
-    params = replace(params, camera_params=cam)
     spent = stage_timers() if stages else {}
     c0 = cpu()
     rec = read_recording(rec_dir)
+    # the modalities the recording has (the terrace video: cameras only)
+    params = replace(params, camera_params=cam, laser=bool(rec.lasers), sound=bool(rec.audio))
     _, metrics = run_plan(rec, RunPlan(params, Path(out_dir), settings), progress_mode="quiet")
     used = cpu() - c0
     if prof is not None:

@@ -147,6 +147,8 @@ CASES = [
         r, lambda a: a.update({k: v[:0] for k, v in a.items() if k not in ("angles_rad",)})), run=True),
     Case("laser time stamps NaN", lambda r, c, t: _laser_npz(
         r, lambda a: a["time_s"].__setitem__(slice(3, 5), np.nan)), run=True),
+    Case("laser enabled, the recording has none", lambda r, c, t: _manifest(
+        r, lambda m: m.update(sensors=[s for s in m["sensors"] if s["type"] != "laser"])), run=True),
     Case("laser file garbage", lambda r, c, t: next((r / "laser").rglob("*.npz")).write_bytes(b"PK\x03\x04junk")),
     # -- other streams and the manifest
     Case("audio file truncated", lambda r, c, t: (r / "audio" / "head.wav").write_bytes(

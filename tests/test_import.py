@@ -23,6 +23,7 @@ from planefuse.calib import (
     write_tsai_xml,
 )
 from planefuse.cli._app import app
+from planefuse.config import load_config
 from planefuse.geometry import CameraIntrinsics, PinholeCamera, T_world_cam_look_at
 from planefuse.io import (
     CameraInput,
@@ -608,3 +609,39 @@ def test_calib_show_reads_tsai_and_json(tmp_path):
     (tmp_path / "c.json").write_text(json.dumps({"a": {"K": K.tolist(), "R": np.eye(3).tolist(), "T": [0, 0, -2000]}}))
     r = _cli("calib-show", tmp_path / "c.json", "--metres-per-unit", "0.001", "--width-px", str(W), "--height-px", str(H))
     assert r.exit_code == 0 and "a: centre in world [m]" in r.output and "-2.]" in r.output, r.output
+
+
+def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor(installation):
+    """A camera-only recording: ``config init --recording`` enables the cameras alone, on the recording's planes and
+    area; a configuration that asks for the laser and sound (the defaults) is refused by ``run`` with one line naming
+    the fields, as ``check`` reports it, instead of running on without them."""
+    d, *_ = installation
+    out = d / "rec"
+    r = _cli("import", out, "--camera", f"c0={d / 'c0.mkv'}", "--camera", f"c1={d / 'c1'}", "--rate", "c1=25",
+             "--calib-format", "opencv", "--units", "mm", "--calib", f"c0={d / 'c0.yaml'}",
+             "--calib", f"c1={d / 'c1.yaml'}", "--planes", "0.2,0.9", "--room", "-1,2,-1,3")
+    assert r.exit_code == 0, r.output
+    fitted, default = d / "fitted.yaml", d / "default.yaml"
+    assert _cli("config", "init", fitted, "--recording", out).exit_code == 0
+    assert _cli("config", "init", default, "--recording", d / "no-such-recording").exit_code == 0
+    cfg = load_config(fitted)
+    assert (cfg.sensors.cameras.enabled, cfg.sensors.laser.enabled, cfg.sensors.sound.enabled) == (True, False, False)
+    assert cfg.planes.heights_m == [0.2, 0.9] and cfg.planes.x_range_m == (-1.0, 2.0)
+    assert cfg.recording == out.resolve()
+    assert load_config(default).sensors.laser.enabled  # no recording there: every default
+    for path in (fitted, default):  # outputs beside the configuration, not in the working directory
+        path.write_text(path.read_text().replace("out_dir: planefuse-out", f"out_dir: {d / path.stem}-out")
+                        .replace(f"recording: {d / 'no-such-recording'}", f"recording: {out}"))
+    r = _cli("check", fitted, "--log-json")
+    assert r.exit_code == 0 and json.loads(r.output)["ok"], r.output
+    r = _cli("check", default, "--log-json")
+    assert r.exit_code == 1 and "stream required by the configuration is missing" in r.output
+    r = _cli("run", default, "--quiet")
+    assert r.exit_code == 1
+    assert re.search(r"recording .*rec has no stream for sensors\.laser\.enabled, sensors\.sound\.enabled \(its "
+                     r"streams: c0, c1\): set sensors\.laser\.enabled: false and sensors\.sound\.enabled: false",
+                     " ".join(r.output.split())), r.output
+    assert not (d / "default-out").exists()
+    r = _cli("run", fitted, "--quiet")
+    assert r.exit_code == 0, r.output
+    assert (d / "fitted-out" / "tracks.csv").is_file()

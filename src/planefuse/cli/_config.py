@@ -30,14 +30,27 @@ def exit_on_config_error(err: ConfigError) -> None:
 @config_app.command("init")
 def config_init(
     path: Path = typer.Argument(Path("planefuse.yaml"), help="Where to write the example configuration."),
-    recording: str = typer.Option("recordings/my-scene", help="Recording folder to put in the example."),
+    recording: str = typer.Option("recordings/my-scene", help="Recording folder to put in the example. An existing "
+                                  "recording (a folder with scene.yaml) also sets the planes, the monitored area "
+                                  "[m] and the sensors it has; otherwise every field is at its default."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing file."),
 ) -> None:
     """Write a commented example configuration (every field, its unit and range)."""
+    from ._import import recording_check_config
+
     if path.exists() and not force:
         console.print(f"[red]{escape(str(path))} exists[/]; use --force to overwrite it")
         raise typer.Exit(1)
-    atomic_write_text(path, example_yaml(recording))
+    fitted = None
+    if (Path(recording) / "scene.yaml").is_file():
+        fitted = recording_check_config(Path(recording))
+        s = fitted.sensors
+        used = [n for n, on in (("cameras", s.cameras.enabled), ("laser", s.laser.enabled), ("sound", s.sound.enabled))
+                if on]
+        console.print(f"{escape(recording)}: planes at z = {', '.join(f'{h:g}' for h in fitted.planes.heights_m)} m, "
+                      f"area x {fitted.planes.x_range_m} y {fitted.planes.y_range_m} m, sensors "
+                      f"{', '.join(used) or 'none'} (those the recording has)", highlight=False)
+    atomic_write_text(path, example_yaml(recording, fitted))
     console.print(f"wrote {escape(str(path))}; edit it, then run [bold]planefuse check {escape(str(path))}[/]")
 
 

@@ -217,6 +217,7 @@ def import_cmd(
     findings = geometry_findings([cameras[n] for n in frames], heights, control_points=control, people=people)
     for level, subject, message in [(lv, "import", n) for lv, n in notes] + list(findings):
         console.print(escape(f"{level}: {subject}: {message}"), soft_wrap=True, highlight=False)
-    console.print(f"wrote {out / 'scene.yaml'}; next: planefuse check {out}", highlight=False)
+    console.print(f"wrote {out / 'scene.yaml'}; next: planefuse check {out}, then planefuse config init run.yaml "
+                  f"--recording {out}", highlight=False)
     if any(level == "error" for level, _, _ in findings):
         raise typer.Exit(1)

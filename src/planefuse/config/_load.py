@@ -279,13 +279,15 @@ def _model_lines(model: BaseModel, indent: int) -> list[str]:
     return lines
 
 
-def example_yaml(recording: str = "recordings/my-scene") -> str:
-    """A complete, commented example configuration (every field at its default).
+def example_yaml(recording: str = "recordings/my-scene", config: RunConfig | None = None) -> str:
+    """A complete, commented example configuration (every field at its default, or at ``config``'s values).
 
     The comments give each field's meaning, unit and accepted range; the text
-    loads back with :func:`load_config` unchanged.
+    loads back with :func:`load_config` unchanged. ``config`` (e.g. fitted to an existing recording: its planes,
+    area and sensors) replaces the defaults; its recording path is replaced by ``recording``.
     """
-    cfg = RunConfig(recording=Path(recording))
+    cfg = RunConfig(recording=Path(recording)) if config is None else \
+        config.model_copy(update={"recording": Path(recording)})
     head = [
         "# planefuse run configuration.",
         "# Units are in the field names (_m metres, _s seconds, _hz hertz, _m_s metres per second).",

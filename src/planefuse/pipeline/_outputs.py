@@ -19,7 +19,7 @@ from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_writ
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
 from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
-    run_system, stack_for_recording
+    check_modalities_present, run_system, stack_for_recording
 
 if TYPE_CHECKING:  # matplotlib and rerun (~1 s of imports) only where figures or a rerun recording are asked for
     from ..viz import FigureInputs
@@ -133,6 +133,7 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     (SystemResult, dict)
         The result and the metrics (empty without ground truth).
     """
+    check_modalities_present(rec, plan.params)
     if plan.out_dir is not None:
         return run_to_folder(rec, plan, progress_mode=progress_mode, client=client)
     result = run_system(rec, plan.params, client=client)

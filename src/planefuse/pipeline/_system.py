@@ -192,6 +192,22 @@ def can_evaluate(rec: Recording, times_s) -> bool:
     return bool(np.any((times_s >= t[0] + EVAL_WARMUP_S) & (times_s <= t[-1] + 1e-9)))
 
 
+def check_modalities_present(rec: Recording, params: SystemParams) -> None:
+    """Raise ``ValueError`` (one line, naming the configuration fields) where ``params`` enables a modality that
+    ``rec`` has no stream of: a configured run uses every sensor it asks for, and does not run on without one.
+    (:class:`SystemRun` itself fuses the enabled modalities the recording has.)"""
+    missing = [field for field, on, streams in (("sensors.cameras.enabled", params.cameras, rec.camera_streams),
+                                                ("sensors.laser.enabled", params.laser, rec.lasers),
+                                                ("sensors.sound.enabled", params.sound, rec.audio))
+               if on and not streams]
+    if missing:
+        found = [*rec.camera_streams, *rec.lasers, *rec.audio]
+        where = rec.root if rec.root is not None else "(in memory)"
+        raise ValueError(f"recording {where} has no stream for {', '.join(missing)} (its streams: "
+                         f"{', '.join(found) or 'none'}): set {' and '.join(m + ': false' for m in missing)}, or "
+                         f"run `planefuse config init --recording DIR` for a configuration fitted to the recording")
+
+
 #: A camera centre farther than this from the grid (horizontally or in height) [m] is taken for a unit error.
 FAR_FROM_GRID_M = 100.0
 #: A plane closer than this to a camera's centre height [m] is seen edge-on by it.

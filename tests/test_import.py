@@ -642,6 +642,11 @@ def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor
                      r"streams: c0, c1\): set sensors\.laser\.enabled: false and sensors\.sound\.enabled: false",
                      " ".join(r.output.split())), r.output
     assert not (d / "default-out").exists()
-    r = _cli("run", fitted, "--quiet")
+    r = _cli("run", fitted)
     assert r.exit_code == 0, r.output
     assert (d / "fitted-out" / "tracks.csv").is_file()
+    # no ground truth: no scores, but what the run consumed and produced, each camera's missing frames included
+    m = json.loads((d / "fitted-out" / "metrics.json").read_text())
+    assert "moda" not in m and m["n_steps"] >= 1 and m["n_camera_frames"] == 8
+    assert m["missing_camera_frames"] == {"c0": 0, "c1": 0} and m["n_missing_camera_frames"] == 0
+    assert re.search(r"n_steps\W+\d+", r.output) and "n_missing_camera_frames" in r.output

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import NoReturn
@@ -41,6 +42,13 @@ def _root(
     ),
 ) -> None:
     """planefuse command line."""
+    warnings.formatwarning = _one_line_warning
+
+
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as the command line prints it: ``warning: MESSAGE`` on one line, without the source line of the
+    library that raised it (a user's run reports a repair or a limit, not a program location)."""
+    return f"warning: {' '.join(str(message).split())}\n"
 
 
 def units_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[object]],

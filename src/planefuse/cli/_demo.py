@@ -60,7 +60,8 @@ def print_summary(metrics: dict, out: Path, title: str) -> None:
     table.add_column("metric")
     table.add_column("value", justify="right")
     for k in ("moda", "modp", "precision", "recall", "mota", "idf1", "id_switches", "camera_only_moda",
-              "azimuth_mae_deg", "n_camera_frames", "n_laser_scans", "n_sound_blocks", "wall_time_s"):
+              "azimuth_mae_deg", "n_steps", "n_tracks", "mean_tracks_per_step", "n_camera_frames",
+              "n_missing_camera_frames", "n_laser_scans", "n_sound_blocks", "wall_time_s"):
         if k in metrics:
             v = metrics[k]
             table.add_row(k, f"{v:.3f}" if isinstance(v, float) else str(v))

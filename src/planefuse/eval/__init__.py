@@ -2,7 +2,7 @@
 
 from ._attitude import AttitudeScores, rest_mask, score_attitude
 from ._detection import DetectionScores, detection_scores, match_detections
-from ._system import EVAL_WARMUP_S, system_metrics
+from ._system import EVAL_WARMUP_S, run_counts, system_metrics
 from ._tracking import tracking_metrics
 
 __all__ = [
@@ -12,6 +12,7 @@ __all__ = [
     "DetectionScores",
     "detection_scores",
     "match_detections",
+    "run_counts",
     "system_metrics",
     "EVAL_WARMUP_S",
     "tracking_metrics",

@@ -9,7 +9,7 @@ import numpy as np
 from ._detection import detection_scores
 from ._tracking import tracking_metrics
 
-__all__ = ["system_metrics", "EVAL_WARMUP_S"]
+__all__ = ["run_counts", "system_metrics", "EVAL_WARMUP_S"]
 
 #: The evaluation skips this much of the start of a recording [s] (background models and filter learning).
 EVAL_WARMUP_S = 1.0
@@ -24,6 +24,43 @@ def _present(time_s: float, ids: np.ndarray, xy_m: np.ndarray) -> tuple[float, n
     """The people of one ground-truth sample who are there (NaN positions: absent, e.g. out of every view)."""
     there = np.isfinite(xy_m).all(axis=1)
     return time_s, ids[there], xy_m[there]
+
+
+def run_counts(rec, times_s: np.ndarray, tracks: Sequence[tuple[float, np.ndarray, np.ndarray]], report,
+               elapsed_s: float) -> dict:
+    """What a whole-system run consumed and produced, with or without ground truth: output steps, tracks, each
+    sensor's messages and each camera's missing frames.
+
+    Parameters
+    ----------
+    rec : planefuse.io.Recording
+    times_s : ndarray, shape (T,)
+        Output step times [s].
+    tracks : sequence of (time_s, ids (M_t,), xy_m (M_t, 2))
+        Reported tracks per step.
+    report : planefuse.pipeline.ModalityReport
+    elapsed_s : float
+        Computing time of the run [s] (reported as is).
+
+    Returns
+    -------
+    dict
+        ``n_steps``, ``n_tracks`` (identities reported), ``mean_tracks_per_step``, ``n_camera_frames`` (synchronised
+        instants), ``n_missing_camera_frames`` and ``missing_camera_frames`` (camera name -> frames missing at those
+        instants), ``n_laser_scans``, ``n_sound_blocks``, ``elapsed_s``.
+    """
+    ids = [np.asarray(t[1]) for t in tracks]
+    missing = report.camera.missing_frames if report.camera is not None else {}
+    return {
+        "n_steps": int(len(times_s)),
+        "n_tracks": int(np.unique(np.concatenate(ids)).size) if ids else 0,
+        "mean_tracks_per_step": float(np.mean([i.size for i in ids])) if ids else 0.0,
+        "n_camera_frames": report.n_camera_frames,
+        "n_missing_camera_frames": report.n_missing_camera_frames,
+        "missing_camera_frames": {c.name: len(missing.get(c.name, ())) for c in rec.cameras},
+        "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
+        "elapsed_s": float(elapsed_s),
+    }
 
 
 def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarray],
@@ -67,10 +104,7 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
         "moda": det.moda, "modp": det.modp, "precision": det.precision, "recall": det.recall,
         "mota": mot["mota"], "motp_m": mot.get("motp_m", float("nan")), "idf1": mot["idf1"],
         "id_switches": int(mot.get("num_switches", 0)), "n_eval_steps": len(keep),
-        "n_people": int(len(gt.person_ids)), "elapsed_s": elapsed_s,
-        "n_camera_frames": report.n_camera_frames,
-        "n_missing_camera_frames": report.n_missing_camera_frames,
-        "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
+        "n_people": int(len(gt.person_ids)), **run_counts(rec, times_s, tracks, report, elapsed_s),
     }
     reg = getattr(report, "camera_registration", None)
     if reg is not None and reg.tracks:  # cameras registered through their IMU: gaps bridged, maps rebuilt

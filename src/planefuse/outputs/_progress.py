@@ -109,7 +109,8 @@ class ProgressReporter:
         name : str
             Step name (``"simulate"``, ``"register"``, ``"filter"``, ``"evaluate"``...).
         total : int or None
-            Number of items, if known (needed for an ETA).
+            Number of items, if known (needed for an ETA); an estimate, corrected to the items done when the step
+            ends.
         unit : str
             What an item is (``"frames"``, ``"chunks"``...), shown with the rate.
         completed : int
@@ -144,6 +145,10 @@ class ProgressReporter:
         else:
             self.event("end", step=name, done=state["done"], total=total,
                        elapsed_s=round(time.perf_counter() - t0, 3))
+            if task is not None and total is not None and state["done"] != total:
+                # a total that was an estimate (output steps from the recording's duration): the finished bar
+                # shows what was done, not 600/601
+                self._progress.update(task, total=state["done"])
         finally:
             if task is not None:
                 self._progress.stop_task(task)

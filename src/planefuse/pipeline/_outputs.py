@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..eval import system_metrics
+from ..eval import run_counts, system_metrics
 from ..io import Recording
 from ..io._paths import check_name
 from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_write_bytes, atomic_write_text, \
@@ -131,17 +131,21 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     Returns
     -------
     (SystemResult, dict)
-        The result and the metrics (empty without ground truth).
+        The result and the metrics (:func:`planefuse.eval.system_metrics`; without ground truth the counts alone,
+        :func:`planefuse.eval.run_counts`).
     """
     check_modalities_present(rec, plan.params)
     if plan.out_dir is not None:
         return run_to_folder(rec, plan, progress_mode=progress_mode, client=client)
     result = run_system(rec, plan.params, client=client)
     has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
-    if has_truth and not can_evaluate(rec, [o.time_s for o in result.outputs]):
+    times = [o.time_s for o in result.outputs]
+    if has_truth and not can_evaluate(rec, times):
         _warn_no_evaluation(rec)
         has_truth = False
-    metrics = evaluate_system(rec, result, plan.params.match_distance_m) if has_truth else {}
+    metrics = evaluate_system(rec, result, plan.params.match_distance_m) if has_truth else run_counts(
+        rec, times, [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in result.outputs], result.report,
+        result.elapsed_s)
     result.metrics = metrics
     return result, metrics
 
@@ -248,7 +252,8 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     Returns
     -------
     (SystemResult, dict)
-        The result and the metrics (empty without ground truth). The output steps are not kept in memory
+        The result and the metrics (:func:`planefuse.eval.system_metrics`; without ground truth the counts alone,
+        :func:`planefuse.eval.run_counts`). The output steps are not kept in memory
         (``result.outputs`` is empty): read them from the folder.
     """
     if plan.out_dir is None:
@@ -288,7 +293,9 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         times, det_xy, tracks = _steps_from_tables(out)
         if out.rerun is not None:
             _log_modalities(out.rerun, rec, run.report, times)
-        metrics = {}
+        # without ground truth (a user's installation) the counts alone: steps, tracks, each sensor's messages and
+        # each camera's missing frames
+        metrics = run_counts(rec, times, tracks, run.report, result.elapsed_s)
         has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
         if has_truth and not can_evaluate(rec, times):
             _warn_no_evaluation(rec)
@@ -296,9 +303,9 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
             with progress.step("evaluate", total=1, unit="runs") as advance:
                 metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)
-                metrics["resumed_at_step"] = run.resumed_at_step
                 advance(1)
-            out.write_metrics(metrics)
+        metrics["resumed_at_step"] = run.resumed_at_step
+        out.write_metrics(metrics)
         result.metrics = metrics
         return_freed_memory()  # before the figures' transient
         out.finish("presenting")

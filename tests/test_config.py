@@ -167,6 +167,16 @@ def test_config_hash_ignores_presentation_only():
 runner = CliRunner()
 
 
+def test_cli_config_init_writes_the_recording_relative_to_the_configuration(tmp_path, monkeypatch):
+    """``--recording`` is relative to the working directory, the configuration's paths to its own folder."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "cfg").mkdir()
+    assert runner.invoke(app, ["config", "init", "cfg/run.yaml", "--recording", "data/rec"]).exit_code == 0
+    assert load_config(tmp_path / "cfg" / "run.yaml").recording == tmp_path / "data" / "rec"
+    assert runner.invoke(app, ["config", "init", "run.yaml", "--recording", "data/rec"]).exit_code == 0
+    assert load_config(tmp_path / "run.yaml").recording == tmp_path / "data" / "rec"
+
+
 def test_cli_config_init_writes_valid_file_and_refuses_overwrite(tmp_path):
     p = tmp_path / "pf.yaml"
     r = runner.invoke(app, ["config", "init", str(p)])

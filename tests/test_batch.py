@@ -56,6 +56,18 @@ def test_failed_job_is_reported_and_the_others_finish(workers_see_checkout, tmp_
     assert res[1].ok and res[1].metrics["moda"] > 0.5
 
 
+def test_a_runs_warnings_come_back_from_its_worker(workers_see_checkout):
+    """What a run warns of on a worker (here: a recording too short to score) comes back with its result, each
+    message once, where a remote worker's own output would not be seen."""
+    job = BatchJob("short", SceneSpec(seed=1, duration_s=0.8), RunPlan(SystemParams(laser=False, sound=False)))
+    here = run_job(job)
+    assert here.ok and len(here.warnings) == 1
+    assert "ends within the first 1 s skipped by the evaluation: no metrics computed" in here.warnings[0]
+    assert "moda" not in here.metrics and here.metrics["n_steps"] >= 1  # the counts of a run without scores
+    (remote,) = run_batch([job], n_workers=1, progress_mode="quiet")
+    assert remote.warnings == here.warnings
+
+
 def test_bad_batches_are_refused():
     with pytest.raises(ValueError, match="repeated: a"):
         run_batch([BatchJob("a", SceneSpec()), BatchJob("a", SceneSpec(seed=2))])

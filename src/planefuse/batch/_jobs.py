@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import traceback
+import warnings
 from dataclasses import dataclass, field
 
 from ..outputs import OutputSettings
@@ -81,11 +82,15 @@ class JobResult:
     name : str
     tags : dict
     metrics : dict
-        :func:`planefuse.pipeline.evaluate_system`'s metrics (empty without ground truth or on error).
+        :func:`planefuse.pipeline.run_plan`'s metrics (the scores with ground truth, the run's counts without;
+        empty on error).
     error : str or None
         One line naming what failed, when the run failed (the other jobs go on).
     detail : str or None
         The failure's traceback, for a log file.
+    warnings : list of str
+        The warnings the run raised on its worker (repairs, limits), each once, to be shown where the batch was
+        started (a remote worker's own output is not).
     """
 
     name: str
@@ -93,6 +98,7 @@ class JobResult:
     metrics: dict
     error: str | None = None
     detail: str | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -129,10 +135,18 @@ def run_job(job: BatchJob) -> JobResult:
     from ..pipeline import run_plan
 
     threads_from_environment()
-    try:
-        rec = job.recording.recording() if isinstance(job.recording, SceneSpec) else read_recording(job.recording)
-        _, metrics = run_plan(rec, job.plan, progress_mode="quiet")
-    except Exception as exc:  # noqa: BLE001 - one failed run must not stop a batch; reported per job
-        return JobResult(job.name, dict(job.tags), {}, f"{job.name}: {type(exc).__name__}: {exc}",
-                         traceback.format_exc())
-    return JobResult(job.name, dict(job.tags), metrics)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")  # each warning once per place, as a process shows them
+        try:
+            rec = job.recording.recording() if isinstance(job.recording, SceneSpec) else \
+                read_recording(job.recording)
+            _, metrics = run_plan(rec, job.plan, progress_mode="quiet")
+        except Exception as exc:  # noqa: BLE001 - one failed run must not stop a batch; reported per job
+            return JobResult(job.name, dict(job.tags), {}, f"{job.name}: {type(exc).__name__}: {exc}",
+                             traceback.format_exc(), _messages(caught))
+    return JobResult(job.name, dict(job.tags), metrics, warnings=_messages(caught))
+
+
+def _messages(caught: list[warnings.WarningMessage]) -> list[str]:
+    """The caught warnings' messages, each once, in order."""
+    return list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))

@@ -43,16 +43,21 @@ def batch(
     except (OSError, ValueError) as exc:
         console.print(f"error: {escape(str(exc))}", style="red")
         raise typer.Exit(2) from None
+    for r in results:  # what each run warned of on its worker
+        for w in r.warnings:
+            console.print(f"warning: {escape(r.name)}: {escape(w)}", soft_wrap=True, highlight=False)
     table = Table(title="planefuse batch")
-    for col in ("run", "MODA", "MOTA", "IDF1", "run time [s]", "error"):
+    for col in ("run", "MODA", "MOTA", "IDF1", "tracks", "missing camera frames", "run time [s]", "error"):
         table.add_column(escape(col), overflow="fold")
     for r in results:
         m = r.metrics
-        cells = [f"{m[k]:.3f}" if k in m else "-" for k in ("moda", "mota", "idf1", "elapsed_s")]
-        table.add_row(escape(r.name), *cells, escape(r.error or ""))
+        cells = [f"{m[k]:.3f}" if k in m else "-" for k in ("moda", "mota", "idf1")]
+        counts = [str(m[k]) if k in m else "-" for k in ("n_tracks", "n_missing_camera_frames")]
+        table.add_row(escape(r.name), *cells, *counts, f"{m['elapsed_s']:.3f}" if "elapsed_s" in m else "-",
+                      escape(r.error or ""))
     console.print(table)
     if json_out is not None:
-        json_out.write_text(json.dumps([{"name": r.name, "tags": r.tags, "metrics": r.metrics, "error": r.error}
-                                        for r in results], indent=1, default=float))
+        json_out.write_text(json.dumps([{"name": r.name, "tags": r.tags, "metrics": r.metrics, "error": r.error,
+                                         "warnings": r.warnings} for r in results], indent=1, default=float))
     if not all(r.ok for r in results):
         raise typer.Exit(1)

@@ -72,6 +72,23 @@ def _inputs(rng) -> FigureInputs:
     )
 
 
+def test_camera_figure_draws_the_ignore_regions(stack):
+    """A camera's ignore regions (pixels that are not scene evidence) are outlined on its frame, with a legend entry;
+    a camera without any has neither."""
+    cam = default_camera_ring()[0]
+    w, h = cam.intrinsics.width_px, cam.intrinsics.height_px
+    mask = np.zeros((h, w), bool)
+    mask[230:285, 130:356] = True  # the EPFL terrace's watermark
+    ax = plot_camera_grid(cam, stack, ignore_mask=mask).axes[0]
+    assert "ignored (no evidence)" in [t.get_text() for t in ax.get_legend().get_texts()]
+    outline = np.concatenate([p.vertices for c in ax.collections for p in c.get_paths() if len(p.vertices)])
+    assert outline[:, 0].min() == pytest.approx(129.5, abs=0.6) and outline[:, 0].max() == pytest.approx(355.5, abs=0.6)
+    assert outline[:, 1].min() == pytest.approx(229.5, abs=0.6) and outline[:, 1].max() == pytest.approx(284.5, abs=0.6)
+    bare = plot_camera_grid(cam, stack, ignore_mask=np.zeros((h, w), bool)).axes[0]
+    assert not bare.collections
+    assert "ignored (no evidence)" not in [t.get_text() for t in bare.get_legend().get_texts()]
+
+
 def test_grid_lines_project_like_opencv(stack):
     lines = grid_lines_world(stack, 1, spacing_m=2.0, samples=7)
     assert lines.shape == (6 + 5, 7, 3)  # x = 0,2,..,10 and y = 0,2,..,8

@@ -31,11 +31,13 @@ def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) 
     from ..viz import FigureInputs
 
     cams = rec.cameras
-    images = {}
+    images, ignored = {}, {}
     for c in cams:
         cs = rec.camera(c.name)
         if len(cs):
             images[c.name] = cs.frame(len(cs) // 2)
+        if cs.ignore_mask is not None:
+            ignored[c.name] = cs.ignore_mask
     rep = report
     laser = np.concatenate([p.reshape(-1, 3) for p in rep.laser_points_world]) if rep.laser_points_world else None
     sal = np.stack(rep.sound_saliency) if rep.sound_saliency else None
@@ -49,7 +51,7 @@ def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) 
     return FigureInputs(cameras=cams, camera_images=images, laser_points_world=laser, saliency=sal,
                         saliency_times_s=np.asarray(rep.sound_times_s) if sal is not None else None,
                         saliency_azimuth_rad=rep.sound_azimuth_grid_rad if sal is not None else None,
-                        ground_truth=gt)
+                        ground_truth=gt, ignore_masks=ignored)
 
 
 def _log_modalities(logger, rec: Recording, report: ModalityReport, step_times: np.ndarray,

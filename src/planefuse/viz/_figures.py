@@ -57,6 +57,8 @@ class FigureInputs:
         Azimuths of the bins [rad], in the microphone pair's frame.
     ground_truth : dict of str -> ndarray
         Ground-truth table with columns ``step``, ``track_id``, ``x_m``, ``y_m`` (drawn dashed).
+    ignore_masks : dict of str -> ndarray
+        Per camera name, its ignore regions, (H, W) bool (pixels that are not scene evidence), drawn on its frame.
     """
 
     cameras: list[PinholeCamera] = field(default_factory=list)
@@ -66,6 +68,7 @@ class FigureInputs:
     saliency_times_s: np.ndarray | None = None
     saliency_azimuth_rad: np.ndarray | None = None
     ground_truth: dict[str, np.ndarray] | None = None
+    ignore_masks: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def png_bytes(fig: Figure, dpi: int = 100) -> bytes:
@@ -175,7 +178,8 @@ def grid_lines_world(stack: PlaneStack, plane: int, spacing_m: float = 1.0, samp
     return np.stack(vert + horiz)
 
 
-def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spacing_m: float = 1.0) -> Figure:
+def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spacing_m: float = 1.0,
+                     ignore_mask=None) -> Figure:
     """A camera frame with the grid of every plane projected through the camera (lens distortion included).
 
     Parameters
@@ -186,6 +190,8 @@ def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spaci
         The frame to draw under the grid; blank when omitted.
     spacing_m : float
         Distance between drawn grid lines [m].
+    ignore_mask : ndarray, shape (H, W), bool, optional
+        The camera's ignore regions (pixels that are not scene evidence), drawn hatched in red.
     """
     w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
     fig = Figure(figsize=(5.0, 5.0 * h / w + 0.3), layout="constrained")
@@ -193,6 +199,11 @@ def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spaci
     image = np.full((h, w), 235, np.uint8) if image is None else np.asarray(image)
     scale = {"vmin": 0, "vmax": 255} if image.dtype == np.uint8 else {}
     ax.imshow(image, cmap="gray" if image.ndim == 2 else None, extent=(-0.5, w - 0.5, h - 0.5, -0.5), **scale)
+    if ignore_mask is not None and np.any(ignore_mask):
+        m = np.asarray(ignore_mask, bool).astype(float)
+        ax.contourf(np.arange(w), np.arange(h), m, levels=[0.5, 1.5], colors="none", hatches=["////"])
+        ax.contour(np.arange(w), np.arange(h), m, levels=[0.5], colors="red", linewidths=0.8)
+        ax.plot([], [], "-", color="red", lw=0.8, label="ignored (no evidence)")
     cmap = matplotlib.colormaps["viridis"]
     for l in range(stack.n_planes):
         color = cmap(l / max(stack.n_planes - 1, 1))
@@ -328,7 +339,7 @@ def run_figures(
         jobs.append(("occupancy_mean", lambda: _mean_fig(stack, occ, tracks, inputs.ground_truth)))
     for cam in inputs.cameras:
         jobs.append((f"camera_{cam.name}", lambda cam=cam: plot_camera_grid(
-            cam, stack, inputs.camera_images.get(cam.name))))
+            cam, stack, inputs.camera_images.get(cam.name), ignore_mask=inputs.ignore_masks.get(cam.name))))
     if inputs.saliency is not None:
         jobs.append(("saliency", lambda: plot_saliency(inputs.saliency_times_s, inputs.saliency_azimuth_rad,
                                                        inputs.saliency)))

@@ -585,14 +585,19 @@ def _block_medians(ratio: np.ndarray, blocks: tuple[int, int]) -> np.ndarray:
     rows, cols = blocks
     chans = ratio.shape[2:]
     flat = ratio.reshape(h * w, -1)
-    glob = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else 1.0 for c in flat.T])
+    glob = None  # the whole image's median, computed only where a block needs it
     out = np.empty((rows, cols, flat.shape[1]), np.float32)
     ys, xs = np.linspace(0, h, rows + 1).astype(int), np.linspace(0, w, cols + 1).astype(int)
     for i in range(rows):
         for j in range(cols):
             blk = ratio[ys[i]:ys[i + 1], xs[j]:xs[j + 1]].reshape(-1, flat.shape[1])
             good = np.isfinite(blk[:, 0])
-            out[i, j] = np.median(blk[good], axis=0) if good.mean() >= 0.05 else glob
+            if good.mean() >= 0.05:
+                out[i, j] = np.median(blk[good], axis=0)
+                continue
+            if glob is None:
+                glob = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else 1.0 for c in flat.T])
+            out[i, j] = glob
     return out.reshape((rows, cols) + chans)
 
 

@@ -107,6 +107,7 @@ CHANGED = {
     "sensors.cameras.generative_foreground_threshold": None,
     "sensors.cameras.generative_evidence_prior": 0.5,
     "sensors.cameras.generative_hidden_unknown": True,
+    "sensors.cameras.generative_max_iterations": 30,
     "sensors.laser.enabled": False,
     "sensors.laser.p_occupied_hit": 0.7,
     "sensors.laser.p_occupied_free": 0.3,

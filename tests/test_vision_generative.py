@@ -144,3 +144,14 @@ def test_config_selects_the_generative_model_in_the_camera_source(tmp_path):
     # the generative evidence is the same on every plane of the person's cylinder (the per-cell model's is not)
     assert all(np.array_equal(e.log_odds[0], e.log_odds[-1]) for e in evs)
     assert any(np.abs(e.log_odds).max() > 1.0 for e in evs)
+
+
+def test_max_iterations_bounds_the_solver_and_is_checked():
+    """``max_iterations`` reaches the mean-field solver (its cost on real images, where the relative tolerance
+    rarely stops it earlier); below 1 or not an integer it is refused, naming the field."""
+    stack = PlaneStack((0.0, 1.0), 0.0, 0.0, 0.25, 8, 8)
+    assert GenerativeSensorParams().solver_params(stack).max_iterations == 100
+    assert GenerativeSensorParams(max_iterations=7).solver_params(stack).max_iterations == 7
+    for bad in (0, 2.5):
+        with pytest.raises(ValueError, match=r"GenerativeSensorParams\.max_iterations must be an integer >= 1"):
+            GenerativeSensorParams(max_iterations=bad)

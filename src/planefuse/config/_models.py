@@ -315,6 +315,11 @@ class CameraSensorConfig(_Model):
         "(marginals left at the prior) is unknown to the filter rather than evidence against a body",
         expected="true or false", library="system.camera_params.generative.hidden_unknown",
     )
+    generative_max_iterations: int = _field(
+        description="Generative model: most mean-field iterations per instant (they set its cost: the solver's "
+        "relative tolerance rarely stops it earlier on real images)", expected="an integer >= 1",
+        library="system.camera_params.generative.max_iterations",
+    )
 
     @field_validator("foreground_method", mode="before")
     @classmethod

@@ -84,6 +84,11 @@ class GenerativeSensorParams:
         every view, whose silhouettes change no synthetic image, keeps ``q`` at the prior -- is unknown to the
         filter rather than evidence against a body; log-odds outside that band are measured against the
         nearer of the two. False: everything against ``evidence_prior``.
+    max_iterations : int
+        Most mean-field iterations per instant (:class:`~planefuse.occupancy.GenerativeParams`
+        ``max_iterations``). With its relative tolerance the solver rarely stops before them on real images (EPFL
+        terrace: 97 % of the instants at 100), so they set its cost: one instant of two 360x288 cameras on a
+        75 x 110 grid costs ~0.77 ms per iteration (docs/benchmarks.md).
     """
 
     people_per_m2: float = 0.05
@@ -95,12 +100,16 @@ class GenerativeSensorParams:
     foreground_threshold: float | None = 0.5
     evidence_prior: float | None = None
     hidden_unknown: bool = False
+    max_iterations: int = GenerativeParams.max_iterations
 
     def __post_init__(self) -> None:
         for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"GenerativeSensorParams.{name} must be finite and > 0, got {v}")
+        if not (isinstance(self.max_iterations, (int, np.integer)) and self.max_iterations >= 1):
+            raise ValueError(f"GenerativeSensorParams.max_iterations must be an integer >= 1, got "
+                             f"{self.max_iterations!r}")
         if self.evidence_prior is not None and not 0.0 < self.evidence_prior < 1.0:
             raise ValueError(f"GenerativeSensorParams.evidence_prior must be in (0, 1) or None, got {self.evidence_prior}")
 
@@ -116,7 +125,7 @@ class GenerativeSensorParams:
         if not 0.0 < prior < 0.5:
             raise ValueError(f"people_per_m2 {self.people_per_m2} with {stack.cell_size_m} m cells gives a location "
                              f"prior of {prior}; expected below 0.5")
-        return GenerativeParams(prior=prior, sigma=self.sigma)
+        return GenerativeParams(prior=prior, sigma=self.sigma, max_iterations=int(self.max_iterations))
 
 
 def detection_evidence_prior(detection_mass: float, column_threshold: float) -> float:

@@ -24,7 +24,9 @@ Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--befo
 [--downscale 2] [--stride 2] [--image-format bmp|png|jpg] [--profile] [--stages] [--cli]``; ``--terrace`` times
 the EPFL terrace video instead (cameras c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz:
 20 s of the held-out half, made a recording by ``planefuse import`` as ``scripts/terrace.py`` does, without its
-ground truth; default configuration, cameras only); ``--recording DIR`` times any recording folder. ``--streams``
+ground truth; default configuration, cameras only; ``--terrace-step 5 --config scripts/terrace.yaml``: every 5th
+frame with the terrace's own configuration, as ``scripts/terrace.py`` runs it); ``--config FILE`` runs a configuration
+file's system; ``--recording DIR`` times any recording folder. ``--streams``
 also times, in this process (all cores), the run in one process against the run with each camera's front end on a
 LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
 two results compared. ``--stride N``
@@ -66,6 +68,8 @@ STAGES = (
     ("laser registration", "planefuse.laser._occupancy", "LaserRegistrar.register"),
     ("sound localisation + registration", "planefuse.audio", "localize"),
     ("sound localisation + registration", "planefuse.audio", "evidence_from_saliency"),
+    ("generative model (mean field)", "planefuse.occupancy._meanfield", "MeanFieldSolver.solve"),
+    ("gain compensation", "planefuse.vision._foreground", "GainCompensator.compensate"),
     ("BOF predict + update", "planefuse.tracking._bof", "bof_predict_update"),
     ("clustering", "planefuse.tracking._pipeline", "cluster_occupancy"),
     ("tracker", "planefuse.tracking._tracker", "MultiPersonTracker.step"),
@@ -110,7 +114,7 @@ def stage_timers() -> dict[str, float]:
 
 
 def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: bool = False, stride: int = 1,
-          method: str = "") -> None:
+          method: str = "", config: str = "") -> None:
     """One timed run in this process (pinned to one core), background subtraction at 1/``downscale``
     resolution where above 1, by the subtractor ``method`` where given (``ForegroundParams.method``), every
     ``stride``-th camera instant (``CameraParams.frame_stride``), with per-stage
@@ -141,6 +145,14 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
         prof = cProfile.Profile()
         prof.enable()
     params = SystemParams()
+    if config:  # a configuration file's system (its recording and outputs replaced by the benchmark's)
+        import yaml
+
+        from planefuse.config import config_from_dict
+
+        cfg = yaml.safe_load(Path(config).read_text())
+        cfg.pop("outputs", None)
+        params = config_from_dict({**cfg, "recording": rec_dir}).system_params()
     from dataclasses import replace
 
     cam = params.camera_params
@@ -185,9 +197,9 @@ def digest(out: Path) -> str:
     return h.hexdigest()[:16]
 
 
-def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path:
-    """The EPFL terrace's c0 and c1 over frames ``first..last-1`` as a recording folder (``planefuse import``, as
-    ``scripts/terrace.py`` makes it), without its ground truth (timing only)."""
+def terrace_recording(folder: Path, first: int = 1500, last: int = 2000, step: int = 1) -> Path:
+    """The EPFL terrace's c0 and c1 over every ``step``-th frame of ``first..last-1`` as a recording folder
+    (``planefuse import``, as ``scripts/terrace.py`` makes it), without its ground truth (timing only)."""
     import numpy as np
     import yaml
 
@@ -197,7 +209,7 @@ def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path
     data = ROOT.parent / "shared" / "data"
     if not (data / "epfl_video" / "terrace1-c0.mp4").is_file():
         raise SystemExit(f"{data / 'epfl_video'}: the EPFL terrace videos are absent")
-    rec = import_terrace(folder, data, np.arange(first, last))
+    rec = import_terrace(folder, data, np.arange(first, last, step))
     manifest = yaml.safe_load((rec / "scene.yaml").read_text())
     manifest.pop("groundtruth", None)
     (rec / "scene.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
@@ -205,10 +217,10 @@ def terrace_recording(folder: Path, first: int = 1500, last: int = 2000) -> Path
 
 
 def run_tree(src: Path, rec: Path, out: Path, profile: bool, downscale: int = 1, stages: bool = False,
-             stride: int = 1, method: str = "") -> dict:
+             stride: int = 1, method: str = "", config: str = "") -> dict:
     env = {**os.environ, **SINGLE, "PYTHONPATH": str(src)}
     p = subprocess.run([sys.executable, __file__, "--child", str(rec), str(out), "--downscale", str(downscale)]
-                       + ["--stride", str(stride), "--method", method]
+                       + ["--stride", str(stride), "--method", method, "--config", config]
                        + (["--profile"] if profile else []) + (["--stages"] if stages else []),
                        env=env, capture_output=True, text=True)
     if p.returncode:
@@ -240,15 +252,19 @@ def main() -> None:
     ap.add_argument("--method", default="mean",
                     help="also time the last recording with this subtractor (ForegroundParams.method; '' to skip; "
                     "default: mean, the numba running average)")
+    ap.add_argument("--config", default="", help="run this configuration file's system (e.g. scripts/terrace.yaml; "
+                    "its recording and outputs replaced) instead of the default SystemParams")
+    ap.add_argument("--terrace-step", type=int, default=1,
+                    help="--terrace: every N-th video frame (5: the 5 Hz of scripts/terrace.py and terrace.yaml)")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(*args.child, args.profile, args.downscale, args.stages, args.stride, args.method)
+        child(*args.child, args.profile, args.downscale, args.stages, args.stride, args.method, args.config)
         return
     tmp = Path(tempfile.mkdtemp(prefix="bench-run-"))
     recs: dict[str, Path] = {}
     if args.terrace:
-        recs["terrace"] = terrace_recording(tmp / "terrace")
+        recs["terrace"] = terrace_recording(tmp / "terrace", step=args.terrace_step)
     elif args.recording is not None:
         recs["recording"] = args.recording
     else:
@@ -293,7 +309,7 @@ def main() -> None:
         for k, (label, src, rec_dir, downscale, stride, method) in enumerate(runs):
             profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
             results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages,
-                                           stride, method))
+                                           stride, method, str(Path(args.config).resolve()) if args.config else ""))
     some = next(iter(results.values()))[0]
     print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
           f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")

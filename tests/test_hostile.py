@@ -282,3 +282,25 @@ def test_resolve_all_inside_is_resolve_inside(tmp_path):
                 resolve_all_inside(rec, ["cam/frames/0.png", rel], lambda k: f"file {rel}")
         else:
             assert resolve_all_inside(rec, ["cam/frames/0.png", rel], lambda k: f"file {rel}")[1] == str(expected)
+
+
+def test_scans_missing_from_a_laser_are_counted_per_laser_in_the_metrics(rec_copy):
+    """A gap in a laser's time stamps (scans 10-14 dropped) is a repair, warned of and counted per laser in the
+    run's metrics (here a 1 s recording: its counts, not scored)."""
+    from planefuse.pipeline import RunPlan, SystemParams, run_plan
+
+    def drop(a):
+        keep = np.r_[0:10, 15:len(a["time_s"])]
+        for k, v in a.items():
+            if k != "angles_rad":
+                a[k] = v[keep]
+
+    edit_laser_npz(rec_copy, drop)
+    m = yaml.safe_load((rec_copy / "scene.yaml").read_text())
+    (laser,) = [s for s in m["sensors"] if s["type"] == "laser"]
+    laser["n_scans"] -= 5
+    (rec_copy / "scene.yaml").write_text(yaml.safe_dump(m, sort_keys=False))
+    with pytest.warns(UserWarning, match="gap"):
+        _, metrics = run_plan(read_recording(rec_copy), RunPlan(SystemParams()), progress_mode="quiet")
+    assert metrics["missing_laser_scans"] == {laser["name"]: 5}
+    assert metrics["n_laser_scans"] == laser["n_scans"]  # a 1 s recording: the counts, not scored

@@ -108,7 +108,7 @@ def test_system_metrics_leave_out_absent_people():
     xy[:, 1] = np.nan  # person 8 never in view
     nan = np.full((len(times), 2), np.nan)
     people = PeopleTruth(times, np.array([7, 8]), xy, nan, nan, np.full(2, np.nan))
-    rec = SimpleNamespace(groundtruth=GroundTruth(people=people), cameras=[])
+    rec = SimpleNamespace(groundtruth=GroundTruth(people=people), cameras=[], lasers={})
     dets = [np.array([[1.1, 2.0]]) for _ in times]
     tracks = [(t, np.array([1]), d) for t, d in zip(times, dets)]
     m = system_metrics(rec, times, dets, tracks, ModalityReport(), 1.0)

@@ -47,7 +47,8 @@ def run_counts(rec, times_s: np.ndarray, tracks: Sequence[tuple[float, np.ndarra
     dict
         ``n_steps``, ``n_tracks`` (identities reported), ``mean_tracks_per_step``, ``n_camera_frames`` (synchronised
         instants), ``n_missing_camera_frames`` and ``missing_camera_frames`` (camera name -> frames missing at those
-        instants), ``n_laser_scans``, ``n_sound_blocks``, ``elapsed_s``.
+        instants), ``n_laser_scans``, ``n_laser_invalid_beams``, ``missing_laser_scans`` (laser name -> scans missing
+        in the gaps of its time stamps, at its nominal rate), ``n_sound_blocks``, ``elapsed_s``.
     """
     ids = [np.asarray(t[1]) for t in tracks]
     missing = report.camera.missing_frames if report.camera is not None else {}
@@ -58,7 +59,9 @@ def run_counts(rec, times_s: np.ndarray, tracks: Sequence[tuple[float, np.ndarra
         "n_camera_frames": report.n_camera_frames,
         "n_missing_camera_frames": report.n_missing_camera_frames,
         "missing_camera_frames": {c.name: len(missing.get(c.name, ())) for c in rec.cameras},
-        "n_laser_scans": report.n_laser_scans, "n_sound_blocks": report.n_sound_blocks,
+        "n_laser_scans": report.n_laser_scans, "n_laser_invalid_beams": report.n_laser_invalid_beams,
+        "missing_laser_scans": {n: int(sum(g.missing for g in ls.gaps)) for n, ls in rec.lasers.items()},
+        "n_sound_blocks": report.n_sound_blocks,
         "elapsed_s": float(elapsed_s),
     }
 

@@ -252,3 +252,15 @@ def test_rerun_recording_holds_expected_entities(tmp_path, stack, rng):
         expected |= {f"/planes/{plane_entity(h)}", f"/world/planes/{plane_entity(h)}/outline",
                      f"/world/planes/{plane_entity(h)}/occupied"}
     assert expected <= paths, expected - paths
+
+
+def test_report_says_when_a_run_has_no_scores():
+    """A run without ground truth has its counts and a note that there are no scores; a scored run has no note."""
+    from planefuse.report._html import render_report
+
+    counts = render_report({}, {"n_steps": 600, "n_tracks": 146, "missing_camera_frames": {"c0": 0, "c1": 2}}, "")
+    assert "No scores: the recording has no people ground truth" in counts
+    assert "missing_camera_frames.c1" in counts and "No metrics were computed" not in counts
+    scored = render_report({}, {"moda": 0.9, "n_steps": 50}, "")
+    assert "No scores" not in scored
+    assert "No metrics were computed" in render_report({}, {}, "")

@@ -116,6 +116,9 @@ def render_report(
     scalars, series = _metric_rows(metrics)
     parts.append("<h2 id='metrics'>Metrics</h2>")
     if scalars or series:
+        if "moda" not in metrics:
+            parts.append("<p class='muted'>No scores: the recording has no people ground truth (or ends within the "
+                         "evaluation's first second); what the run consumed and produced.</p>")
         if scalars:
             parts.append(_table(scalars, ("metric", "value")))
         if series:

@@ -265,7 +265,9 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     if settings.zarr:
         one_zarr_codec_thread()
     text = plan.text()
-    n_steps = int(np.ceil(rec.duration_s / params.output_period_s)) + 1
+    # output steps at the multiples of the period before the recording's end (its duration: the end of its last
+    # sample period); an estimate for the progress bar, which is set to the steps done at the end
+    n_steps = int(np.floor((rec.duration_s - 1e-9) / params.output_period_s)) + 1
     with progress_steps(progress_mode) as progress, OutputWriter(
         plan.out_dir, stack, config_hash=resume_key(plan, rec), chunk_steps=settings.chunk_steps,
         write_zarr=settings.zarr, config_text=text, person_radius_m=params.tracking.cluster.person_radius_m,

@@ -634,6 +634,9 @@ def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor
                         .replace(f"recording: {d / 'no-such-recording'}", f"recording: {out}"))
     r = _cli("check", fitted, "--log-json")
     assert r.exit_code == 0 and json.loads(r.output)["ok"], r.output
+    # two cameras with the per-cell model (the default): a warning pointing at the generative model
+    (ghosts,) = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.sensor_model"]
+    assert ghosts["level"] == "warning" and "sensor_model: generative" in ghosts["message"]
     r = _cli("check", default, "--log-json")
     assert r.exit_code == 1 and "stream required by the configuration is missing" in r.output
     r = _cli("run", default, "--quiet")

@@ -113,6 +113,12 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
     report.add("info", "planes", f"{stack.n_planes} planes of {stack.ny} x {stack.nx} cells "
                f"({stack.cell_size_m:g} m) at z = {', '.join(f'{h:g}' for h in stack.heights_m)} m")
     cams = cfg.sensors.cameras.enabled
+    if cams and cfg.sensors.cameras.sensor_model == "cell" and len(rec.cameras) <= 2:
+        report.add("warning", "sensors.cameras.sensor_model",
+                   f"{len(rec.cameras)} camera(s) with the per-cell model: it reports people where the views' lines of "
+                   "sight cross (ghosts); the generative model explains them away (two cameras: EPFL terrace real "
+                   "video, filtered MODA 0.58 generative against -3.0 per cell; simulated, 0.65-0.67 against -0.45 to "
+                   "-0.80; docs/results.md). Consider sensor_model: generative with scripts/terrace.yaml's settings")
     sub = check_recording(rec.cameras if cams else [], stack, times, expected, recording=rec,
                           frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues

@@ -188,9 +188,11 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     assert r.exit_code == 2
 
 
-def test_camera_stream_on_a_worker_follows_the_frame_stride(tmp_path):
+@pytest.mark.parametrize("select", [{"stride": 2}, {"max_rate_hz": 10.0}])
+def test_camera_stream_on_a_worker_follows_the_frame_stride(tmp_path, select):
     """The per-camera stream a dask worker runs (called here in this process) reads every ``stride``-th camera
-    instant, replaying the ``start`` skipped ones: what the camera's front end gives on those frames here."""
+    instant (or at most ``max_rate_hz`` per second), replaying the ``start`` skipped ones: what the camera's front
+    end gives on those frames here."""
     import numpy as np
 
     from planefuse.batch._streams import CameraStream
@@ -201,12 +203,12 @@ def test_camera_stream_on_a_worker_follows_the_frame_stride(tmp_path):
     simulate(default_scene_config(duration_s=1.2, seed=2)).write(tmp_path / "rec", image_format="jpg")
     rec = read_recording(tmp_path / "rec")
     cam, fg = rec.cameras[1], ForegroundParams()
-    n = len(camera_instants(rec, 2)) - 3
-    stream = CameraStream(str(tmp_path / "rec"), cam.name, fg, start=3, quantise=True, chunk=4, stride=2)
+    n = len(camera_instants(rec, **select)) - 3
+    stream = CameraStream(str(tmp_path / "rec"), cam.name, fg, start=3, quantise=True, chunk=4, **select)
     got = [x for k in range(-(-n // 4)) for x in stream.chunk(k)]
     here = CameraFrontEnd(cam.intrinsics.width_px, cam.intrinsics.height_px, fg, cam.name,
                           rec.camera(cam.name).background(), quantise=True)
-    frames = [images[1] for _, images in recording_frames(rec, stride=2)]
+    frames = [images[1] for _, images in recording_frames(rec, **select)]
     for img in frames[:3]:
         here.replay(img)
     want = [here.process(img) for img in frames[3:]]

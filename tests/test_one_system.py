@@ -90,6 +90,7 @@ CHANGED = {
     "sensors.cameras.foreground_ceiling": 0.9,
     "sensors.cameras.subtraction_downscale": 2,
     "sensors.cameras.frame_stride": 2,
+    "sensors.cameras.max_rate_hz": 5.0,
     "sensors.cameras.knn_samples": 3,
     "sensors.cameras.primed_rate": "automatic",
     "sensors.cameras.cnt_min_stability": 10,

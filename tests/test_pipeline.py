@@ -7,6 +7,8 @@ import json
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from planefuse.cli import app
@@ -176,3 +178,63 @@ def test_frame_stride_is_the_run_on_a_recording_of_every_other_frame(recording_d
         replace(base.camera_params, frame_stride=0)
     with pytest.raises(ValueError, match="stride must be an integer >= 1"):
         camera_instants(full, 0)
+    # the same run asked for in time: at most 12.5 instants per second of the 25 Hz cameras
+    capped = run_system(full, replace(base, camera_params=replace(base.camera_params, max_rate_hz=12.5)))
+    for oa, oc in zip(a.outputs, capped.outputs, strict=True):
+        np.testing.assert_array_equal(oa.tracks.xy_m, oc.tracks.xy_m)
+        np.testing.assert_array_equal(oa.detections.xy_m, oc.detections.xy_m)
+
+
+class _Cameras:
+    """A recording's camera side only, as :func:`camera_instants` reads it: streams of given frame times."""
+
+    def __init__(self, *times_s, rate_hz=25.0):
+        from types import SimpleNamespace
+
+        self._s = {f"c{i}": SimpleNamespace(times_s=np.asarray(t, float), rate_hz=rate_hz) for i, t in enumerate(times_s)}
+        self.cameras = [SimpleNamespace(name=n) for n in self._s]
+
+    def camera(self, name):
+        return self._s[name]
+
+
+@pytest.mark.parametrize("rate_hz, cap_hz, every", [(25.0, 5.0, 5), (25.0, 12.5, 2), (30.0, 10.0, 3), (5.0, 5.0, 1),
+                                                    (5.0, 12.5, 1)])
+def test_max_rate_keeps_every_kth_instant_where_the_rate_is_a_multiple(rate_hz, cap_hz, every):
+    from planefuse.vision import camera_instants
+
+    t = np.arange(300) / rate_hz
+    got = camera_instants(_Cameras(t, t, rate_hz=rate_hz), max_rate_hz=cap_hz)
+    np.testing.assert_array_equal(got, t[::every])
+
+
+@settings(max_examples=40, deadline=None)
+@given(rate_hz=st.sampled_from([15.0, 25.0, 30.0]), cap_hz=st.floats(0.5, 40.0), jitter=st.floats(0.0, 0.2),
+       seed=st.integers(0, 1000))
+def test_max_rate_is_never_exceeded_and_keeps_up_with_the_cap(rate_hz, cap_hz, jitter, seed):
+    """With time stamps that jitter (up to a fifth of a frame) and a camera that drops frames, the kept instants are
+    a subset of the instants, the first kept, at most one per period of the cap (its grid from the first instant),
+    and, where the cameras are more than twice as fast as the cap, nearly one per period."""
+    from planefuse.vision import camera_instants
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(400) / rate_hz + rng.uniform(-jitter, jitter, 400) / rate_hz
+    t = np.sort(t[rng.random(400) > 0.1])  # 10 % of the frames dropped
+    all_inst = camera_instants(_Cameras(t, rate_hz=rate_hz))
+    got = camera_instants(_Cameras(t, rate_hz=rate_hz), max_rate_hz=cap_hz)
+    assert got[0] == all_inst[0] and np.isin(got, all_inst).all()
+    span = all_inst[-1] - all_inst[0]
+    assert len(got) <= np.floor((span + 0.25 / rate_hz) * cap_hz) + 1  # at most one per grid slot
+    if cap_hz < 0.5 * rate_hz:
+        assert len(got) >= 0.8 * span * cap_hz
+
+
+def test_max_rate_is_checked():
+    from dataclasses import replace
+
+    from planefuse.vision import CameraParams, camera_instants
+
+    with pytest.raises(ValueError, match="max_rate_hz"):
+        replace(CameraParams(), max_rate_hz=0.0)
+    with pytest.raises(ValueError, match="max_rate_hz must be finite and > 0"):
+        camera_instants(_Cameras(np.arange(10) / 25.0), max_rate_hz=float("nan"))

@@ -252,12 +252,13 @@ def test_background_models_are_reproducible_and_replayable(sim):
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("frame_stride", [1, 2])
-def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride):
+@pytest.mark.parametrize("frame_stride, max_rate_hz", [(1, None), (2, None), (1, 10.0)])
+def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride, max_rate_hz):
     from dataclasses import replace
 
     base = SystemParams()
-    params = replace(base, camera_params=replace(base.camera_params, frame_stride=frame_stride))
+    params = replace(base, camera_params=replace(base.camera_params, frame_stride=frame_stride,
+                                                 max_rate_hz=max_rate_hz))
     run = SystemRun(sim, params)
     ref, state = [], None
     for out in run.outputs():
@@ -282,7 +283,7 @@ def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride):
     assert len(resumed.report.camera_detections) == len(run.report.camera_detections)
     from planefuse.vision import camera_instants
 
-    assert resumed.report.n_camera_frames == len(camera_instants(sim, frame_stride))
+    assert resumed.report.n_camera_frames == len(camera_instants(sim, frame_stride, max_rate_hz))
     with pytest.raises(ValueError, match="sources"):
         SystemRun(sim, SystemParams(sound=False), checkpoint=state)
 

@@ -39,10 +39,12 @@ class CameraStream:
         Camera instants per chunk.
     stride : int
         Every ``stride``-th camera instant only (``CameraParams.frame_stride``; ``start`` counts those).
+    max_rate_hz : float or None
+        At most this many camera instants per second [Hz] (``CameraParams.max_rate_hz``).
     """
 
     def __init__(self, root: str, name: str, foreground, start: int, quantise: bool, chunk: int,
-                 stride: int = 1) -> None:
+                 stride: int = 1, max_rate_hz: float | None = None) -> None:
         from ..io import read_recording
         from ..pipeline._streams import _background_or_none
         from ..vision import CameraFrontEnd, camera_instants
@@ -57,7 +59,7 @@ class CameraStream:
         size = cams[name].intrinsics
         background = _background_or_none(self.stream) if foreground is not None else None
         self.front_end = CameraFrontEnd(size.width_px, size.height_px, foreground, name, background, quantise)
-        times = camera_instants(rec, stride)
+        times = camera_instants(rec, stride, max_rate_hz)
         self._replay = times[:start] if foreground is not None else times[:0]
         self.times = times[start:]
         self.chunk_size = int(chunk)
@@ -87,8 +89,8 @@ class CameraStream:
 
 
 def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: np.ndarray, start: int = 0,
-                       quantise: bool = True, chunk: int = 10, ahead: int = 3, stride: int = 1
-                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
+                       quantise: bool = True, chunk: int = 10, ahead: int = 3, stride: int = 1,
+                       max_rate_hz: float | None = None) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
     """Every camera's front end on the cluster, in time order: what :func:`planefuse.vision.camera_foregrounds`
     gives in this process.
 
@@ -101,7 +103,8 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
         Cameras, in the recording's order.
     foreground : ForegroundParams or None
     times_s : ndarray, shape (T,)
-        The run's camera instants after ``start`` (:func:`planefuse.vision.camera_instants` with ``stride``) [s].
+        The run's camera instants after ``start`` (:func:`planefuse.vision.camera_instants` with ``stride`` and
+        ``max_rate_hz``) [s].
     start : int
         Instants skipped at the start (a resumed run).
     quantise : bool
@@ -110,6 +113,8 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
         Instants per message, and chunks requested ahead of the one consumed (per camera).
     stride : int
         Every ``stride``-th camera instant of the recording (``CameraParams.frame_stride``).
+    max_rate_hz : float or None
+        At most this many camera instants per second [Hz] (``CameraParams.max_rate_hz``).
 
     Yields
     ------
@@ -123,7 +128,7 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
     if not workers:
         raise ValueError("the dask cluster has no workers")
     futures = [client.submit(CameraStream, str(root), name, foreground, int(start), bool(quantise), int(chunk),
-                             int(stride), actor=True, workers=[workers[c % len(workers)]], pure=False)
+                             int(stride), max_rate_hz, actor=True, workers=[workers[c % len(workers)]], pure=False)
                for c, name in enumerate(names)]
     actors = [f.result() for f in futures]
     n_chunks = -(-len(times_s) // chunk)

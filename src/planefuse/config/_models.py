@@ -272,6 +272,11 @@ class CameraSensorConfig(_Model):
         "models learn from the processed frames); 1 = every frame",
         expected="an integer >= 1", library="system.camera_params.frame_stride",
     )
+    max_rate_hz: float | None = _field(
+        description="Process at most this many camera instants per second (the first at or after each multiple of "
+        "its period), the others not read: frame_stride in time, for recordings of any frame rate; null = every "
+        "instant", unit="Hz", expected="null or > 0", library="system.camera_params.max_rate_hz",
+    )
     # --- generative sensor model (sensor_model: generative; planefuse.vision.GenerativeSensorParams) ---
     generative_people_per_m2: float = _field(
         description="Generative model: prior density of people", unit="1/m^2", expected="> 0",

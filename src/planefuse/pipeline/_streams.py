@@ -316,8 +316,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     if report.camera is None:
         report.camera = CameraReport()
     replay = start if params.foreground is not None else 0
-    stride = params.frame_stride
-    all_times = camera_instants(rec, stride)
+    stride, max_rate_hz = params.frame_stride, params.max_rate_hz
+    all_times = camera_instants(rec, stride, max_rate_hz)
     times = all_times[start:]
     # each camera's last live frame before the first computed instant: the last instant it did not miss
     last_live_s = []
@@ -347,14 +347,15 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             from ..batch import remote_foregrounds
 
             fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start,
-                                     quantise=params.sensor_model == "cell", stride=stride)
+                                     quantise=params.sensor_model == "cell", stride=stride,
+                                     max_rate_hz=max_rate_hz)
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
                                          registration=registration, foregrounds=fgs, correlation_s=correlation_s,
                                          last_live_s=last_live_s)
         else:
             # empty-scene calibration plates prime the background models (no ghosts of people already in view)
             backgrounds = [_background_or_none(rec.camera(n)) for n in names]
-            frames = recording_frames(rec, start=start - replay, stride=stride)
+            frames = recording_frames(rec, start=start - replay, stride=stride, max_rate_hz=max_rate_hz)
             instants = camera_detections(frames, lookups, stack, params, names=names, report=report.camera,
                                          backgrounds=backgrounds, replay=replay, registration=registration,
                                          correlation_s=correlation_s, last_live_s=last_live_s)

@@ -341,41 +341,56 @@ def wildtrack_frames(root, *, fps: float = 2.0):
     return [rig[n] for n in names], image_folder_frames([sub / n for n in names], fps=fps)
 
 
-def camera_instants(recording, stride: int = 1) -> np.ndarray:
+def camera_instants(recording, stride: int = 1, max_rate_hz: float | None = None) -> np.ndarray:
     """The synchronised camera instants of a recording [s], shape (T,), increasing.
 
     The union of all cameras' frame times, whatever the cameras' order: times closer than half the shortest
     frame period are one instant (taken at its earliest frame time). A frame dropped by one camera is thus
     still an instant of the others, and a missing frame of the camera that lacks it. With ``stride`` k > 1,
-    every k-th of these instants from the first (:attr:`planefuse.vision.CameraParams.frame_stride`).
+    every k-th of these instants from the first (:attr:`planefuse.vision.CameraParams.frame_stride`). With
+    ``max_rate_hz`` [Hz] (:attr:`planefuse.vision.CameraParams.max_rate_hz`), of those the first at or after each
+    multiple of ``1 / max_rate_hz`` from the first instant (a quarter of the shortest frame period early counts:
+    time stamps jitter), so at most ``max_rate_hz`` instants per second, evenly spaced where the cameras' rate is
+    a multiple of it (25 Hz cameras at 5 Hz: every 5th frame).
     """
     if not (isinstance(stride, (int, np.integer)) and stride >= 1):
         raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
+    if max_rate_hz is not None and not (np.isfinite(max_rate_hz) and max_rate_hz > 0):
+        raise ValueError(f"max_rate_hz must be finite and > 0 [Hz] or None, got {max_rate_hz!r}")
     streams = [recording.camera(c.name) for c in recording.cameras]
     times = np.sort(np.concatenate([np.asarray(s.times_s, dtype=float) for s in streams] or [np.zeros(0)]))
     if times.size == 0:
         return times
-    tol_s = 0.5 / max(s.rate_hz for s in streams)
+    frame_s = 1.0 / max(s.rate_hz for s in streams)
     starts = [times[0]]
     for t in times[1:]:
-        if t - starts[-1] > tol_s:
+        if t - starts[-1] > 0.5 * frame_s:
             starts.append(t)
-    return np.asarray(starts)[::stride]
+    instants = np.asarray(starts)[::stride]
+    if max_rate_hz is None:
+        return instants
+    period_s, early_s = 1.0 / max_rate_hz, 0.25 * frame_s
+    kept, t0, due = [], instants[0], instants[0]
+    for t in instants:
+        if t >= due - early_s:
+            kept.append(t)
+            due = t0 + (np.floor((t + early_s - t0) / period_s) + 1) * period_s
+    return np.asarray(kept)
 
 
-def recording_frames(recording, *, masks: bool = False, start: int = 0,
-                     stride: int = 1) -> Iterator[tuple[float, list[np.ndarray | None]]]:
+def recording_frames(recording, *, masks: bool = False, start: int = 0, stride: int = 1,
+                     max_rate_hz: float | None = None) -> Iterator[tuple[float, list[np.ndarray | None]]]:
     """Synchronised frames of a :class:`planefuse.io.Recording` (simulated or read from disk).
 
     Instants are :func:`camera_instants` (the union of all cameras' frame times); each camera contributes
     its frame nearest in time when that is within half of its own frame period, else ``None`` (a missing
     frame, which :func:`camera_detections` counts on that camera).
     ``masks=True`` yields the exact foreground masks (uint8 0/255) instead of the images.
-    ``start`` skips the first instants (their frames are not read); ``stride`` k > 1 reads every k-th instant
-    only (``camera_instants(recording, stride)``; ``start`` then counts those).
+    ``start`` skips the first instants (their frames are not read); ``stride`` k > 1 and ``max_rate_hz`` read the
+    instants ``camera_instants(recording, stride, max_rate_hz)`` only (``start`` then counts those).
     """
     streams = [recording.camera(c.name) for c in recording.cameras]
-    for t in camera_instants(recording, stride)[int(start):]:
+    for t in camera_instants(recording, stride, max_rate_hz)[int(start):]:
         imgs: list[np.ndarray | None] = []
         for s in streams:
             j = frame_at(s, t)

@@ -110,6 +110,11 @@ class CameraParams:
         weighs each camera message by the time since the previous one (``SystemParams.camera_correlation_s``),
         so the cameras' total weight per second does not change. Roughly divides the cameras' share of a run's
         CPU time (decoding, background subtraction, fusion, person extraction) by ``frame_stride``.
+    max_rate_hz : float or None
+        Process at most this many camera instants per second [Hz] (:func:`planefuse.vision.camera_instants`: the
+        first instant at or after each multiple of ``1 / max_rate_hz``); the others are not read, as with
+        ``frame_stride`` but in time rather than frames, so one value serves recordings of any frame rate (EPFL
+        terrace, 25 Hz video: 5 Hz, the rate its configuration was chosen at). None: every instant.
     """
 
     foreground: ForegroundParams | None = field(default_factory=ForegroundParams)
@@ -119,11 +124,12 @@ class CameraParams:
     sensor_model: Literal["cell", "generative"] = "cell"
     generative: GenerativeSensorParams = field(default_factory=GenerativeSensorParams)
     frame_stride: int = 1
+    max_rate_hz: float | None = None
 
     def __post_init__(self) -> None:
         if self.sensor_model not in ("cell", "generative"):
             raise ValueError(f"CameraParams.sensor_model must be 'cell' or 'generative', got {self.sensor_model!r}")
-        check_fields(self, frame_stride="int>=1")
+        check_fields(self, frame_stride="int>=1", max_rate_hz="?>0")
 
 
 @dataclass

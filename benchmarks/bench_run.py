@@ -30,8 +30,8 @@ file's system; ``--recording DIR`` times any recording folder. ``--streams``
 also times, in this process (all cores), the run in one process against the run with each camera's front end on a
 LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
 two results compared. ``--stride N``
-(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``), alone and
-with the reduced resolution (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
+(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``), alone, with
+the reduced resolution and with ``--method`` (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
 stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
 ``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
 cached kernels, the default binaural model), for every row (the options as configuration fields), interleaved:
@@ -304,6 +304,9 @@ def main() -> None:
         if args.downscale > 1:
             runs.append((f"after, {last}, frame_stride {args.stride}, subtraction at 1/{args.downscale}", after,
                          recs[last], args.downscale, args.stride, ""))
+        if args.method:
+            runs.append((f"after, {last}, frame_stride {args.stride}, foreground_method {args.method}", after,
+                         recs[last], 1, args.stride, args.method))
     results: dict[str, list[dict]] = {label: [] for label, *_ in runs}
     for r in range(args.repeats):
         for k, (label, src, rec_dir, downscale, stride, method) in enumerate(runs):

@@ -58,6 +58,8 @@ STRIDE = {
     **{f"frame_stride {k}": replace(_BASE, camera_params=replace(_BASE.camera_params, frame_stride=k)) for k in (2, 3)},
     "frame_stride 2, KNN at 1/2 resolution": replace(_BASE, camera_params=replace(
         _BASE.camera_params, frame_stride=2, foreground=replace(_F, downscale=2))),
+    **{f"max_rate_hz {r:g}": replace(_BASE, camera_params=replace(_BASE.camera_params, max_rate_hz=r))
+       for r in (12.5, 5.0)},
 }
 #: OpenCV's MOG2 subtractor against the default KNN (``--mog2``)
 MOG2 = {

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import motmetrics as mm
@@ -304,6 +305,20 @@ def test_progress_modes():
     ev = [json.loads(l) for l in buf.getvalue().splitlines()]
     assert [e["event"] for e in ev] == ["start"] + ["progress"] * 4 + ["end"]
     assert ev[-2]["done"] == 4 and ev[-2]["eta_s"] == 0 and ev[-2]["rate_per_s"] > 0
+    # a warning raised inside is an event of the stream (every line JSON), and the usual display comes back after
+    buf = io.StringIO()
+    with progress_steps("json", stream=buf) as p:
+        warnings.warn("frames dropped\n  at t=2.96 s", UserWarning, stacklevel=1)
+    (w,) = [json.loads(l) for l in buf.getvalue().splitlines()]
+    assert w["event"] == "warning" and w["category"] == "UserWarning" and w["message"] == "frames dropped at t=2.96 s"
+    with pytest.warns(UserWarning, match="after"):
+        warnings.warn("after", UserWarning, stacklevel=1)
+    assert buf.getvalue().count("\n") == 1
+    # a total that was an estimate (rich mode): the finished bar shows the items done
+    buf = io.StringIO()
+    with progress_steps("rich", stream=buf) as p, p.step("track", total=5, unit="steps") as advance:
+        advance(4)
+    assert "4/4" in buf.getvalue()
     buf = io.StringIO()
     with progress_steps("quiet", stream=buf) as p, p.step("x", total=3) as advance:
         advance(3)

@@ -4,7 +4,8 @@ Three modes, one API:
 
 * ``"rich"`` -- live bars with count, rate and ETA on the terminal (stderr);
 * ``"json"`` -- one JSON object per line on stderr (``start``, throttled
-  ``progress``, ``end`` / ``interrupted``), for scripts and log collectors;
+  ``progress``, ``end`` / ``interrupted``, ``message``, and ``warning`` for every Python warning raised inside the
+  context), for scripts and log collectors: every line of the stream parses as JSON;
 * ``"quiet"`` -- nothing.
 
 Usage::
@@ -22,6 +23,7 @@ import contextlib
 import json
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from typing import IO, Literal
 
@@ -163,6 +165,13 @@ def progress_steps(mode: ProgressMode = "rich", stream: IO[str] | None = None,
     ``"quiet"``, ``--log-json`` gives ``"json"``, neither gives ``"rich"``.
     """
     reporter = ProgressReporter(mode, stream, json_interval_s)
+    if reporter.mode == "json":
+        # every line on the stream is JSON: a warning raised inside is a "warning" event, not a line of text
+        with warnings.catch_warnings():
+            warnings.showwarning = lambda message, category, *_, **__: reporter.event(
+                "warning", category=category.__name__, message=" ".join(str(message).split()))
+            yield reporter
+        return
     if reporter._progress is None:
         yield reporter
         return

@@ -6,6 +6,7 @@ Usage::
     PYTHONPATH=src python scripts/scenarios.py --seeds 4,5,6 --duration-s 6 --out docs/scenarios
     PYTHONPATH=src python scripts/scenarios.py --seeds 1,2,3 --sweep      # tuning: tracker variants
     PYTHONPATH=src python scripts/scenarios.py --scheduler tcp://host:8786 ...   # on a dask cluster
+    PYTHONPATH=src python scripts/scenarios.py --seeds 1,2,3 --set camera_params.max_rate_hz=5   # a system change
 
 Each (scenario, seed, filter, modalities) is one system run (``planefuse.pipeline.run_system``, what
 ``planefuse run`` runs) on a dask worker (:func:`planefuse.batch.batch_client`: a LocalCluster of
@@ -30,6 +31,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from planefuse.pipeline import SystemParams
 from planefuse.sim import SCENARIOS
@@ -56,6 +58,20 @@ class Case:
     duration_s: float
     use_filter: bool
     modalities: str
+    #: ``SystemParams`` attributes changed for this run: (dotted path, value) pairs (``--set``)
+    sets: tuple = ()
+
+
+def with_sets(obj, sets: tuple, where: str = ""):
+    """``obj`` (a frozen dataclass, e.g. ``SystemParams``) with the attributes at the dotted paths of ``sets``
+    replaced: ``(("camera_params.max_rate_hz", 5.0),)``."""
+    for path, value in sets:
+        head, _, rest = path.partition(".")
+        if not hasattr(obj, head):
+            raise SystemExit(f"--set {where}{path}: {type(obj).__name__} has no attribute {head!r}")
+        obj = replace(obj, **{head: with_sets(getattr(obj, head), ((rest, value),), f"{where}{head}.") if rest
+                              else value})
+    return obj
 
 
 def _tracker_variants(sweep: str | None) -> dict:
@@ -90,6 +106,7 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
     # the installation's static occluders are declared, as a user declares a floor plan
     params = SystemParams(use_filter=case.use_filter, occluder_boxes_m=tuple(o.box_m() for o in scene.occluders),
                           **MODALITIES[case.modalities])
+    params = with_sets(params, case.sets)
     t0 = time.process_time()
     result = run_system(rec, params)
     run_cpu_s = time.process_time() - t0
@@ -198,8 +215,18 @@ def main() -> None:
     ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
     ap.add_argument("--n-workers", type=int, default=2)
     ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
+    ap.add_argument("--set", action="append", default=[], metavar="PATH=YAML",
+                    help="a SystemParams attribute for every run, by its dotted path (repeatable), e.g. "
+                         "camera_params.max_rate_hz=5 or camera_correlation_s=0.8 (choose on seeds 1-3 only)")
     ap.add_argument("--out", type=Path, default=Path("scenario-results"))
     args = ap.parse_args()
+    sets = []
+    for item in args.set:
+        path, eq, value = item.partition("=")
+        if not eq:
+            raise SystemExit(f"--set {item!r}: expected PATH=VALUE")
+        sets.append((path.strip(), yaml.safe_load(value)))
+    with_sets(SystemParams(), tuple(sets))  # a wrong path or value fails here, before any run
     seeds = [int(s) for s in args.seeds.split(",")]
     for name in args.modalities.split(","):
         if name not in MODALITIES:
@@ -208,8 +235,8 @@ def main() -> None:
         rows = _read_rows(args.from_csv)
         write(rows, args, len({(r["scenario"], r["seed"], r["filter"], r["modalities"]) for r in rows}), wall_s=None)
         return
-    cases = [Case(s, seed, args.duration_s, f == "on", mod) for s in args.scenarios.split(",") for seed in seeds
-             for f in args.filters.split(",") for mod in args.modalities.split(",")]
+    cases = [Case(s, seed, args.duration_s, f == "on", mod, tuple(sets)) for s in args.scenarios.split(",")
+             for seed in seeds for f in args.filters.split(",") for mod in args.modalities.split(",")]
     trackers = _tracker_variants(args.sweep)
     prev = previous_tracker_source() if args.previous_tracker else None
 

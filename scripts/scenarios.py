@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from planefuse.config._models import _with_values
 from planefuse.pipeline import SystemParams
 from planefuse.sim import SCENARIOS
 
@@ -62,16 +63,17 @@ class Case:
     sets: tuple = ()
 
 
-def with_sets(obj, sets: tuple, where: str = ""):
-    """``obj`` (a frozen dataclass, e.g. ``SystemParams``) with the attributes at the dotted paths of ``sets``
-    replaced: ``(("camera_params.max_rate_hz", 5.0),)``."""
-    for path, value in sets:
-        head, _, rest = path.partition(".")
-        if not hasattr(obj, head):
-            raise SystemExit(f"--set {where}{path}: {type(obj).__name__} has no attribute {head!r}")
-        obj = replace(obj, **{head: with_sets(getattr(obj, head), ((rest, value),), f"{where}{head}.") if rest
-                              else value})
-    return obj
+def with_sets(params: SystemParams, sets: tuple) -> SystemParams:
+    """``params`` with the attributes at the dotted paths of ``sets`` replaced, ``(("camera_params.max_rate_hz",
+    5.0),)``: the configuration's own nested replace, each object rebuilt once so that rules between its fields see
+    the final values together."""
+    for path, _ in sets:
+        obj = params
+        for name in path.split("."):
+            if not hasattr(obj, name):
+                raise SystemExit(f"--set {path}: {type(obj).__name__} has no attribute {name!r}")
+            obj = getattr(obj, name)
+    return _with_values(params, {tuple(path.split(".")): value for path, value in sets})
 
 
 def _tracker_variants(sweep: str | None) -> dict:

@@ -297,17 +297,17 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         times, det_xy, tracks = _steps_from_tables(out)
         if out.rerun is not None:
             _log_modalities(out.rerun, rec, run.report, times)
-        # without ground truth (a user's installation) the counts alone: steps, tracks, each sensor's messages and
-        # each camera's missing frames
-        metrics = run_counts(rec, times, tracks, run.report, result.elapsed_s)
         has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
         if has_truth and not can_evaluate(rec, times):
             _warn_no_evaluation(rec)
-        elif has_truth:
+            has_truth = False
+        if has_truth:  # the scores, with the counts
             with progress.step("evaluate", total=1, unit="runs") as advance:
                 metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)
                 advance(1)
+        else:  # a user's installation: the counts alone (steps, tracks, each sensor's messages and missing frames)
+            metrics = run_counts(rec, times, tracks, run.report, result.elapsed_s)
         metrics["resumed_at_step"] = run.resumed_at_step
         out.write_metrics(metrics)
         result.metrics = metrics

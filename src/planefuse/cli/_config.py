@@ -10,11 +10,9 @@ import yaml
 from rich.markup import escape
 
 from ..config import ConfigError, example_yaml, load_config
+from ..config._load import EXAMPLE_RECORDING
 from ..outputs import atomic_write_text
 from ._app import app, console
-
-#: The placeholder recording of the example configuration.
-_EXAMPLE_RECORDING = "recordings/my-scene"
 
 config_app = typer.Typer(help="Write or inspect a run configuration (YAML).", no_args_is_help=True)
 app.add_typer(config_app, name="config")
@@ -34,7 +32,7 @@ def exit_on_config_error(err: ConfigError) -> None:
 @config_app.command("init")
 def config_init(
     path: Path = typer.Argument(Path("planefuse.yaml"), help="Where to write the example configuration."),
-    recording: str = typer.Option(_EXAMPLE_RECORDING, help="Recording folder to put in the example. An existing "
+    recording: str = typer.Option(EXAMPLE_RECORDING, help="Recording folder to put in the example. An existing "
                                   "recording (a folder with scene.yaml) also sets the planes, the monitored area "
                                   "[m] and the sensors it has; otherwise every field is at its default. Written "
                                   "relative to the configuration's folder, as the configuration reads it."),
@@ -56,7 +54,7 @@ def config_init(
                       f"area x {fitted.planes.x_range_m} y {fitted.planes.y_range_m} m, sensors "
                       f"{', '.join(used) or 'none'} (those the recording has)", highlight=False)
     where = recording
-    if recording != _EXAMPLE_RECORDING and not Path(recording).is_absolute():
+    if recording != EXAMPLE_RECORDING and not Path(recording).is_absolute():
         # the configuration's paths are relative to its own folder, the option's to the working directory
         where = os.path.relpath(Path(recording).resolve(), path.resolve().parent)
     atomic_write_text(path, example_yaml(where, fitted))

@@ -279,7 +279,11 @@ def _model_lines(model: BaseModel, indent: int) -> list[str]:
     return lines
 
 
-def example_yaml(recording: str = "recordings/my-scene", config: RunConfig | None = None) -> str:
+#: The placeholder recording folder of the example configuration.
+EXAMPLE_RECORDING = "recordings/my-scene"
+
+
+def example_yaml(recording: str = EXAMPLE_RECORDING, config: RunConfig | None = None) -> str:
     """A complete, commented example configuration (every field at its default, or at ``config``'s values).
 
     The comments give each field's meaning, unit and accepted range; the text

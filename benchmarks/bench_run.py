@@ -49,8 +49,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main when this branch started (2026-12-03, issue 19's fifth pass, s7-19)
-BEFORE = "a77e042"
+#: main before the cameras' default 5 Hz rate cap (2026-12-04, ninth session)
+BEFORE = "898a3b1"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}

@@ -183,7 +183,8 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     occ = [zarr.open_group(d / "occupancy.zarr", mode="r")["occupancy"][:] for d in (a, b)]
     assert np.array_equal(*occ)
     ma, mb = (json.loads((d / "metrics.json").read_text()) for d in (a, b))
-    assert ma["n_missing_camera_frames"] > 30 and _same(ma, mb)
+    # cameras at the default 5 Hz: cam0 black at the 5 instants from 2 s, and frames dropped (9 measured)
+    assert ma["n_missing_camera_frames"] > 5 and _same(ma, mb)
     r = runner.invoke(app, ["run", str(tmp_path / "workers.yaml"), "--workers", "1", "--scheduler", "tcp://x:1"])
     assert r.exit_code == 2
 

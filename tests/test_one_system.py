@@ -90,7 +90,7 @@ CHANGED = {
     "sensors.cameras.foreground_ceiling": 0.9,
     "sensors.cameras.subtraction_downscale": 2,
     "sensors.cameras.frame_stride": 2,
-    "sensors.cameras.max_rate_hz": 5.0,
+    "sensors.cameras.max_rate_hz": 10.0,
     "sensors.cameras.knn_samples": 3,
     "sensors.cameras.primed_rate": "automatic",
     "sensors.cameras.cnt_min_stability": 10,
@@ -210,12 +210,13 @@ def _outputs(rec, cfg: RunConfig):
 #: attitude_source imu on moving cameras (tests/test_registration*.py); x/y ranges, wall margin and cell size
 #: change the grid (tests/test_pipeline.py); match_distance_m only the metrics; model_path needs a calibrated
 #: model file; the tracker's gate, confirmation and misses only change tracks over longer runs
-#: (tests/test_tracking_tracker.py).
+#: (tests/test_tracking_tracker.py); selective_update only over longer runs at the cameras' default 5 Hz
+#: (tests/test_vision_selective.py).
 RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cameras.p_foreground_given_free",
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
-              "models.filter.camera_correlation_s", "scene.occluder_boxes_m", "sensors.cameras.selective_update"]
+              "models.filter.camera_correlation_s", "scene.occluder_boxes_m"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)

@@ -20,6 +20,7 @@ from planefuse.pipeline import (
     run_system,
 )
 from planefuse.sim import default_scene_config, simulate
+from planefuse.vision import camera_instants
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +51,9 @@ def load_config_text(text: str, tmp=None):
 def test_run_system_fuses_every_modality(recording_dir):
     rec = read_recording(recording_dir)
     res = run_system(rec, SystemParams())
-    assert res.report.n_camera_frames == len(rec.camera(rec.cameras[0].name))
+    # every camera instant at the default rate cap (5 Hz), none missing
+    assert res.report.n_camera_frames == len(camera_instants(rec, max_rate_hz=5.0))
+    assert len(camera_instants(rec, max_rate_hz=5.0)) == len(rec.camera(rec.cameras[0].name).times_s[::5]) > 5
     assert res.report.n_laser_scans > 0 and res.report.n_sound_blocks > 0
     fused = set().union(*(o.sensors for o in res.outputs))
     assert {"cameras", *rec.lasers, *rec.audio} <= fused
@@ -147,7 +150,6 @@ def test_frame_stride_is_the_run_on_a_recording_of_every_other_frame(recording_d
     import shutil
     from dataclasses import replace
 
-    from planefuse.vision import camera_instants
 
     half = tmp_path / "half"
     shutil.copytree(recording_dir, half)
@@ -161,6 +163,7 @@ def test_frame_stride_is_the_run_on_a_recording_of_every_other_frame(recording_d
     full, kept = read_recording(recording_dir), read_recording(half)
     np.testing.assert_array_equal(camera_instants(full, 2), camera_instants(kept))
     base = SystemParams()
+    base = replace(base, camera_params=replace(base.camera_params, max_rate_hz=None))  # every instant
     strided = replace(base, camera_params=replace(base.camera_params, frame_stride=2))
     a, b = run_system(full, strided), run_system(kept, base)
     assert a.report.n_camera_frames == b.report.n_camera_frames == len(camera_instants(full)[::2]) > 20

@@ -111,6 +111,7 @@ def test_imu_route_reproduces_calibration_detections_on_a_still_scene():
     calibration's moment and no lookup is rebuilt), so the cameras find the same people at every step."""
     _, rec = scene(2.5, seed=13)
     base = SystemParams(laser=False, sound=False)
+    base = replace(base, camera_params=replace(base.camera_params, max_rate_hz=None))  # every frame
     res = {src: run_system(rec, with_source(base, src)) for src in ("calibration", "imu")}
     assert res["imu"].report.camera_registration.n_rebuilds == [0, 0, 0, 0]
     cal, imu = res["calibration"].report.camera_detections, res["imu"].report.camera_detections

@@ -275,7 +275,8 @@ class CameraSensorConfig(_Model):
     max_rate_hz: float | None = _field(
         description="Process at most this many camera instants per second (the first at or after each multiple of "
         "its period), the others not read: frame_stride in time, for recordings of any frame rate; null = every "
-        "instant", unit="Hz", expected="null or > 0", library="system.camera_params.max_rate_hz",
+        "instant; the default is the default output rate (models.filter.output_period_s 0.2 s)", unit="Hz",
+        expected="null or > 0", library="system.camera_params.max_rate_hz",
     )
     # --- generative sensor model (sensor_model: generative; planefuse.vision.GenerativeSensorParams) ---
     generative_people_per_m2: float = _field(

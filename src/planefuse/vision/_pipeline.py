@@ -114,7 +114,10 @@ class CameraParams:
         Process at most this many camera instants per second [Hz] (:func:`planefuse.vision.camera_instants`: the
         first instant at or after each multiple of ``1 / max_rate_hz``); the others are not read, as with
         ``frame_stride`` but in time rather than frames, so one value serves recordings of any frame rate (EPFL
-        terrace, 25 Hz video: 5 Hz, the rate its configuration was chosen at). None: every instant.
+        terrace, 25 Hz video: 5 Hz, the rate its configuration was chosen at). None: every instant. Default 5 Hz,
+        the default output rate (``SystemParams.output_period_s`` 0.2 s): one camera instant per output step, which
+        halves the default run's CPU time (docs/benchmarks.md) and is level or ahead of every instant on the
+        simulated tuning scenes (docs/results.md, "Cameras at 5 Hz").
     """
 
     foreground: ForegroundParams | None = field(default_factory=ForegroundParams)
@@ -124,7 +127,7 @@ class CameraParams:
     sensor_model: Literal["cell", "generative"] = "cell"
     generative: GenerativeSensorParams = field(default_factory=GenerativeSensorParams)
     frame_stride: int = 1
-    max_rate_hz: float | None = None
+    max_rate_hz: float | None = 5.0
 
     def __post_init__(self) -> None:
         if self.sensor_model not in ("cell", "generative"):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -197,7 +199,9 @@ def test_cli_check_reports_config_errors_with_exit_2(tmp_path):
 
 
 def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch):
-    p = _write(tmp_path, example_yaml("scene"))
+    # cameras and sound enabled, the laser not (its device entry is read from the recording)
+    p = _write(tmp_path, example_yaml("scene").replace("laser:\n    # Use the laser range finders -- true or false\n"
+                                                       "    enabled: true", "laser:\n    enabled: false"))
     r = runner.invoke(app, ["check", str(p), "--log-json"])
     assert r.exit_code == 1 and '"ok": false' in r.output and "does not exist" in r.output
     (tmp_path / "scene").mkdir()
@@ -206,13 +210,18 @@ def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch)
     times = {c.name: np.arange(50) * 0.04 for c in cams} | {"laser": np.arange(20) * 0.1}
     from planefuse.cli import _check
 
-    rec = SimpleNamespace(cameras=cams, lasers={}, room_xy_m=(-0.2, 10.2, -0.2, 10.2), planes_heights_m=(0.1, 1.0),
-                          camera_streams={}, root=tmp_path / "scene", source="fake", duration_s=2.0, provenance=None)
-    monkeypatch.setattr(_check, "read_recording_for_check",
-                        lambda cfg: (rec, times, [c.name for c in cams] + ["laser", "binaural"]))
-    r = runner.invoke(app, ["check", str(p)], terminal_width=200)
-    assert r.exit_code == 1 and "binaural" in r.output and "missing" in r.output
-    times["binaural"] = np.arange(100) * 0.02
+    # the configuration enables sound (the default); the recording has cameras and a laser only
+    rec = SimpleNamespace(cameras=cams, lasers={}, audio={}, room_xy_m=(-0.2, 10.2, -0.2, 10.2),
+                          planes_heights_m=(0.1, 1.0), camera_streams={c.name: SimpleNamespace(frame_files=[])
+                                                                       for c in cams},
+                          root=tmp_path / "scene", source="fake", duration_s=2.0, provenance=None)
+    monkeypatch.setattr(_check, "read_recording_for_check", lambda cfg: (rec, times))
+    r = runner.invoke(app, ["check", str(p), "--log-json"])
+    (err,) = [i for i in json.loads(r.output)["issues"] if i["level"] == "error"]
+    # the words `planefuse run` refuses it with (planefuse.pipeline.check_modalities_present)
+    assert r.exit_code == 1 and err["subject"] == "sensors", r.output
+    assert err["message"].startswith("recording ") and "no stream for sensors.sound.enabled" in err["message"]
+    rec.audio, times["binaural"] = {"binaural": None}, np.arange(100) * 0.02
     r = runner.invoke(app, ["check", str(p)], terminal_width=200)
     assert r.exit_code == 0, r.output
     assert "ready to run" in r.output

@@ -637,6 +637,14 @@ def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor
     # two cameras with the per-cell model (the default): a warning pointing at the generative model
     (ghosts,) = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.sensor_model"]
     assert ghosts["level"] == "warning" and "sensor_model: generative" in ghosts["message"]
+    # 25 Hz cameras at the default 5 Hz: said; an output rate above it: a warning
+    (rate,) = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.max_rate_hz"]
+    assert rate["level"] == "info" and "at up to 25 Hz are processed at most 5 times a second" in rate["message"]
+    faster = d / "faster.yaml"
+    faster.write_text(fitted.read_text().replace("output_period_s: 0.2", "output_period_s: 0.1"))
+    r = _cli("check", faster, "--log-json")
+    rates = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.max_rate_hz"]
+    assert [i["level"] for i in rates] == ["info", "warning"] and "raise max_rate_hz to 10 Hz" in rates[1]["message"]
     r = _cli("check", default, "--log-json")
     assert r.exit_code == 1 and "no stream for sensors.laser.enabled, sensors.sound.enabled" in r.output, r.output
     r = _cli("run", default, "--quiet")

@@ -84,6 +84,21 @@ def check(
     raise typer.Exit(0 if report.ok else 1)
 
 
+def _check_camera_rate(cfg: RunConfig, rec, report: CheckReport) -> None:
+    """Say at what rate the cameras will be processed (``sensors.cameras.max_rate_hz``, 5 Hz by default), and warn
+    where output steps would get no camera instant."""
+    cap_hz, rates = cfg.sensors.cameras.max_rate_hz, [cs.rate_hz for cs in rec.camera_streams.values()]
+    if cap_hz is None or not rates or max(rates) <= cap_hz:
+        return
+    report.add("info", "sensors.cameras.max_rate_hz", f"cameras at up to {max(rates):g} Hz are processed at most "
+               f"{cap_hz:g} times a second (every frame: max_rate_hz: null)")
+    output_hz = 1.0 / cfg.models.filter.output_period_s
+    if output_hz > cap_hz * (1 + 1e-9):
+        report.add("warning", "sensors.cameras.max_rate_hz", f"{output_hz:g} output steps per second but at most "
+                   f"{cap_hz:g} camera instants: some steps get no camera evidence (raise max_rate_hz to "
+                   f"{output_hz:g} Hz or lengthen models.filter.output_period_s)")
+
+
 def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
     """The recording's own checks, and the plane stack the run would use on it."""
     from ..pipeline import stack_for_recording
@@ -117,6 +132,8 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
                    "sight cross (ghosts); the generative model explains them away (two cameras: EPFL terrace real "
                    "video, filtered MODA 0.58 generative against -3.0 per cell; simulated, 0.65-0.67 against -0.45 to "
                    "-0.80; docs/results.md). Consider sensor_model: generative with scripts/terrace.yaml's settings")
+    if cams:
+        _check_camera_rate(cfg, rec, report)
     sub = check_recording(rec.cameras if cams else [], stack, times, recording=rec,
                           frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues

@@ -10,8 +10,9 @@ this process).
 
 ``--probe`` scores instead the clustering / tracker variants of the probe in docs/results.md; ``--downscale`` the
 cameras' background subtraction at full, half and third resolution (``ForegroundParams.downscale``); ``--stride``
-the cameras at every instant, every 2nd and every 3rd (``CameraParams.frame_stride``), and every 2nd with the
-half-resolution subtraction; ``--mog2`` OpenCV's other background subtractor (MOG2) against KNN; ``--subtractors``
+the cameras at every instant, every 2nd and every 3rd (``CameraParams.frame_stride``), every 2nd with the
+half-resolution subtraction, and at most 12.5 and 5 (the default) instants per second
+(``CameraParams.max_rate_hz``); ``--mog2`` OpenCV's other background subtractor (MOG2) against KNN; ``--subtractors``
 the faster ones against KNN: the numba running-average model (``foreground_method: mean``) with its foreground
 pixels learnt at 0.2 of the rate, never, and like the background, and OpenCV contrib's CNT.
 
@@ -52,14 +53,16 @@ DOWNSCALE = {
         _BASE, camera_params=replace(_BASE.camera_params, foreground=replace(_F, downscale=d, threshold=t)))
        for d, t in ((2, None), (2, 400.0), (2, 300.0), (2, 250.0), (2, 100.0), (3, 400.0), (3, 44.0))},
 }
-#: the cameras at every instant and every k-th only (``--stride``)
+#: the cameras at every instant, every k-th only and at most N per second (``--stride``; the default: 5 Hz)
+_EVERY = replace(_BASE, camera_params=replace(_BASE.camera_params, max_rate_hz=None))
 STRIDE = {
-    "every camera instant (default)": _BASE,
-    **{f"frame_stride {k}": replace(_BASE, camera_params=replace(_BASE.camera_params, frame_stride=k)) for k in (2, 3)},
-    "frame_stride 2, KNN at 1/2 resolution": replace(_BASE, camera_params=replace(
-        _BASE.camera_params, frame_stride=2, foreground=replace(_F, downscale=2))),
-    **{f"max_rate_hz {r:g}": replace(_BASE, camera_params=replace(_BASE.camera_params, max_rate_hz=r))
-       for r in (12.5, 5.0)},
+    "every camera instant": _EVERY,
+    **{f"frame_stride {k}": replace(_EVERY, camera_params=replace(_EVERY.camera_params, frame_stride=k))
+       for k in (2, 3)},
+    "frame_stride 2, KNN at 1/2 resolution": replace(_EVERY, camera_params=replace(
+        _EVERY.camera_params, frame_stride=2, foreground=replace(_F, downscale=2))),
+    "max_rate_hz 12.5": replace(_BASE, camera_params=replace(_BASE.camera_params, max_rate_hz=12.5)),
+    "max_rate_hz 5 (default)": _BASE,
 }
 #: OpenCV's MOG2 subtractor against the default KNN (``--mog2``)
 MOG2 = {

@@ -6,7 +6,7 @@ Usage::
     PYTHONPATH=src python scripts/scenarios.py --seeds 4,5,6 --duration-s 6 --out docs/scenarios
     PYTHONPATH=src python scripts/scenarios.py --seeds 1,2,3 --sweep      # tuning: tracker variants
     PYTHONPATH=src python scripts/scenarios.py --scheduler tcp://host:8786 ...   # on a dask cluster
-    PYTHONPATH=src python scripts/scenarios.py --seeds 1,2,3 --set camera_params.max_rate_hz=5   # a system change
+    PYTHONPATH=src python scripts/scenarios.py --seeds 1,2,3 --set camera_params.max_rate_hz=null  # every instant
 
 Each (scenario, seed, filter, modalities) is one system run (``planefuse.pipeline.run_system``, what
 ``planefuse run`` runs) on a dask worker (:func:`planefuse.batch.batch_client`: a LocalCluster of
@@ -219,7 +219,7 @@ def main() -> None:
     ap.add_argument("--scheduler", default=None, help="address of a running dask scheduler")
     ap.add_argument("--set", action="append", default=[], metavar="PATH=YAML",
                     help="a SystemParams attribute for every run, by its dotted path (repeatable), e.g. "
-                         "camera_params.max_rate_hz=5 or camera_correlation_s=0.8 (choose on seeds 1-3 only)")
+                         "camera_params.max_rate_hz=null or camera_correlation_s=0.8 (choose on seeds 1-3 only)")
     ap.add_argument("--out", type=Path, default=Path("scenario-results"))
     args = ap.parse_args()
     sets = []

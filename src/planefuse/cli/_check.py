@@ -111,13 +111,14 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
     _check_outputs(cfg, rec, report)
     from ..pipeline import check_cameras_against_stack, check_modalities_present
 
+    params = cfg.system_params()
     try:  # an enabled sensor without a stream: what `planefuse run` refuses, in its words
-        check_modalities_present(rec, cfg.system_params())
+        check_modalities_present(rec, params)
     except ValueError as err:
         report.add("error", "sensors", str(err))
 
     try:  # planes above a camera are reported per camera by check_recording (geometry_findings)
-        stack = stack_for_recording(rec, cfg.system_params(), check_cameras=False)
+        stack = stack_for_recording(rec, params, check_cameras=False)
         if cfg.sensors.cameras.enabled:
             check_cameras_against_stack(rec.cameras, stack, above=False)
     except ValueError as err:

@@ -211,10 +211,10 @@ def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch)
     from planefuse.cli import _check
 
     # the configuration enables sound (the default); the recording has cameras and a laser only
+    streams = {c.name: SimpleNamespace(frame_files=[], rate_hz=25.0) for c in cams}
     rec = SimpleNamespace(cameras=cams, lasers={}, audio={}, room_xy_m=(-0.2, 10.2, -0.2, 10.2),
-                          planes_heights_m=(0.1, 1.0), camera_streams={c.name: SimpleNamespace(frame_files=[], rate_hz=25.0)
-                                                                       for c in cams},
-                          root=tmp_path / "scene", source="fake", duration_s=2.0, provenance=None)
+                          planes_heights_m=(0.1, 1.0), camera_streams=streams, root=tmp_path / "scene", source="fake",
+                          duration_s=2.0, provenance=None)
     monkeypatch.setattr(_check, "read_recording_for_check", lambda cfg: (rec, times))
     r = runner.invoke(app, ["check", str(p), "--log-json"])
     (err,) = [i for i in json.loads(r.output)["issues"] if i["level"] == "error"]

@@ -30,7 +30,8 @@ file's system; ``--recording DIR`` times any recording folder. ``--streams``
 also times, in this process (all cores), the run in one process against the run with each camera's front end on a
 LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
 two results compared. ``--stride N``
-(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``), alone, with
+(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``, the 5 Hz
+cap of the default lifted), alone, with
 the reduced resolution and with ``--method`` (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
 stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
 ``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
@@ -160,8 +161,8 @@ def child(rec_dir: str, out_dir: str, profile: bool, downscale: int, stages: boo
         cam = replace(cam, foreground=replace(cam.foreground, downscale=downscale))
     if method:
         cam = replace(cam, foreground=replace(cam.foreground, method=method))
-    if stride > 1:  # (a tree before frame_stride has none)
-        cam = replace(cam, frame_stride=stride)
+    if stride > 1:  # every stride-th instant, uncapped (a tree before frame_stride has none)
+        cam = replace(cam, frame_stride=stride, max_rate_hz=None)
     spent = stage_timers() if stages else {}
     c0 = cpu()
     rec = read_recording(rec_dir)
@@ -372,7 +373,7 @@ def cli_runs(runs: list, tmp: Path, repeats: int) -> None:
             if downscale > 1:
                 conf["sensors"]["cameras"]["subtraction_downscale"] = downscale
             if stride > 1:
-                conf["sensors"]["cameras"]["frame_stride"] = stride
+                conf["sensors"]["cameras"].update(frame_stride=stride, max_rate_hz=None)
             if method:
                 conf["sensors"]["cameras"]["foreground_method"] = method
             cfg.write_text(yaml.safe_dump(conf, sort_keys=False))

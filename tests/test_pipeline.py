@@ -150,7 +150,6 @@ def test_frame_stride_is_the_run_on_a_recording_of_every_other_frame(recording_d
     import shutil
     from dataclasses import replace
 
-
     half = tmp_path / "half"
     shutil.copytree(recording_dir, half)
     manifest = yaml.safe_load((half / "scene.yaml").read_text())

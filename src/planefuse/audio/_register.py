@@ -22,6 +22,8 @@ capped at ``max_log_odds``.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
@@ -43,6 +45,19 @@ def lateral_angle_of_cells(stack: PlaneStack, T_world_head) -> tuple[np.ndarray,
     az = np.arctan2(p[:, 1], p[:, 0])
     rng = np.hypot(p[:, 0], p[:, 1])
     return np.arcsin(np.clip(np.sin(az), -1, 1)).reshape(stack.shape), rng.reshape(stack.shape)
+
+
+@lru_cache(maxsize=4)
+def _cell_angles(stack: PlaneStack, T_world_head_bytes: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`lateral_angle_of_cells` and each cell's angular half-width [rad] seen from the head, for a head
+    pose given as the bytes of its float64 (4, 4) transform: computed once per pose (a head on a fixed mount has
+    one), read-only."""
+    T = np.frombuffer(T_world_head_bytes, dtype=float).reshape(4, 4)
+    lat, rng = lateral_angle_of_cells(stack, T)
+    half = np.arctan2(0.5 * np.sqrt(2) * stack.cell_size_m, np.maximum(rng, 1e-9))
+    for a in (lat, rng, half):
+        a.setflags(write=False)
+    return lat, rng, half
 
 
 def evidence_from_saliency(
@@ -106,8 +121,8 @@ def evidence_from_saliency(
         return Evidence(float(time_s), sensor, np.zeros(stack.shape, np.float32))
     s = gaussian_filter1d(s / s.sum(), wedge_sigma_rad / np.mean(np.diff(grid)), mode="constant")
     s = s / s.sum()
-    lat, rng = lateral_angle_of_cells(stack, T_world_head)
-    half = np.arctan2(0.5 * np.sqrt(2) * stack.cell_size_m, np.maximum(rng, 1e-9))
+    T = check_transform(T_world_head, "T_world_head")
+    lat, rng, half = _cell_angles(stack, T.astype(float).tobytes())
     look = np.max([np.interp(lat + d * half, grid, s, left=0.0, right=0.0) for d in (-1.0, 0.0, 1.0)], axis=0)
     rho = speaker_probability
     lo = np.log(1 - rho + rho * grid.size * look)

@@ -645,6 +645,13 @@ def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor
     r = _cli("check", faster, "--log-json")
     rates = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.max_rate_hz"]
     assert [i["level"] for i in rates] == ["info", "warning"] and "raise max_rate_hz to 10 Hz" in rates[1]["message"]
+    # the "no filter" ablation at the cap: one frame per step, said
+    text = fitted.read_text()
+    at = text.index("    enabled: true", text.index("  filter:"))
+    faster.write_text(text[:at] + "    enabled: false" + text[at + len("    enabled: true"):])
+    r = _cli("check", faster, "--log-json")
+    rates = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.max_rate_hz"]
+    assert [i["level"] for i in rates] == ["info", "warning"] and "at most 1 at 5 Hz" in rates[1]["message"], rates
     r = _cli("check", default, "--log-json")
     assert r.exit_code == 1 and "no stream for sensors.laser.enabled, sensors.sound.enabled" in r.output, r.output
     r = _cli("run", default, "--quiet")

@@ -119,9 +119,16 @@ def _steps_from_tables(out: OutputWriter):
     return times, det_xy, tracks
 
 
-def _warn_no_evaluation(rec: Recording) -> None:
-    warnings.warn(f"{rec.source}: the recording ends within the first {EVAL_WARMUP_S:g} s skipped by the "
-                  "evaluation: no metrics computed", stacklevel=3)
+def _can_score(rec: Recording, times_s) -> bool:
+    """Whether a run with output steps at ``times_s`` [s] is scored: the recording has people ground truth that
+    reaches past the evaluation's first second (warned where it does not: the run's counts alone)."""
+    if rec.groundtruth is None or rec.groundtruth.people is None:
+        return False
+    if not can_evaluate(rec, times_s):
+        warnings.warn(f"{rec.source}: the recording ends within the first {EVAL_WARMUP_S:g} s skipped by the "
+                      "evaluation: no scores computed, the run's counts only", stacklevel=3)
+        return False
+    return True
 
 
 def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
@@ -140,12 +147,8 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     if plan.out_dir is not None:
         return run_to_folder(rec, plan, progress_mode=progress_mode, client=client)
     result = run_system(rec, plan.params, client=client)
-    has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
     times = [o.time_s for o in result.outputs]
-    if has_truth and not can_evaluate(rec, times):
-        _warn_no_evaluation(rec)
-        has_truth = False
-    metrics = evaluate_system(rec, result, plan.params.match_distance_m) if has_truth else run_counts(
+    metrics = evaluate_system(rec, result, plan.params.match_distance_m) if _can_score(rec, times) else run_counts(
         rec, times, [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in result.outputs], result.report,
         result.elapsed_s)
     result.metrics = metrics
@@ -297,11 +300,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         times, det_xy, tracks = _steps_from_tables(out)
         if out.rerun is not None:
             _log_modalities(out.rerun, rec, run.report, times)
-        has_truth = rec.groundtruth is not None and rec.groundtruth.people is not None
-        if has_truth and not can_evaluate(rec, times):
-            _warn_no_evaluation(rec)
-            has_truth = False
-        if has_truth:  # the scores, with the counts
+        if _can_score(rec, times):  # the scores, with the counts
             with progress.step("evaluate", total=1, unit="runs") as advance:
                 metrics = system_metrics(rec, times, det_xy, tracks, run.report, result.elapsed_s,
                                          params.match_distance_m)

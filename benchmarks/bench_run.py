@@ -25,15 +25,14 @@ Usage: ``PYTHONPATH=src python benchmarks/bench_run.py [--duration-s 10] [--befo
 the EPFL terrace video instead (cameras c0 and c1, 360x288 H.264 decoded by OpenCV, frames 1500-1999 at 25 Hz:
 20 s of the held-out half, made a recording by ``planefuse import`` as ``scripts/terrace.py`` does, without its
 ground truth; default configuration, cameras only; ``--terrace-step 5 --config scripts/terrace.yaml``: every 5th
-frame with the terrace's own configuration, as ``scripts/terrace.py`` runs it); ``--config FILE`` runs a configuration
-file's system; ``--recording DIR`` times any recording folder. ``--streams``
+frame with the terrace's own configuration, as ``scripts/terrace.py`` runs it); ``--config FILE`` runs a
+configuration file's system; ``--recording DIR`` times any recording folder. ``--streams``
 also times, in this process (all cores), the run in one process against the run with each camera's front end on a
 LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
-two results compared. ``--stride N``
-(default 2) adds the rows of the last recording with every N-th camera instant only (``frame_stride``, the 5 Hz
-cap of the default lifted), alone, with
-the reduced resolution and with ``--method`` (other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every
-stage of every row (:data:`STAGES`: timers around the stages' functions, exclusive times).
+two results compared. ``--stride N`` (default 2) adds the rows of the last recording with every N-th camera instant
+only (``frame_stride``, the 5 Hz cap of the default lifted), alone, with the reduced resolution and with ``--method``
+(other detectors: their scores beside them). ``--stages`` adds the CPU seconds of every stage of every row
+(:data:`STAGES`: timers around the stages' functions, exclusive times).
 ``--cli`` also times the whole ``planefuse run`` process as a user starts it, start-up included (imports, numba's
 cached kernels, the default binaural model), for every row (the options as configuration fields), interleaved:
 ``taskset`` to one core, ``--threads 1``, figures off, the process's CPU time from ``os.wait4``.

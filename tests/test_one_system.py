@@ -93,6 +93,7 @@ CHANGED = {
     "sensors.cameras.max_rate_hz": 10.0,
     "sensors.cameras.knn_samples": 3,
     "sensors.cameras.primed_rate": "automatic",
+    "sensors.cameras.plate_frames": 12,
     "sensors.cameras.cnt_min_stability": 10,
     "sensors.cameras.mean_foreground_rate": 0.5,
     "sensors.cameras.person_detector": "hog",

@@ -253,6 +253,11 @@ class CameraSensorConfig(_Model):
         "of the pixels), the likelihood interpolated back to full size; 1 = full resolution",
         expected="an integer >= 1", library="system.camera_params.foreground.downscale",
     )
+    plate_frames: int | None = _field(
+        description="Times the empty-scene plate primes the background model (with primed_rate automatic also its "
+        "weight); null = the method's own need (10; CNT twice cnt_min_stability)", unit="frames",
+        expected="an integer >= 1 or null", library="system.camera_params.foreground.plate_frames",
+    )
     knn_samples: int = _field(
         description="KNN background samples kept per pixel (OpenCV's nSamples; fewer are faster, 3 = 17 % less "
         "KNN time than 7)", expected="an integer >= 2", library="system.camera_params.foreground.knn_samples",

@@ -90,6 +90,14 @@ class ForegroundParams:
         ``"automatic"`` goes on with the model's fast automatic start (OpenCV's ``1 / min(2 n, history)`` after ``n``
         frames, ``"mean"``'s ``1 / min(n, history)``, the plate's included; CNT has no rate), for an *estimated* plate (``planefuse import --background-median-s``), which may hold people
         and another light than the frames that follow, and has to be corrected quickly.
+    plate_frames : int or None
+        Times :meth:`BackgroundSubtractor.prime` feeds the empty-scene plate to the model (with ``primed_rate``
+        ``"automatic"`` also the plate's weight: the fast start counts on from it). None: the method's own need,
+        10 for KNN, MOG2 and ``"mean"``, twice ``cnt_min_stability`` for CNT (a pixel must keep its grey level
+        that long before it is background). KNN's masks on the default scene's tuning seeds 1-3 (4 cameras,
+        40 s, every 5th frame) have as few false foreground pixels after 5, 7 or 10 as after 20 or 30, and
+        many more after 3 (its sample memory not yet filled); the system's scores are identical after 7, 10, 20
+        and 30 (docs/benchmarks.md, "Real-time factor").
     gain_compensation : bool
         Divide every frame by a smooth per-channel gain field before the subtractor sees it, so that a camera's
         automatic exposure or white balance, or a cloud, does not turn the whole image into foreground. The
@@ -175,6 +183,7 @@ class ForegroundParams:
     ceiling: float = 0.98
     learning_rate: float = -1.0
     primed_rate: str = "steady"
+    plate_frames: int | None = None
     gain_compensation: bool = False
     gain_blocks: tuple[int, int] = (1, 1)
     gain_rate: float = 0.05
@@ -197,7 +206,7 @@ class ForegroundParams:
                 f"must be 'knn', 'mog2', 'cnt' or 'mean', got {self.method!r}")
         require(self.primed_rate in ("steady", "automatic"), self, "primed_rate",
                 f"must be 'steady' or 'automatic', got {self.primed_rate!r}")
-        check_fields(self, history="int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
+        check_fields(self, history="int>=1", plate_frames="?int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
                      ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
         check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
@@ -217,6 +226,13 @@ class ForegroundParams:
         require(self.person_detector in (None, "hog"), self, "person_detector",
                 f"must be None or 'hog', got {self.person_detector!r}")
         check_fields(self, person_upscale=">0", person_min_score="finite", person_likelihood="[0,1]")
+
+    @property
+    def n_plate_frames(self) -> int:
+        """Times the empty-scene plate primes the model (:attr:`plate_frames`, or the method's own need)."""
+        if self.plate_frames is not None:
+            return self.plate_frames
+        return 2 * self.cnt_min_stability if self.method == "cnt" else 10
 
 
 class BackgroundSubtractor:
@@ -303,7 +319,7 @@ class BackgroundSubtractor:
             m = cv2.resize(m.astype(np.uint8), self._model_size, interpolation=cv2.INTER_AREA) > 0
         self._protect = m
 
-    def prime(self, empty_frame, n_frames: int = 30) -> None:
+    def prime(self, empty_frame, n_frames: int | None = None) -> None:
         """Initialise the background model with an image of the empty scene (calibration plate).
 
         Background subtraction that starts cold learns the people already in view as
@@ -314,8 +330,9 @@ class BackgroundSubtractor:
         ----------
         empty_frame : ndarray, shape (height_px, width_px) or (height_px, width_px, 3), uint8
             The scene without people, same format as the frames given to :meth:`apply`.
-        n_frames : int
-            Times the plate is fed to the model (fills its sample memory).
+        n_frames : int, optional
+            Times the plate is fed to the model (fills its sample memory); default
+            :attr:`ForegroundParams.n_plate_frames`.
 
         Notes
         -----
@@ -325,6 +342,7 @@ class BackgroundSubtractor:
         absorbed within a few frames), unless ``params.primed_rate`` is ``"automatic"`` (an estimated plate:
         OpenCV's fast start goes on, counting the plate's frames).
         """
+        n_frames = self.params.n_plate_frames if n_frames is None else n_frames
         if n_frames < 1:
             raise ValueError(f"{self.name}: n_frames must be >= 1, got {n_frames}")
         img = self._check(empty_frame)

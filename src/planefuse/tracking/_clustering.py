@@ -50,6 +50,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
@@ -337,14 +338,20 @@ def cluster_occupancy(
     # modes: local maxima of the smoothed evidence, one per plateau, at least min_separation apart
     r_sep = max(int(round(params.min_separation_m / cell)), 1)
     yy, xx = np.mgrid[-r_sep:r_sep + 1, -r_sep:r_sep + 1]
-    peaks = (S == ndimage.maximum_filter(S, footprint=(yy**2 + xx**2) <= r_sep**2, mode="nearest"))
+    disc = ((yy**2 + xx**2) <= r_sep**2).astype(np.uint8)
+    peaks = S == cv2.dilate(S, disc, borderType=cv2.BORDER_REPLICATE)  # the disc's maximum, edges replicated
     peaks &= S >= params.threshold
     lab, n = ndimage.label(peaks)
     if n == 0:
         empty = np.zeros((0, 2))
         return Clusters(float(time_s), empty, empty.copy(), np.zeros(0), np.zeros(0), S,
                         None if velocity_hypotheses is None else empty.copy())
-    centres = np.asarray(ndimage.center_of_mass(peaks, lab, np.arange(1, n + 1)))  # (n, 2) as (iy, ix)
+    # each plateau's centre (n, 2) as (iy, ix): the mean index of its cells
+    iy_p, ix_p = np.nonzero(peaks)
+    label_p = lab[iy_p, ix_p]
+    count = np.bincount(label_p, minlength=n + 1)[1:]
+    centres = np.stack([np.bincount(label_p, iy_p, n + 1)[1:], np.bincount(label_p, ix_p, n + 1)[1:]], axis=1)
+    centres /= count[:, None]
 
     window = _disc_window(params.person_radius_m / cell, S.shape)
     _mean_shift(centres, np.maximum(S, 0.0), window, params.mean_shift_iterations)
@@ -358,20 +365,21 @@ def cluster_occupancy(
     centres, strength = centres[keep], strength[keep]
 
     body = _body_planes(stack, params)
-    excess = np.maximum(occ - prior_occupancy, 0.0)
+    occ_body, vel_body = occ[body], vel[body]
+    excess = np.maximum(occ_body - prior_occupancy, 0.0)
     heights = np.asarray(stack.heights_m)
     v_out = np.zeros((len(centres), 2))
     var_out = np.zeros((len(centres), 2)) if velocity_hypotheses is not None else None
     h_out = np.full(len(centres), np.nan)
     for i, c in enumerate(centres):
         iy, ix = window(c)
-        w = excess[body][:, iy, ix]
+        w = excess[:, iy, ix]
         if w.sum() > 0:
-            v_cells = vel[body][:, iy, ix]
+            v_cells = vel_body[:, iy, ix]
             v_out[i] = np.einsum("lc,lcd->d", w, v_cells) / w.sum()
             if var_out is not None:
                 # law of total variance over the cells: mean within-cell variance + spread of the cell means
-                var_cells = velocity_variance_m2_s2(occ_v[:, :, iy, ix][body], v_k, occ[body][:, iy, ix], v_cells)
+                var_cells = velocity_variance_m2_s2(occ_v[:, :, iy, ix][body], v_k, occ_body[:, iy, ix], v_cells)
                 var_out[i] = np.einsum("lc,lcd->d", w, var_cells + (v_cells - v_out[i]) ** 2) / w.sum()
         h_out[i] = _height_from_profile(occ[:, iy, ix].max(axis=1), heights)
     xy = stack.xy_from_index(centres[:, 0], centres[:, 1])

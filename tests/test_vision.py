@@ -128,6 +128,24 @@ def test_priming_with_the_empty_scene_sees_people_present_from_the_start(method,
         primed.prime(np.clip(bg, 0, 255).astype(np.uint8), n_frames=0)
 
 
+def test_the_plates_default_frames_fill_knns_sample_memory(rng):
+    """KNN primed with too few plate frames calls the empty scene foreground (samples still unfilled); the default
+    (10) and more do not; CNT's default is twice its stability count."""
+    h, w = 96, 128
+    bg = np.clip(cv2.GaussianBlur(rng.uniform(60, 200, (h, w, 3)).astype(np.float32), (0, 0), 3), 0, 255)
+    share = {}
+    for n in (2, None, 30):
+        bs = BackgroundSubtractor(w, h, ForegroundParams())
+        bs.prime(bg.astype(np.uint8), n)
+        frames = (np.clip(bg + rng.normal(0, 3, bg.shape), 0, 255).astype(np.uint8) for _ in range(5))
+        share[n] = np.mean([(bs.apply(f) > 0.5).mean() for f in frames])
+    assert share[2] > 0.9 and share[None] == share[30] == 0.0
+    assert ForegroundParams().n_plate_frames == 10 and ForegroundParams(plate_frames=3).n_plate_frames == 3
+    assert ForegroundParams(method="cnt", cnt_min_stability=12).n_plate_frames == 24
+    with pytest.raises(ValueError, match="plate_frames"):
+        ForegroundParams(plate_frames=0)
+
+
 @pytest.mark.parametrize("params", [
     ForegroundParams(),
     ForegroundParams(method="mog2", open_px=3, shadow_likelihood=0.3),
@@ -407,3 +425,63 @@ def test_a_camera_back_from_a_dropout_counts_as_a_fresh_observation():
     np.testing.assert_array_equal(resumed[0][0].log_odds, weighted[back][0].log_odds)
     with pytest.raises(ValueError, match="correlation_s"):
         next(camera_detections(frames, lks, stack, CameraParams(foreground=None), correlation_s=-1.0))
+
+
+@pytest.mark.parametrize("params", [
+    ForegroundParams(method="mean", open_px=3, close_px=5),
+    ForegroundParams(method="mog2", open_px=3, close_px=9, blur_px=5),
+    ForegroundParams(method="mean", downscale=2, open_px=5, close_px=9, blur_px=3),
+], ids=["mean", "mog2-blur", "mean-downscale"])
+def test_subtraction_window_gives_the_whole_images_foreground_at_every_pixel_read(params, rng):
+    """A front end subtracting the background in :func:`subtraction_window` only gives, at every pixel its lookup
+    reads, the foreground of the whole image (models whose pixels draw no random numbers: each pixel's model is
+    its own, and the window holds the cleaning's reach); elsewhere the neutral likelihood."""
+    from planefuse.registration import ImagePlaneLookup
+    from planefuse.vision import CameraFrontEnd, subtraction_window
+    from planefuse.vision._fusion import NEUTRAL_LEVEL
+
+    h, w = 96, 128
+    stack = PlaneStack.from_extent((0.0, 1.0), (0.0, 1.0), (0.0, 1.0), 0.1)
+    uv = np.stack([rng.integers(30, 100, stack.shape), rng.integers(40, 70, stack.shape)], axis=-1)
+    pixel_index = (uv[..., 1] * w + uv[..., 0]).astype(np.int32)
+    pixel_index[0, 0, 0] = w * h  # a cell the camera does not see
+    lookup = ImagePlaneLookup(pixel_index, w, h, stack)
+    window = subtraction_window(lookup, params)
+    r0, r1, c0, c1 = window
+    assert 0 < r0 < 40 and 70 < r1 < h and 0 < c0 < 30 and 100 < c1 < w
+    bg = np.clip(cv2.GaussianBlur(rng.uniform(60, 200, (h, w, 3)).astype(np.float32), (0, 0), 3), 0, 255)
+    full, part = (CameraFrontEnd(w, h, params, "cam", bg.astype(np.uint8), quantise=True, window=win)
+                  for win in (None, window))
+    read = lookup.pixel_index[lookup.visible]
+    for k in range(10):
+        frame = bg + rng.normal(0, 2, bg.shape)
+        frame[20 + 4 * k:70 + 4 * k, 40 + 5 * k:60 + 5 * k] = 240.0  # a person walking across the window's edge
+        frame[75:90, 10:50] *= 0.6  # a shadow
+        frame = np.clip(frame, 0, 255).astype(np.uint8)
+        a, b = full.foreground(frame), part.foreground(frame)
+        assert b.shape == a.shape and b.dtype == np.uint8
+        np.testing.assert_array_equal(b.ravel()[read], a.ravel()[read])
+        outside = np.ones((h, w), bool)
+        outside[r0:r1, c0:c1] = False
+        assert np.all(b[outside] == NEUTRAL_LEVEL)
+    assert np.ptp(a.ravel()[read]) > 0  # the person was seen
+    with pytest.raises(ValueError, match="must be 96x128"):
+        part.foreground(frame[:-1])
+
+
+def test_subtraction_window_is_the_whole_image_where_the_subtraction_uses_it():
+    """No window where the subtraction looks at the whole image (gain, relearning share, person detector,
+    selective update), without foreground subtraction, or for a camera that reads no pixel."""
+    from planefuse.registration import ImagePlaneLookup
+    from planefuse.vision import CameraFrontEnd, subtraction_window
+
+    stack = PlaneStack.from_extent((0.0,), (0.0, 1.0), (0.0, 1.0), 0.5)
+    lookup = ImagePlaneLookup(np.full(stack.shape, 5, np.int32), 64, 48, stack)
+    assert subtraction_window(lookup, ForegroundParams()) == (0, 8, 0, 13)  # pixel (0, 5), reach 7
+    for p in (ForegroundParams(gain_compensation=True), ForegroundParams(relearn_fraction=0.5),
+              ForegroundParams(person_detector="hog"), ForegroundParams(selective_update=True), None):
+        assert subtraction_window(lookup, p) is None
+    blind = ImagePlaneLookup(np.full(stack.shape, 64 * 48, np.int32), 64, 48, stack)
+    assert subtraction_window(blind, ForegroundParams()) is None
+    with pytest.raises(ValueError, match="window"):
+        CameraFrontEnd(64, 48, ForegroundParams(), "cam", window=(10, 5, 0, 64))

@@ -41,10 +41,13 @@ class CameraStream:
         Every ``stride``-th camera instant only (``CameraParams.frame_stride``; ``start`` counts those).
     max_rate_hz : float or None
         At most this many camera instants per second [Hz] (``CameraParams.max_rate_hz``).
+    window : (row0, row1, col0, col1) or None
+        The image part the background subtraction covers [px] (:class:`~planefuse.vision.CameraFrontEnd`).
     """
 
     def __init__(self, root: str, name: str, foreground, start: int, quantise: bool, chunk: int,
-                 stride: int = 1, max_rate_hz: float | None = None) -> None:
+                 stride: int = 1, max_rate_hz: float | None = None,
+                 window: tuple[int, int, int, int] | None = None) -> None:
         from ..io import read_recording
         from ..pipeline._streams import _background_or_none
         from ..vision import CameraFrontEnd, camera_instants
@@ -58,7 +61,8 @@ class CameraStream:
         self.stream = rec.camera(name)
         size = cams[name].intrinsics
         background = _background_or_none(self.stream) if foreground is not None else None
-        self.front_end = CameraFrontEnd(size.width_px, size.height_px, foreground, name, background, quantise)
+        self.front_end = CameraFrontEnd(size.width_px, size.height_px, foreground, name, background, quantise,
+                                        window)
         times = camera_instants(rec, stride, max_rate_hz)
         self._replay = times[:start] if foreground is not None else times[:0]
         self.times = times[start:]
@@ -90,7 +94,8 @@ class CameraStream:
 
 def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: np.ndarray, start: int = 0,
                        quantise: bool = True, chunk: int = 10, ahead: int = 3, stride: int = 1,
-                       max_rate_hz: float | None = None) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
+                       max_rate_hz: float | None = None, windows: Sequence | None = None,
+                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
     """Every camera's front end on the cluster, in time order: what :func:`planefuse.vision.camera_foregrounds`
     gives in this process.
 
@@ -115,6 +120,9 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
         Every ``stride``-th camera instant of the recording (``CameraParams.frame_stride``).
     max_rate_hz : float or None
         At most this many camera instants per second [Hz] (``CameraParams.max_rate_hz``).
+    windows : sequence of ((row0, row1, col0, col1) or None), optional
+        Per camera, the image part its background subtraction covers [px]
+        (:func:`planefuse.vision.subtraction_window`); None: the whole image.
 
     Yields
     ------
@@ -127,8 +135,10 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
     workers = sorted(client.scheduler_info()["workers"])
     if not workers:
         raise ValueError("the dask cluster has no workers")
+    windows = [None] * len(names) if windows is None else list(windows)
     futures = [client.submit(CameraStream, str(root), name, foreground, int(start), bool(quantise), int(chunk),
-                             int(stride), max_rate_hz, actor=True, workers=[workers[c % len(workers)]], pure=False)
+                             int(stride), max_rate_hz, windows[c], actor=True, workers=[workers[c % len(workers)]],
+                             pure=False)
                for c, name in enumerate(names)]
     actors = [f.result() for f in futures]
     n_chunks = -(-len(times_s) // chunk)

@@ -309,7 +309,7 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     run takes each camera's last live frame before ``start`` from the restored report's missing frames.
     """
     from ..registration import CameraRegistration
-    from ..vision import CameraReport, camera_detections, camera_instants, recording_frames
+    from ..vision import CameraReport, camera_detections, camera_instants, recording_frames, subtraction_window
 
     cams = rec.cameras
     names = [c.name for c in cams]
@@ -346,9 +346,10 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
         if remote is not None:
             from ..batch import remote_foregrounds
 
-            fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start,
-                                     quantise=params.sensor_model == "cell", stride=stride,
-                                     max_rate_hz=max_rate_hz)
+            cell = params.sensor_model == "cell"
+            windows = [subtraction_window(lk, params.foreground) if cell else None for lk in lookups]
+            fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start, quantise=cell,
+                                     stride=stride, max_rate_hz=max_rate_hz, windows=windows)
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
                                          registration=registration, foregrounds=fgs, correlation_s=correlation_s,
                                          last_live_s=last_live_s)

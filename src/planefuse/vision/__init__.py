@@ -26,7 +26,7 @@ from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio, 
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams, detection_evidence_prior
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
 from ._pipeline import (CameraFrontEnd, CameraParams, CameraReport, camera_detections, camera_foregrounds,
-                        frame_is_dead, lookups_from_cameras)
+                        frame_is_dead, lookups_from_cameras, subtraction_window)
 
 __all__ = [
     "BackgroundSubtractor",
@@ -64,5 +64,6 @@ __all__ = [
     "read_mot_detections",
     "camera_instants",
     "recording_frames",
+    "subtraction_window",
     "wildtrack_frames",
 ]

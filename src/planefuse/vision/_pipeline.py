@@ -20,7 +20,7 @@ from ._generative import GenerativeCameraSensor, GenerativeSensorParams
 from ._persons import PersonParams, ground_detections_from_log_odds
 
 __all__ = ["CameraFrontEnd", "CameraParams", "CameraReport", "camera_detections", "camera_foregrounds",
-           "frame_is_dead", "lookups_from_cameras"]
+           "frame_is_dead", "lookups_from_cameras", "subtraction_window"]
 
 #: A frame whose mean grey level is at most this is black (a camera that lost its signal).
 DEAD_FRAME_MAX_MEAN = 8.0
@@ -185,15 +185,35 @@ class CameraFrontEnd:
         Give foregrounds as uint8 ``0..255`` (what :class:`CameraFusion` quantises them to; a quarter of the
         bytes to send from a worker, and no float image at all where the subtractor has no blur or resize)
         instead of float32. :func:`camera_detections` quantises for the per-cell sensor model.
+    window : (row0, row1, col0, col1) or None
+        Subtract the background in these rows and columns of the image only [px, half-open]
+        (:func:`subtraction_window`: the part the per-cell fusion reads, with the cleaning's reach); the
+        foreground elsewhere is the neutral likelihood (unobserved). None: the whole image.
     """
 
     def __init__(self, width_px: int, height_px: int, foreground: ForegroundParams | None, name: str,
-                 background: np.ndarray | None = None, quantise: bool = False) -> None:
+                 background: np.ndarray | None = None, quantise: bool = False,
+                 window: tuple[int, int, int, int] | None = None) -> None:
         self.name, self.quantise = name, bool(quantise)
+        self.width_px, self.height_px = int(width_px), int(height_px)
+        self.window = None if foreground is None or window is None else _checked_window(window, width_px, height_px)
+        if self.window is not None:
+            r0, r1, c0, c1 = self.window
+            self._crop = (slice(r0, r1), slice(c0, c1))
+            width_px, height_px = c1 - c0, r1 - r0
+            if background is not None:
+                background = self._cropped(background, "background")
         self.subtractor = None if foreground is None else BackgroundSubtractor(width_px, height_px, foreground, name)
         if self.subtractor is not None and background is not None:
             self.subtractor.prime(background)
         self._previous: np.ndarray | None = None
+
+    def _cropped(self, img: np.ndarray, what: str = "frame") -> np.ndarray:
+        """``img`` inside :attr:`window`, after checking that it has the camera's size."""
+        if np.shape(img)[:2] != (self.height_px, self.width_px):
+            raise ValueError(f"{self.name}: {what} must be {self.height_px}x{self.width_px} (rows x cols) as in the "
+                             f"camera's calibration, got shape {np.shape(img)}")
+        return img[self._crop]
 
     def check(self, img: np.ndarray | None) -> str:
         """The frame's status (:data:`OK`, :data:`NO_FRAME` or :data:`DEAD_FRAME`); call once per frame, in time
@@ -209,11 +229,19 @@ class CameraFrontEnd:
     def learn(self, img: np.ndarray) -> None:
         """Update the background model with a checked frame only (an instant a resumed run skips)."""
         if self.subtractor is not None:
-            self.subtractor.update(img)
+            self.subtractor.update(img if self.window is None else self._cropped(img))
 
     def foreground(self, img: np.ndarray) -> np.ndarray:
         """The foreground likelihood of a checked frame (float32 in [0, 1], or uint8 when quantising)."""
-        fg = img if self.subtractor is None else self.subtractor.apply(img, quantised=self.quantise)
+        if self.subtractor is None:
+            fg = img
+        elif self.window is None:
+            fg = self.subtractor.apply(img, quantised=self.quantise)
+        else:
+            inside = self.subtractor.apply(self._cropped(img), quantised=self.quantise)
+            neutral = NEUTRAL_LEVEL if inside.dtype == np.uint8 else NEUTRAL_FOREGROUND
+            fg = np.full((self.height_px, self.width_px), neutral, inside.dtype)
+            fg[self._crop] = inside
         if self.quantise and fg.dtype != np.uint8:
             fg = quantise_foreground(fg)
         return fg
@@ -234,6 +262,43 @@ class CameraFrontEnd:
         :data:`DEAD_FRAME` with None."""
         status = self.check(img)
         return (self.foreground(img) if status == OK else None), status
+
+
+def _checked_window(window, width_px: int, height_px: int) -> tuple[int, int, int, int]:
+    r0, r1, c0, c1 = (int(v) for v in window)
+    if not (0 <= r0 < r1 <= height_px and 0 <= c0 < c1 <= width_px):
+        raise ValueError(f"window (row0, row1, col0, col1) = {tuple(window)} px must lie in the "
+                         f"{height_px}x{width_px} image and hold at least one pixel")
+    return r0, r1, c0, c1
+
+
+def subtraction_window(lookup: ImagePlaneLookup, params: ForegroundParams | None
+                       ) -> tuple[int, int, int, int] | None:
+    """The rows and columns ``(row0, row1, col0, col1)`` [px, half-open] of a camera's image that its background
+    subtraction must cover for the per-cell fusion (:class:`CameraFrontEnd` ``window``), or None for the whole
+    image.
+
+    The per-cell fusion reads one pixel per cell (``lookup``); a pixel's foreground depends on its own history
+    and, through the cleaning (opening, closing, blur, the reduced resolution), on the pixels within its reach.
+    The window is the bounding box of the pixels read, grown by that reach. None where the subtraction uses
+    the whole image: a person detector, gain compensation, the relearning share of foreground pixels, or the
+    selective update (the people's silhouettes), or where no pixel is read. Inside the window the foreground is
+    what the whole image gives, but for OpenCV KNN's random update phases, drawn per pixel in image order.
+    """
+    if params is None or params.person_detector is not None or params.gain_compensation \
+            or params.relearn_fraction is not None or params.selective_update:
+        return None
+    idx = lookup.pixel_index[lookup.visible]
+    if idx.size == 0:
+        return None
+    w, h, d = lookup.width_px, lookup.height_px, params.downscale
+    rows, cols = idx // w, idx % w
+    # the cleaning's reach [px]: opening and closing (each an erosion and a dilation) at the model's resolution,
+    # the resize back, the blur; one more model pixel for the rounding of the reduced size
+    side_open, side_close = int(params.open_px / d + 0.5), int(params.close_px / d + 0.5)
+    reach = d * (2 * (side_open // 2) + 2 * (side_close // 2) + 2) + params.blur_px // 2 + 1
+    return (max(int(rows.min()) - reach, 0), min(int(rows.max()) + reach + 1, h),
+            max(int(cols.min()) - reach, 0), min(int(cols.max()) + reach + 1, w))
 
 
 def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]]],
@@ -384,8 +449,10 @@ def camera_detections(
                              f"got {len(backgrounds)}")
         bgs = backgrounds if backgrounds is not None and params.foreground is not None else [None] * fusion.n_cameras
         # the per-cell fusion reads 256 levels: the front ends give them (no float image in between)
+        # the per-cell fusion reads the pixels of its lookups only: each subtractor covers those
         front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg,
-                                     quantise=generative is None)
+                                     quantise=generative is None,
+                                     window=subtraction_window(lk, params.foreground) if generative is None else None)
                       for lk, name, bg in zip(lookups, fusion.names, bgs)]
         foregrounds = camera_foregrounds(frames, front_ends, 0 if selective else replay, registration)
         person = params.generative.person(stack)

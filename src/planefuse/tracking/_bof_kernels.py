@@ -141,25 +141,44 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
                 scale[iy, ix] = inv
             out_f[l, y0 + iy, x0 + ix] = f
     # velocity noise occ_tilde_k = sum_j mix_w[k, j] occ_hat[mix_src[k, j]], written with the moments
-    row = np.empty(TILE, np.float32)
     mo = np.zeros((TILE, TILE), np.float32)
     mx = np.zeros((TILE, TILE), np.float32)
     my = np.zeros((TILE, TILE), np.float32)
-    for k in range(K):
-        vx, vy = velocities[k, 0], velocities[k, 1]
-        for iy in range(h):
-            row[:] = 0.0
+    if h == TILE and w == TILE:  # a whole tile: loops of constant length over whole blocks, which LLVM vectorises
+        acc = np.empty((TILE, TILE), np.float32)
+        for k in range(K):
+            vx, vy = velocities[k, 0], velocities[k, 1]
+            acc[:] = 0.0
             for j in range(mix_src.shape[1]):
                 wkj = np.float32(mix_w[k, j])
-                src_j = mix_src[k, j]
+                hat_j = hat[mix_src[k, j]]
+                for iy in range(TILE):
+                    for ix in range(TILE):
+                        acc[iy, ix] += wkj * hat_j[iy, ix]
+            for iy in range(TILE):
+                for ix in range(TILE):
+                    m = acc[iy, ix] * scale[iy, ix]
+                    out_v[l, k, y0 + iy, x0 + ix] = m
+                    mo[iy, ix] += m
+                    mx[iy, ix] += m * vx
+                    my[iy, ix] += m * vy
+    else:
+        row = np.empty(TILE, np.float32)
+        for k in range(K):
+            vx, vy = velocities[k, 0], velocities[k, 1]
+            for iy in range(h):
+                row[:] = 0.0
+                for j in range(mix_src.shape[1]):
+                    wkj = np.float32(mix_w[k, j])
+                    src_j = mix_src[k, j]
+                    for ix in range(w):
+                        row[ix] += wkj * hat[src_j, iy, ix]
                 for ix in range(w):
-                    row[ix] += wkj * hat[src_j, iy, ix]
-            for ix in range(w):
-                m = row[ix] * scale[iy, ix]
-                out_v[l, k, y0 + iy, x0 + ix] = m
-                mo[iy, ix] += m
-                mx[iy, ix] += m * vx
-                my[iy, ix] += m * vy
+                    m = row[ix] * scale[iy, ix]
+                    out_v[l, k, y0 + iy, x0 + ix] = m
+                    mo[iy, ix] += m
+                    mx[iy, ix] += m * vx
+                    my[iy, ix] += m * vy
     for iy in range(h):
         for ix in range(w):
             occ[l, y0 + iy, x0 + ix] = mo[iy, ix]

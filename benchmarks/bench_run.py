@@ -49,8 +49,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-#: main before the cameras' default 5 Hz rate cap (2026-12-04, ninth session)
-BEFORE = "898a3b1"
+#: main before the tenth session's speed changes (plate frames, subtraction windows, clustering, BOF velocity noise;
+#: 2026-12-04); the ninth session's before, every camera instant, was 898a3b1
+BEFORE = "b754747"
 ROOT = Path(__file__).resolve().parents[1]
 SCORES = ("moda", "mota", "idf1", "camera_only_moda")
 SINGLE = {n: "1" for n in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}

@@ -88,16 +88,17 @@ class ForegroundParams:
         How an automatic model (``learning_rate`` -1) learns after :meth:`BackgroundSubtractor.prime`: ``"steady"``
         at ``1 / history`` per frame, for a real image of the empty scene (people who stop are not absorbed);
         ``"automatic"`` goes on with the model's fast automatic start (OpenCV's ``1 / min(2 n, history)`` after ``n``
-        frames, ``"mean"``'s ``1 / min(n, history)``, the plate's included; CNT has no rate), for an *estimated* plate (``planefuse import --background-median-s``), which may hold people
-        and another light than the frames that follow, and has to be corrected quickly.
+        frames, ``"mean"``'s ``1 / min(n, history)``, the plate's included; CNT has no rate), for an *estimated*
+        plate (``planefuse import --background-median-s``), which may hold people and another light than the frames
+        that follow, and has to be corrected quickly.
     plate_frames : int or None
         Times :meth:`BackgroundSubtractor.prime` feeds the empty-scene plate to the model (with ``primed_rate``
         ``"automatic"`` also the plate's weight: the fast start counts on from it). None: the method's own need,
         10 for KNN, MOG2 and ``"mean"``, twice ``cnt_min_stability`` for CNT (a pixel must keep its grey level
-        that long before it is background). KNN's masks on the default scene's tuning seeds 1-3 (4 cameras,
-        40 s, every 5th frame) have as few false foreground pixels after 5, 7 or 10 as after 20 or 30, and
-        many more after 3 (its sample memory not yet filled); the system's scores are identical after 7, 10, 20
-        and 30 (docs/benchmarks.md, "Real-time factor").
+        that long before it is background). KNN's masks on the default scene (tuning seed 2, 4 cameras, 40 s,
+        every 5th frame) have as few false foreground pixels after 5, 7 or 10 as after 20 or 30, and many more
+        after 3 (its sample memory not yet filled); the system's scores on the demo scene's tuning seeds 1-3 are
+        identical after 7, 10, 20 and 30 (docs/benchmarks.md, "Tenth session").
     gain_compensation : bool
         Divide every frame by a smooth per-channel gain field before the subtractor sees it, so that a camera's
         automatic exposure or white balance, or a cloud, does not turn the whole image into foreground. The
@@ -206,8 +207,8 @@ class ForegroundParams:
                 f"must be 'knn', 'mog2', 'cnt' or 'mean', got {self.method!r}")
         require(self.primed_rate in ("steady", "automatic"), self, "primed_rate",
                 f"must be 'steady' or 'automatic', got {self.primed_rate!r}")
-        check_fields(self, history="int>=1", plate_frames="?int>=1", threshold="?>0", shadow_likelihood="[0,1]", floor="[0,1]",
-                     ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
+        check_fields(self, history="int>=1", plate_frames="?int>=1", threshold="?>0", shadow_likelihood="[0,1]",
+                     floor="[0,1]", ceiling="[0,1]", open_px="int>=0", close_px="int>=0", blur_px="int>=0")
         require(self.floor < self.ceiling, self, "floor", f"must be below ceiling, got {self.floor}, {self.ceiling}")
         check_fields(self, gain_rate="(0,1]", relearn_rate="(0,1]", relearn_fraction="?(0,1)",
                      relearn_frames="int>=1", downscale="int>=1", selective_max_frames="int>=1",

@@ -448,8 +448,8 @@ def camera_detections(
             raise ValueError(f"backgrounds: expected {fusion.n_cameras} images (None where absent), "
                              f"got {len(backgrounds)}")
         bgs = backgrounds if backgrounds is not None and params.foreground is not None else [None] * fusion.n_cameras
-        # the per-cell fusion reads 256 levels: the front ends give them (no float image in between)
-        # the per-cell fusion reads the pixels of its lookups only: each subtractor covers those
+        # the per-cell fusion reads 256 levels (the front ends give them: no float image in between) at its lookups'
+        # pixels only (each subtractor covers those: its window)
         front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg,
                                      quantise=generative is None,
                                      window=subtraction_window(lk, params.foreground) if generative is None else None)

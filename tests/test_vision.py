@@ -442,13 +442,15 @@ def test_subtraction_window_gives_the_whole_images_foreground_at_every_pixel_rea
 
     h, w = 96, 128
     stack = PlaneStack.from_extent((0.0, 1.0), (0.0, 1.0), (0.0, 1.0), 0.1)
-    uv = np.stack([rng.integers(30, 100, stack.shape), rng.integers(40, 70, stack.shape)], axis=-1)
+    uv = np.stack([rng.integers(31, 100, stack.shape), rng.integers(41, 70, stack.shape)], axis=-1)
+    uv[0, 0, 1], uv[0, 0, 2] = (31, 41), (99, 69)  # the read pixels' box: odd edges, off any reduced grid
     pixel_index = (uv[..., 1] * w + uv[..., 0]).astype(np.int32)
-    pixel_index[0, 0, 0] = w * h  # a cell the camera does not see
+    pixel_index[0, 1, 0] = w * h  # a cell the camera does not see
     lookup = ImagePlaneLookup(pixel_index, w, h, stack)
     window = subtraction_window(lookup, params)
     r0, r1, c0, c1 = window
-    assert 0 < r0 < 40 and 70 < r1 < h and 0 < c0 < 30 and 100 < c1 < w
+    assert 0 < r0 < 41 and 70 < r1 < h and 0 < c0 < 31 and 100 < c1 < w
+    assert r0 % params.downscale == c0 % params.downscale == 0
     bg = np.clip(cv2.GaussianBlur(rng.uniform(60, 200, (h, w, 3)).astype(np.float32), (0, 0), 3), 0, 255)
     full, part = (CameraFrontEnd(w, h, params, "cam", bg.astype(np.uint8), quantise=True, window=win)
                   for win in (None, window))

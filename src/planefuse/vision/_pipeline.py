@@ -280,7 +280,8 @@ def subtraction_window(lookup: ImagePlaneLookup, params: ForegroundParams | None
 
     The per-cell fusion reads one pixel per cell (``lookup``); a pixel's foreground depends on its own history
     and, through the cleaning (opening, closing, blur, the reduced resolution), on the pixels within its reach.
-    The window is the bounding box of the pixels read, grown by that reach. None where the subtraction uses
+    The window is the bounding box of the pixels read, grown by that reach (at reduced resolution, on the whole
+    image's grid of model pixels). None where the subtraction uses
     the whole image: a person detector, gain compensation, the relearning share of foreground pixels, or the
     selective update (the people's silhouettes), or where no pixel is read. Inside the window the foreground is
     what the whole image gives, but for OpenCV KNN's random update phases, drawn per pixel in image order.
@@ -297,8 +298,15 @@ def subtraction_window(lookup: ImagePlaneLookup, params: ForegroundParams | None
     # the resize back, the blur; one more model pixel for the rounding of the reduced size
     side_open, side_close = int(params.open_px / d + 0.5), int(params.close_px / d + 0.5)
     reach = d * (2 * (side_open // 2) + 2 * (side_close // 2) + 2) + params.blur_px // 2 + 1
-    return (max(int(rows.min()) - reach, 0), min(int(rows.max()) + reach + 1, h),
-            max(int(cols.min()) - reach, 0), min(int(cols.max()) + reach + 1, w))
+
+    def span(lo: int, hi: int, n: int) -> tuple[int, int]:
+        # on the whole image's grid of d x d model pixels: a start and a length that are multiples of d
+        a = max(lo - reach, 0)
+        a -= a % d
+        b = min(hi + reach + 1, n)
+        return a, min(a + -(-(b - a) // d) * d, n)
+
+    return span(int(rows.min()), int(rows.max()), h) + span(int(cols.min()), int(cols.max()), w)
 
 
 def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]]],

@@ -26,7 +26,8 @@ the EPFL terrace video instead (cameras c0 and c1, 360x288 H.264 decoded by Open
 20 s of the held-out half, made a recording by ``planefuse import`` as ``scripts/terrace.py`` does, without its
 ground truth; default configuration, cameras only; ``--terrace-step 5 --config scripts/terrace.yaml``: every 5th
 frame with the terrace's own configuration, as ``scripts/terrace.py`` runs it); ``--config FILE`` runs a
-configuration file's system; ``--recording DIR`` times any recording folder. ``--streams``
+configuration file's system (``--before-config FILE``: the before row's, the same system without the fields its
+tree does not know); ``--recording DIR`` times any recording folder. ``--streams``
 also times, in this process (all cores), the run in one process against the run with each camera's front end on a
 LocalCluster of 2 workers (``planefuse run --workers 2``): wall-clock time (the cluster started beforehand), and the
 two results compared. ``--stride N`` (default 2) adds the rows of the last recording with every N-th camera instant
@@ -255,6 +256,9 @@ def main() -> None:
                     "default: mean, the numba running average)")
     ap.add_argument("--config", default="", help="run this configuration file's system (e.g. scripts/terrace.yaml; "
                     "its recording and outputs replaced) instead of the default SystemParams")
+    ap.add_argument("--before-config", default="", metavar="FILE",
+                    help="the before row's configuration file (default --config's): the same system written "
+                         "without the fields the before tree does not know")
     ap.add_argument("--terrace-step", type=int, default=1,
                     help="--terrace: every N-th video frame (5: the 5 Hz of scripts/terrace.py and terrace.yaml)")
     ap.add_argument("--child", nargs=2, help=argparse.SUPPRESS)
@@ -309,11 +313,13 @@ def main() -> None:
             runs.append((f"after, {last}, frame_stride {args.stride}, foreground_method {args.method}", after,
                          recs[last], 1, args.stride, args.method))
     results: dict[str, list[dict]] = {label: [] for label, *_ in runs}
+    config = str(Path(args.config).resolve()) if args.config else ""
+    before_config = str(Path(args.before_config).resolve()) if args.before_config else config
     for r in range(args.repeats):
         for k, (label, src, rec_dir, downscale, stride, method) in enumerate(runs):
             profile = args.profile and r == args.repeats - 1 and k == len(runs) - 1
             results[label].append(run_tree(src, rec_dir, tmp / f"out-{k}-{r}", profile, downscale, args.stages,
-                                           stride, method, str(Path(args.config).resolve()) if args.config else ""))
+                                           stride, method, before_config if label.startswith("before") else config))
     some = next(iter(results.values()))[0]
     print(f"recordings: {', '.join(f'{n} {p}' for n, p in recs.items())} ({some['duration_s']:g} s); one core, one "
           f"thread per library; min of {args.repeats} interleaved runs; load average {os.getloadavg()[0]:.1f}")

@@ -72,6 +72,30 @@ def _update_scales(so, f, lam, bounds):  # pragma: no cover - numba
     return e * z, z
 
 
+@numba.njit(cache=True, inline="always", fastmath=True)
+def _velocity_noise(hat, scale, mix_src, mix_w, velocities, out_v, l, y0, x0, h, w, mo, mx, my):  # pragma: no cover
+    """``occ_tilde_k = sum_j mix_w[k, j] occ_hat[mix_src[k, j]]`` over the tile's first ``h x w`` cells, times
+    ``scale``, into ``out_v``; its sums over ``k`` of ``occ_tilde_k`` and ``occ_tilde_k v_k`` added to
+    ``(mo, mx, my)``."""
+    acc = np.empty((TILE, TILE), np.float32)
+    for k in range(hat.shape[0]):
+        vx, vy = velocities[k, 0], velocities[k, 1]
+        acc[:] = 0.0
+        for j in range(mix_src.shape[1]):
+            wkj = np.float32(mix_w[k, j])
+            hat_j = hat[mix_src[k, j]]
+            for iy in range(h):
+                for ix in range(w):
+                    acc[iy, ix] += wkj * hat_j[iy, ix]
+        for iy in range(h):
+            for ix in range(w):
+                m = acc[iy, ix] * scale[iy, ix]
+                out_v[l, k, y0 + iy, x0 + ix] = m
+                mo[iy, ix] += m
+                mx[iy, ix] += m * vx
+                my[iy, ix] += m * vy
+
+
 @numba.njit(cache=True, fastmath=True)
 def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, bilinear, coef, prior, mix_src,
                  mix_w, k0, log_odds, do_update, bounds, velocities, occ, vel):  # pragma: no cover - numba
@@ -144,41 +168,10 @@ def _active_tile(occ_v, free, out_v, out_f, active, l, ty, tx, oy, ox, wy, wx, b
     mo = np.zeros((TILE, TILE), np.float32)
     mx = np.zeros((TILE, TILE), np.float32)
     my = np.zeros((TILE, TILE), np.float32)
-    if h == TILE and w == TILE:  # a whole tile: loops of constant length over whole blocks, which LLVM vectorises
-        acc = np.empty((TILE, TILE), np.float32)
-        for k in range(K):
-            vx, vy = velocities[k, 0], velocities[k, 1]
-            acc[:] = 0.0
-            for j in range(mix_src.shape[1]):
-                wkj = np.float32(mix_w[k, j])
-                hat_j = hat[mix_src[k, j]]
-                for iy in range(TILE):
-                    for ix in range(TILE):
-                        acc[iy, ix] += wkj * hat_j[iy, ix]
-            for iy in range(TILE):
-                for ix in range(TILE):
-                    m = acc[iy, ix] * scale[iy, ix]
-                    out_v[l, k, y0 + iy, x0 + ix] = m
-                    mo[iy, ix] += m
-                    mx[iy, ix] += m * vx
-                    my[iy, ix] += m * vy
+    if h == TILE and w == TILE:  # a whole tile: loops of constant length, which LLVM vectorises
+        _velocity_noise(hat, scale, mix_src, mix_w, velocities, out_v, l, y0, x0, TILE, TILE, mo, mx, my)
     else:
-        row = np.empty(TILE, np.float32)
-        for k in range(K):
-            vx, vy = velocities[k, 0], velocities[k, 1]
-            for iy in range(h):
-                row[:] = 0.0
-                for j in range(mix_src.shape[1]):
-                    wkj = np.float32(mix_w[k, j])
-                    src_j = mix_src[k, j]
-                    for ix in range(w):
-                        row[ix] += wkj * hat[src_j, iy, ix]
-                for ix in range(w):
-                    m = row[ix] * scale[iy, ix]
-                    out_v[l, k, y0 + iy, x0 + ix] = m
-                    mo[iy, ix] += m
-                    mx[iy, ix] += m * vx
-                    my[iy, ix] += m * vy
+        _velocity_noise(hat, scale, mix_src, mix_w, velocities, out_v, l, y0, x0, h, w, mo, mx, my)
     for iy in range(h):
         for ix in range(w):
             occ[l, y0 + iy, x0 + ix] = mo[iy, ix]

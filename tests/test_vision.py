@@ -447,7 +447,7 @@ def test_subtraction_window_gives_the_whole_images_foreground_at_every_pixel_rea
     pixel_index = (uv[..., 1] * w + uv[..., 0]).astype(np.int32)
     pixel_index[0, 1, 0] = w * h  # a cell the camera does not see
     lookup = ImagePlaneLookup(pixel_index, w, h, stack)
-    window = subtraction_window(lookup, params)
+    window = subtraction_window(lookup, CameraParams(foreground=params))
     r0, r1, c0, c1 = window
     assert 0 < r0 < 41 and 70 < r1 < h and 0 < c0 < 31 and 100 < c1 < w
     assert r0 % params.downscale == c0 % params.downscale == 0
@@ -473,17 +473,19 @@ def test_subtraction_window_gives_the_whole_images_foreground_at_every_pixel_rea
 
 def test_subtraction_window_is_the_whole_image_where_the_subtraction_uses_it():
     """No window where the subtraction looks at the whole image (gain, relearning share, person detector,
-    selective update), without foreground subtraction, or for a camera that reads no pixel."""
+    selective update, the generative model), without foreground subtraction, or for a camera that reads no
+    pixel."""
     from planefuse.registration import ImagePlaneLookup
     from planefuse.vision import CameraFrontEnd, subtraction_window
 
     stack = PlaneStack.from_extent((0.0,), (0.0, 1.0), (0.0, 1.0), 0.5)
     lookup = ImagePlaneLookup(np.full(stack.shape, 5, np.int32), 64, 48, stack)
-    assert subtraction_window(lookup, ForegroundParams()) == (0, 8, 0, 13)  # pixel (0, 5), reach 7
+    assert subtraction_window(lookup, CameraParams()) == (0, 8, 0, 13)  # pixel (0, 5), reach 7
     for p in (ForegroundParams(gain_compensation=True), ForegroundParams(relearn_fraction=0.5),
               ForegroundParams(person_detector="hog"), ForegroundParams(selective_update=True), None):
-        assert subtraction_window(lookup, p) is None
+        assert subtraction_window(lookup, CameraParams(foreground=p)) is None
+    assert subtraction_window(lookup, CameraParams(sensor_model="generative")) is None
     blind = ImagePlaneLookup(np.full(stack.shape, 64 * 48, np.int32), 64, 48, stack)
-    assert subtraction_window(blind, ForegroundParams()) is None
+    assert subtraction_window(blind, CameraParams()) is None
     with pytest.raises(ValueError, match="window"):
         CameraFrontEnd(64, 48, ForegroundParams(), "cam", window=(10, 5, 0, 64))

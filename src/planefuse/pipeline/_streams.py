@@ -346,10 +346,9 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
         if remote is not None:
             from ..batch import remote_foregrounds
 
-            cell = params.sensor_model == "cell"
-            windows = [subtraction_window(lk, params.foreground) if cell else None for lk in lookups]
-            fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start, quantise=cell,
-                                     stride=stride, max_rate_hz=max_rate_hz, windows=windows)
+            fgs = remote_foregrounds(remote, rec.root, names, params.foreground, times, start,
+                                     quantise=params.sensor_model == "cell", stride=stride, max_rate_hz=max_rate_hz,
+                                     windows=[subtraction_window(lk, params) for lk in lookups])
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
                                          registration=registration, foregrounds=fgs, correlation_s=correlation_s,
                                          last_live_s=last_live_s)

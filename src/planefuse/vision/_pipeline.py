@@ -272,22 +272,22 @@ def _checked_window(window, width_px: int, height_px: int) -> tuple[int, int, in
     return r0, r1, c0, c1
 
 
-def subtraction_window(lookup: ImagePlaneLookup, params: ForegroundParams | None
-                       ) -> tuple[int, int, int, int] | None:
+def subtraction_window(lookup: ImagePlaneLookup, camera: CameraParams) -> tuple[int, int, int, int] | None:
     """The rows and columns ``(row0, row1, col0, col1)`` [px, half-open] of a camera's image that its background
-    subtraction must cover for the per-cell fusion (:class:`CameraFrontEnd` ``window``), or None for the whole
-    image.
+    subtraction must cover (:class:`CameraFrontEnd` ``window``), or None for the whole image.
 
     The per-cell fusion reads one pixel per cell (``lookup``); a pixel's foreground depends on its own history
     and, through the cleaning (opening, closing, blur, the reduced resolution), on the pixels within its reach.
     The window is the bounding box of the pixels read, grown by that reach (at reduced resolution, on the whole
-    image's grid of model pixels). None where the subtraction uses
-    the whole image: a person detector, gain compensation, the relearning share of foreground pixels, or the
-    selective update (the people's silhouettes), or where no pixel is read. Inside the window the foreground is
-    what the whole image gives, but for OpenCV KNN's random update phases, drawn per pixel in image order.
+    image's grid of model pixels). None where the subtraction uses the whole image: the generative sensor model
+    (it reads whole silhouettes), a person detector, gain compensation, the relearning share of foreground pixels,
+    or the selective update (the people's silhouettes); without background subtraction; where no pixel is read.
+    Inside the window the foreground is what the whole image gives, but for OpenCV KNN's random update phases,
+    drawn per pixel in image order.
     """
-    if params is None or params.person_detector is not None or params.gain_compensation \
-            or params.relearn_fraction is not None or params.selective_update:
+    params = camera.foreground
+    if camera.sensor_model != "cell" or params is None or params.person_detector is not None \
+            or params.gain_compensation or params.relearn_fraction is not None or params.selective_update:
         return None
     idx = lookup.pixel_index[lookup.visible]
     if idx.size == 0:
@@ -460,7 +460,7 @@ def camera_detections(
         # pixels only (each subtractor covers those: its window)
         front_ends = [CameraFrontEnd(lk.width_px, lk.height_px, params.foreground, name, bg,
                                      quantise=generative is None,
-                                     window=subtraction_window(lk, params.foreground) if generative is None else None)
+                                     window=subtraction_window(lk, params))
                       for lk, name, bg in zip(lookups, fusion.names, bgs)]
         foregrounds = camera_foregrounds(frames, front_ends, 0 if selective else replay, registration)
         person = params.generative.person(stack)

@@ -403,10 +403,15 @@ def main(argv=None) -> int:
             front_name = TUNED_NAME if front == "tuned" else front
             results.append(dict(row=key, front_end=front_name, planes=planes,
                                 filter="BOF" if use_filter else "off", sensor_model=model, scores=filt))
-            if use_filter:
+            # the per-frame detector's own row comes from a run that does not feed its tracks back into the
+            # generative model (the filtered one, or, where that one takes the tracks as its prior, the one without
+            # the filter)
+            track_prior = model == "generative" and float(cams.get("generative_track_prior_ratio", 1.0)) != 1.0
+            if use_filter != track_prior:
                 results.append(dict(row=key + "-perframe", front_end=front_name, planes=planes,
                                     filter="none (per frame)", sensor_model=model, scores=raw))
-            print(markdown(results[-2:] if use_filter else results[-1:]).split("\n", 2)[-1], flush=True)
+            print(markdown(results[-2:] if use_filter != track_prior else results[-1:]).split("\n", 2)[-1],
+                  flush=True)
         if args.run_dir is not None:
             run_cfg = merged(base, {"recording": str(rec.root), "outputs": {"out_dir": str(args.run_dir.resolve())}})
             cfg_file = tmp / "terrace.yaml"

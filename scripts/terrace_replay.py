@@ -1,15 +1,15 @@
-"""Fast tuning on the EPFL terrace: run the cameras once, then replay their evidence through variants of the
-filter, clustering and tracker (and of the generative evidence mapping).
+"""Fast tuning on the EPFL terrace: run the camera front ends once, then replay what they gave through variants of
+the generative sensor model, the filter, clustering and tracker.
 
-The camera front end and the mean-field solver are most of a run's time, and none of the filter's, the
-clustering's or the tracker's parameters changes them. This script runs ``scripts/terrace.yaml`` (with
-``--set`` changes) once on frames ``--first``..``--last`` (``planefuse import`` + the run's own camera source),
-keeps every instant's generative marginals and the per-frame detections, and then, for each ``--try``, rebuilds
-the camera evidence from the kept marginals with that variant's generative sensor (so
-``sensors.cameras.generative_evidence_prior`` and ``generative_max_log_odds`` may change) and runs it through
-:class:`planefuse.tracking.EvidenceTracker` exactly as :class:`planefuse.pipeline.SystemRun` does, scored by
+The camera front ends (decoding, background subtraction) are most of a run's time, and no parameter of the
+generative model, the filter, the clustering or the tracker changes them. This script runs ``scripts/terrace.yaml``
+(with ``--set`` changes) once on frames ``--first``..``--last`` (``planefuse import`` + the run's own camera
+source), keeps every instant's foreground images as the generative model receives them, and then, for each
+``--try``, solves them again with that variant's generative sensor and runs the evidence through
+:class:`planefuse.tracking.EvidenceTracker` exactly as :class:`planefuse.pipeline.SystemRun` does (the tracked
+people as the model's prior at each instant included, ``generative_track_prior_ratio``), scored by
 ``scripts/terrace.py``'s scorer. The first variant is the configuration itself; a variant that changes the front
-end or the solver is refused (it needs a new capture). Tuning only: frames 0-1499. Example::
+end is refused (it needs a new capture). Tuning only: frames 0-1499. Example::
 
     PYTHONPATH=src python3 scripts/terrace_replay.py --first 1000 --last 1500 \\
         --try "sensors.cameras.generative_evidence_prior=0.5" --try "models.filter.enabled=false"
@@ -37,53 +37,60 @@ from planefuse.pipeline import SystemRun  # noqa: E402
 from planefuse.tracking import EvidenceTracker  # noqa: E402
 from planefuse.vision import GenerativeCameraSensor  # noqa: E402
 
-#: Generative fields a replay may change (they map the kept marginals to evidence; the rest made the marginals).
-REPLAYABLE = {"generative_evidence_prior", "generative_max_log_odds", "generative_detection_mass",
-              "generative_hidden_unknown"}
+
+def replayable(field: str) -> bool:
+    """Whether a replay may change the configuration field ``field`` (dotted): the generative sensor model's, the
+    filter's, the clustering's and the tracker's; not the front end's (it made the kept foregrounds)."""
+    if field.startswith("sensors.cameras."):
+        return field.split(".")[-1].startswith("generative_")
+    return field.startswith("models.")
 
 
 def capture(rec, config: dict):
-    """Run the cameras of ``config`` on ``rec``: (their evidence messages, the marginals of every instant, the
-    generative sensor, the per-frame detections, the system parameters)."""
+    """Run the cameras of ``config`` on ``rec``: (the instants' times [s], the foreground images the generative
+    sensor received at each, that sensor, the system parameters, the stack)."""
     params = config_from_dict(T.merged(config, {"recording": str(rec.root)})).system_params()
     if params.camera_params.sensor_model != "generative":
         raise ValueError("terrace_replay.py replays the generative sensor model only")
-    kept: dict = {"q": [], "sensor": None}
+    kept: dict = {"fg": [], "sensor": None}
     solve = GenerativeCameraSensor.marginals
 
-    def marginals(self, foregrounds):
-        q = solve(self, foregrounds)
-        kept["q"].append(q.copy())
+    def marginals(self, foregrounds, prior=None):
+        kept["fg"].append([None if f is None else np.array(f) for f in foregrounds])
         kept["sensor"] = self
-        return q
+        return solve(self, foregrounds, prior)
 
     GenerativeCameraSensor.marginals = marginals
     try:
         run = SystemRun(rec, params)
-        messages = list(run.evidence)
+        times = [m.time_s for m in run.evidence]
     finally:
         GenerativeCameraSensor.marginals = solve
-    return messages, kept["q"], kept["sensor"], run.report.camera_detections, params, run.stack
+    return times, kept["fg"], kept["sensor"], params, run.stack
 
 
-def replay(stack, messages, qs, sensor, params) -> list:
-    """The outputs of the filter, clustering and tracker of ``params`` on the camera evidence rebuilt from the
-    marginals ``qs`` with ``params``' generative sensor (as :class:`SystemRun` sets the tracker up)."""
-    gen = params.camera_params.generative
-    if gen != sensor.params:
-        sensor = GenerativeCameraSensor(sensor.cameras, stack, gen, names=sensor.names,
+def replay(stack, times, foregrounds, sensor, params) -> tuple[list, list]:
+    """The outputs of ``params``' generative sensor, filter, clustering and tracker on the kept ``foregrounds``
+    (as :class:`SystemRun` sets them up and asks for each instant), and the per-frame detections."""
+    cp = params.camera_params
+    if cp.generative != sensor.params:
+        sensor = GenerativeCameraSensor(sensor.cameras, stack, cp.generative, names=sensor.names,
                                         ignore_masks=[~o for o in sensor._observed])
-    evidence = [Evidence(m.time_s, m.sensor, sensor.log_odds_from_marginals(q)) for m, q in zip(messages, qs)]
     tp = replace(params.tracking, output_period_s=params.output_period_s,
                  evidence_correlation_s={"cameras": params.camera_correlation_s, **params.tracking.evidence_correlation_s})
     if not params.use_filter:
-        tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={})
+        tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={},
+                     cluster=replace(tp.cluster, position_from_step_evidence=False))
     tracker = EvidenceTracker(stack, tp)
-    outs = []
-    for ev in evidence:
-        outs.extend(tracker.push(ev))
+    track_prior = params.use_filter and cp.generative.track_prior_ratio != 1.0
+    outs, detections = [], []
+    for t, fgs in zip(times, foregrounds):
+        prior = sensor.location_prior(tracker.tracker.predicted_xy(t)) if track_prior else None
+        q = sensor.marginals(fgs, prior)
+        detections.append(sensor.detections(q, t, cp.person.nms_radius_m))
+        outs.extend(tracker.push(Evidence(t, "cameras", sensor.log_odds_from_marginals(q, prior))))
     outs.extend(tracker.flush())
-    return outs
+    return outs, detections
 
 
 def _load_capture(path: Path | None, key) -> tuple | None:
@@ -140,20 +147,19 @@ def main(argv=None) -> int:
         if kept is None:
             kept = capture(rec, base)
             _save_capture(args.capture, key, kept)
-        messages, qs, sensor, cams, _, stack = kept
-        by_cam = {T._frame_of(d.time_s): d.xy_m for d in cams}
-        fr = [f for f in scored if f in by_cam]
-        s = T.score(truth, fr, [by_cam[f] for f in fr])
-        print(f"per frame: MODA {s['moda@0.5']:.3f} / {s['moda@1.0']:.3f}, recall {s['recall@0.5']:.2f}")
+        times, fgs, sensor, _, stack = kept
         for spec in ["", *args.tries]:
             sets = [x for x in spec.split(";") if x]
-            cams_changed = {x.partition("=")[0].split(".")[-1] for x in sets if x.startswith("sensors.")}
-            if cams_changed - REPLAYABLE:
-                print(f"{spec}: refused, {sorted(cams_changed - REPLAYABLE)} change the marginals (new capture)")
+            refused = [x.partition("=")[0] for x in sets if not replayable(x.partition("=")[0])]
+            if refused:
+                print(f"{spec}: refused, {refused} change the front end or what is not replayed (new capture)")
                 continue
             cfg = T.with_sets(base, sets)
             params = config_from_dict(T.merged(cfg, {"recording": str(rec.root)})).system_params()
-            outs = replay(stack, messages, qs, sensor, params)
+            outs, dets = replay(stack, times, fgs, sensor, params)
+            by_cam = {T._frame_of(d.time_s): d.xy_m for d in dets}
+            fr = [f for f in scored if f in by_cam]
+            raw = T.score(truth, fr, [by_cam[f] for f in fr])
             by = {T._frame_of(o.time_s): o for o in outs}
             fr = [f for f in scored if f in by]
             s = T.score(truth, fr, [by[f].detections.xy_m for f in fr],
@@ -161,7 +167,8 @@ def main(argv=None) -> int:
             print(f"{spec or 'configuration'}: MODA {s['moda@0.5']:.3f} / {s['moda@1.0']:.3f}, precision "
                   f"{s['precision@0.5']:.2f}, recall {s['recall@0.5']:.2f}, MOTA {s['mota']:.3f}, IDF1 "
                   f"{s['idf1']:.3f}, ID switches {s['id_switches']}, track FP {s['track_false_positives']}, misses "
-                  f"{s['track_misses']}", flush=True)
+                  f"{s['track_misses']} (its per-frame detector: MODA {raw['moda@0.5']:.3f} / {raw['moda@1.0']:.3f})",
+                  flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return 0

@@ -3,6 +3,8 @@ person found, a ghost between two views explained away, ignored pixels giving no
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -99,9 +101,11 @@ def test_bad_silhouettes_and_images_are_refused():
         occupancy_marginals([np.zeros((H, W))], sil)
 
 
-def _exact_marginals(fg, boxes, params):
-    """Posterior marginals by enumeration of every configuration X in {0, 1}^K (the model's definition)."""
+def _exact_marginals(fg, boxes, params, prior=None):
+    """Posterior marginals by enumeration of every configuration X in {0, 1}^K (the model's definition); ``prior``
+    (K,): each location's prior (default ``params.prior``)."""
     C, K = boxes.shape[:2]
+    prior = np.full(K, params.prior) if prior is None else np.asarray(prior)
     post, Z = np.zeros(K), 0.0
     for bits in range(2 ** K):
         X = np.array([(bits >> k) & 1 for k in range(K)])
@@ -111,7 +115,7 @@ def _exact_marginals(fg, boxes, params):
             for k in np.nonzero(X)[0]:
                 A = np.maximum(A, _box_image(boxes[c, k]))
             energy += _psi(fg[c], A, np.ones((H, W))) / params.sigma
-        wgt = np.exp(-energy) * np.prod(np.where(X == 1, params.prior, 1 - params.prior))
+        wgt = np.exp(-energy) * np.prod(np.where(X == 1, prior, 1 - prior))
         post += wgt * X
         Z += wgt
     return post / Z
@@ -143,6 +147,41 @@ def test_mean_field_against_exact_posterior_by_enumeration(rng):
         exact = _exact_marginals(fg, boxes, p)
         assert np.abs(q - exact).max() <= 0.06
         assert ((q > 0.5) == (exact > 0.5)).all()
+
+
+@pytest.mark.parametrize("prior", [0.002, 0.2, 0.6])
+def test_per_location_prior_is_the_locations_prior_and_checked(prior, rng):
+    """A location's own prior (what the tracks expect) enters as the model's prior does: one location's marginal is
+    the exact posterior (enumeration) under that prior; the same prior everywhere as an array gives the marginals of
+    a solver with that scalar prior (to rounding); a prior of the wrong size or outside (0, 1) is refused."""
+    boxes = np.array([[[10, 5, 25, 35]], [[30, 2, 50, 30]]], dtype=np.int32)
+    sil = Silhouettes(boxes, ((H, W), (H, W)))
+    fg = [(rng.random((H, W)) < 0.05).astype(float) for _ in range(2)]
+    for b, box in zip(fg, boxes[:, 0]):
+        inside = _box_image(box) > 0
+        b[inside] = rng.random(inside.sum()) < 0.5
+    q = MeanFieldSolver(sil, EXACT).solve(fg, prior=[prior]).marginals
+    assert q[0] == pytest.approx(min(_exact_marginals(fg, boxes, EXACT, [prior])[0], 1 - 1e-6), abs=1e-6)
+    boxes6 = np.repeat(boxes, 3, axis=1) + np.arange(3)[None, :, None] * np.array([1, 0, 1, 0])  # 3 locations
+    sil6 = Silhouettes(boxes6.astype(np.int32), ((H, W), (H, W)))
+    np.testing.assert_allclose(MeanFieldSolver(sil6, EXACT).solve(fg, prior=np.full(3, prior)).marginals,
+                               MeanFieldSolver(sil6, replace(EXACT, prior=prior)).solve(fg).marginals, rtol=1e-12)
+    for bad in (np.full(2, 0.1), np.full(3, 0.0), np.full(3, 1.0), np.full(3, np.nan)):
+        with pytest.raises(ValueError, match="prior"):
+            MeanFieldSolver(sil6, EXACT).solve(fg, prior=bad)
+
+
+def test_prior_decides_between_locations_the_images_cannot_tell_apart():
+    """Two locations on one line of sight of the only camera (the same box): the image says someone is there, not
+    which; with equal priors both get the same marginal, with a higher prior on one (a tracked person) that one
+    takes the person."""
+    boxes = np.array([[[10, 5, 25, 35], [10, 5, 25, 35]]], dtype=np.int32)
+    fg = [_box_image(boxes[0, 0])]
+    solver = MeanFieldSolver(Silhouettes(boxes, ((H, W),)), GenerativeParams(prior=0.01, sigma=0.05))
+    q = solver.solve(fg).marginals
+    assert q[0] == q[1]
+    q = solver.solve(fg, prior=[0.01, 0.04]).marginals
+    assert q[1] > 0.5 > q[0]
 
 
 def _random_scene(rng, n_cameras: int, n_locations: int, n_unseen: int, n_people: int):

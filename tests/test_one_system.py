@@ -110,6 +110,8 @@ CHANGED = {
     "sensors.cameras.generative_evidence_prior": 0.5,
     "sensors.cameras.generative_hidden_unknown": True,
     "sensors.cameras.generative_max_iterations": 30,
+    "sensors.cameras.generative_track_prior_ratio": 2.0,
+    "sensors.cameras.generative_track_prior_radius_m": 0.5,
     "sensors.laser.enabled": False,
     "sensors.laser.p_occupied_hit": 0.7,
     "sensors.laser.p_occupied_free": 0.3,
@@ -309,3 +311,15 @@ def test_loaded_configuration_builds_exactly_the_default_system():
 
 def load_config_text(text: str) -> RunConfig:
     return config_from_dict(yaml.safe_load(text))
+
+
+def test_tracks_prior_only_with_the_filter(short_recording):
+    """``generative_track_prior_ratio`` feeds the tracker back into the generative camera model only with the filter:
+    the "no filter" ablation keeps nothing from one step to the next (its tracks are formed, not fed back)."""
+    on = {"recording": "r", "sensors": {"cameras": {"sensor_model": "generative", "generative_track_prior_ratio": 2.0}}}
+    from planefuse.pipeline import SystemRun
+
+    assert SystemRun(short_recording, config_from_dict(on).system_params())._track_prior()
+    off = {**on, "models": {"filter": {"enabled": False}}}
+    assert not SystemRun(short_recording, config_from_dict(off).system_params())._track_prior()
+    assert not SystemRun(short_recording, SystemParams())._track_prior()

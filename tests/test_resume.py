@@ -252,13 +252,21 @@ def test_background_models_are_reproducible_and_replayable(sim):
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("frame_stride, max_rate_hz", [(1, None), (2, None), (1, 10.0)])
-def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride, max_rate_hz):
+@pytest.mark.parametrize("frame_stride, max_rate_hz, track_prior", [(1, None, False), (2, None, False),
+                                                                    (1, 10.0, False), (1, None, True)])
+def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride, max_rate_hz, track_prior, monkeypatch):
+    """Also with the generative camera model taking the tracked people as its prior (asked of the tracker as each
+    camera instant is computed: the resumed run asks the restored tracker the same)."""
     from dataclasses import replace
 
     base = SystemParams()
-    params = replace(base, camera_params=replace(base.camera_params, frame_stride=frame_stride,
-                                                 max_rate_hz=max_rate_hz))
+    cp = replace(base.camera_params, frame_stride=frame_stride, max_rate_hz=max_rate_hz)
+    asked = []
+    if track_prior:
+        cp = replace(cp, sensor_model="generative", generative=replace(cp.generative, track_prior_ratio=3.0))
+        original = SystemRun._tracked_xy
+        monkeypatch.setattr(SystemRun, "_tracked_xy", lambda self, t: asked.append(original(self, t)) or asked[-1])
+    params = replace(base, camera_params=cp)
     run = SystemRun(sim, params)
     ref, state = [], None
     for out in run.outputs():
@@ -277,6 +285,7 @@ def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride, max_ra
         np.testing.assert_array_equal(a.detections.xy_m, b.detections.xy_m)
     # only the messages after the checkpoint were computed; the report covers the whole run
     assert resumed.evidence.n_computed < 0.75 * total
+    assert not track_prior or max(map(len, asked)) >= 2  # people were tracked and became the prior
     assert resumed.evidence.consumed == run.evidence.consumed
     assert resumed.report.n_laser_scans == run.report.n_laser_scans
     assert resumed.report.n_sound_blocks == run.report.n_sound_blocks

@@ -118,9 +118,9 @@ def test_system_metrics_leave_out_absent_people():
 
 @pytest.mark.realdata
 def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
-    """scripts/terrace_replay.py: the evidence rebuilt from the kept marginals, run through the filter,
-    clustering and tracker, gives exactly the outputs of the run itself (the same configuration), also with
-    another evidence prior; a variant of the front end cannot be replayed."""
+    """scripts/terrace_replay.py: the kept foregrounds solved again and run through the filter, clustering and
+    tracker give exactly the outputs of the run itself (the same configuration), also with another evidence prior
+    and with the tracked people as the generative model's prior; a variant of the front end cannot be replayed."""
     import terrace_replay as R
 
     data = shared_data("epfl_video").parent
@@ -128,19 +128,26 @@ def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
     frames = FRAMES[:6]
     rec = read_recording(terrace.import_terrace(tmp_path, data, frames))
     base = terrace.load_base_config()
-    messages, qs, sensor, _, params, stack = R.capture(rec, base)
-    assert len(messages) == len(qs) == len(frames)
-    for sets in ([], ["sensors.cameras.generative_evidence_prior=0.5"]):
+    times, fgs, sensor, params, stack = R.capture(rec, base)
+    assert len(times) == len(fgs) == len(frames)
+    occupancy = []
+    for sets in ([], ["sensors.cameras.generative_evidence_prior=0.5"],
+                 ["sensors.cameras.generative_track_prior_ratio=3", "sensors.cameras.generative_track_prior_radius_m=1"]):
         cfg = terrace.with_sets(base, sets)
         plan = replace(config_from_dict(terrace.merged(cfg, {"recording": str(rec.root)})).plan(), out_dir=None)
         res, _ = run_plan(rec, plan, progress_mode="quiet")
-        outs = R.replay(stack, messages, qs, sensor, plan.params)
+        outs, dets = R.replay(stack, times, fgs, sensor, plan.params)
         assert len(outs) == len(res.outputs)
         for a, b in zip(outs, res.outputs):
             np.testing.assert_array_equal(a.occupancy, b.occupancy)
             np.testing.assert_array_equal(a.detections.xy_m, b.detections.xy_m)
             np.testing.assert_array_equal(a.tracks.ids, b.tracks.ids)
-    assert not R.REPLAYABLE & {"close_px", "var_threshold", "generative_sigma"}
+        for a, b in zip(dets, res.report.camera_detections):
+            np.testing.assert_array_equal(a.xy_m, b.xy_m)
+        occupancy.append(np.stack([o.occupancy for o in outs]))
+    assert not np.array_equal(occupancy[0], occupancy[2])  # people were tracked: the prior was used
+    assert R.replayable("sensors.cameras.generative_sigma") and R.replayable("models.detection.column_threshold")
+    assert not any(R.replayable(f"sensors.cameras.{f}") for f in ("close_px", "var_threshold", "sensor_model"))
 
 
 def test_warm_runs_score_exactly_the_frames_asked_for():

@@ -515,3 +515,20 @@ def test_a_blob_beside_a_tracked_walker_starts_no_second_track(exclusion_m, expe
         n_reported.append(len(tr.step(c).ids))
     assert n_reported[5] == 1
     assert (max(n_reported[5:]) == 2) == expect_duplicate
+
+
+def test_predicted_xy_moves_the_confirmed_tracks_and_leaves_the_state(rng):
+    """``predicted_xy(t)``: the confirmed tracks at ``x + v (t - t_tracker)`` (what the generative camera model takes
+    as its prior), tentative ones left out, nothing before the first step, the tracker's state unchanged."""
+    v = np.array([1.0, 0.5])
+    tr = MultiPersonTracker(TrackerParams(confirm_hits=3), extent_m=(-10, 10, -10, 10), velocity_prior_var_m2_s2=1.0)
+    assert tr.predicted_xy(0.0).shape == (0, 2)
+    for i, t in enumerate(np.arange(20) * DT):
+        xy = [[1.0, 2.0] + v * t] + ([[-5.0, -5.0]] if i == 19 else [])  # a newcomer at the last step: tentative
+        out = tr.step(_clusters(t, xy, [v] + ([[0.0, 0.0]] if i == 19 else []), var=np.ones((len(xy), 2))))
+    assert len(out.ids) == 1 and len(tr.tracks) == 2
+    state = [tk.x.copy() for tk in tr.tracks]
+    track = next(tk for tk in tr.tracks if tk.confirmed)
+    np.testing.assert_allclose(tr.predicted_xy(tr.time_s + 0.5), [track.x[:2] + 0.5 * track.x[2:]])
+    np.testing.assert_allclose(tr.predicted_xy(tr.time_s + 0.5), [[1.0, 2.0] + v * (19 * DT + 0.5)], atol=0.15)
+    assert all(np.array_equal(a, tk.x) for a, tk in zip(state, tr.tracks))

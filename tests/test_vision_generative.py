@@ -155,3 +155,65 @@ def test_max_iterations_bounds_the_solver_and_is_checked():
     for bad in (0, 2.5):
         with pytest.raises(ValueError, match=r"GenerativeSensorParams\.max_iterations must be an integer >= 1"):
             GenerativeSensorParams(max_iterations=bad)
+
+
+def test_tracked_people_prior_raises_their_locations_and_is_not_counted_twice():
+    """``location_prior``: ``eps * track_prior_ratio`` within ``track_prior_radius_m`` of a tracked person, ``eps``
+    elsewhere, None with ratio 1 or no one tracked. Where the images say nothing (no frame) the marginals stay at
+    that prior and the evidence is exactly the uniform prior's (the prior's own share is taken out: the filter
+    holds the tracks already); with the images the people are still found and the ghost is still free space."""
+    cams, people, ghost, frames = _ghost_scene()
+    kw = dict(height_range_m=(0.0, 1.75), radius_m=0.22, evidence_prior=0.08)
+    plain = GenerativeCameraSensor(cams, STACK, GenerativeSensorParams(**kw))
+    tracked = GenerativeCameraSensor(cams, STACK, GenerativeSensorParams(**kw, track_prior_ratio=3.0,
+                                                                         track_prior_radius_m=0.5))
+    eps = plain.solver_params.prior
+    assert plain.location_prior(people) is None and tracked.location_prior(np.zeros((0, 2))) is None
+    prior = tracked.location_prior(people)
+    d = np.linalg.norm(STACK.cell_centers_xy()[:, :, None] - people[None, None], axis=-1).min(-1)
+    np.testing.assert_array_equal(prior, np.where(d <= 0.5, 3 * eps, eps))
+    with pytest.raises(ValueError, match="xy_m"):
+        tracked.location_prior([[np.nan, 1.0]])
+    q0 = tracked.marginals([None, None], prior)
+    np.testing.assert_allclose(q0, prior)
+    np.testing.assert_allclose(tracked.log_odds_from_marginals(q0, prior),
+                               plain.log_odds_from_marginals(plain.marginals([None, None])), atol=1e-5)
+    q = tracked.marginals(frames, prior)
+    det = tracked.detections(q, 0.0, nms_radius_m=0.45)
+    assert len(det.xy_m) == 2 and np.linalg.norm(det.xy_m[:, None] - people[None], axis=2).min(0).max() < 0.2
+    ev = tracked.log_odds_from_marginals(q, prior)
+    iy, ix = STACK.index_from_xy(np.vstack([people, ghost]))
+    assert (ev[:, iy[:2], ix[:2]] > 2.0).all() and (ev[:, iy[2], ix[2]] < 0.0).all()
+
+
+def test_track_prior_parameters_are_checked():
+    stack = PlaneStack((0.0, 1.0), 0.0, 0.0, 0.1, 8, 8)
+    for bad in (0.5, np.nan, np.inf):
+        with pytest.raises(ValueError, match=r"track_prior_ratio must be finite and >= 1"):
+            GenerativeSensorParams(track_prior_ratio=bad)
+    for bad in (0.0, -1.0, np.nan):
+        with pytest.raises(ValueError, match=r"track_prior_radius_m must be finite and > 0"):
+            GenerativeSensorParams(track_prior_radius_m=bad)
+    with pytest.raises(ValueError, match="track_prior_ratio 2000"):
+        GenerativeSensorParams(track_prior_ratio=2000.0).solver_params(stack)
+
+
+def test_camera_pipeline_asks_for_the_tracked_people_at_each_instant():
+    """``camera_detections(tracked_xy=...)``: asked with each instant's time, its people become the generative
+    model's prior (a ratio of 1 never asks)."""
+    cams, people, _, frames = _ghost_scene()
+    lookups = lookups_from_cameras(cams, STACK)
+    asked = []
+
+    def tracked_xy(t):
+        asked.append(t)
+        return people
+
+    gen = GenerativeSensorParams(height_range_m=(0.0, 1.75), radius_m=0.22, evidence_prior=0.08)
+    for ratio, want in ((1.0, []), (4.0, [0.0, 0.2])):
+        params = CameraParams(foreground=None, sensor_model="generative",
+                              generative=GenerativeSensorParams(**{**gen.__dict__, "track_prior_ratio": ratio}))
+        asked.clear()
+        out = list(camera_detections([(0.0, frames), (0.2, frames)], lookups, STACK, params, cameras=cams,
+                                     tracked_xy=tracked_xy))
+        assert asked == want and len(out) == 2

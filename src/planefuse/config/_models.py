@@ -331,6 +331,17 @@ class CameraSensorConfig(_Model):
         "relative tolerance rarely stops it earlier on real images)", expected="an integer >= 1",
         library="system.camera_params.generative.max_iterations",
     )
+    generative_track_prior_ratio: float = _field(
+        description="Generative model, with the filter: a ground location within generative_track_prior_radius_m of "
+        "a tracked person's predicted position starts from this times the prior (the evidence is measured against "
+        "it, so the filter does not count the tracks twice); 1 = every instant on its own",
+        expected=">= 1", library="system.camera_params.generative.track_prior_ratio",
+    )
+    generative_track_prior_radius_m: float = _field(
+        description="Generative model: radius of the disc around each tracked person's predicted position where "
+        "generative_track_prior_ratio applies", unit="m", expected="> 0",
+        library="system.camera_params.generative.track_prior_radius_m",
+    )
 
     @field_validator("foreground_method", mode="before")
     @classmethod

@@ -247,7 +247,7 @@ class MeanFieldSolver:
         self._ones = np.ones(int(self._px_off[-1]))          # W where every pixel is observed
 
     def solve(self, foregrounds: Sequence[np.ndarray], observed: Sequence[np.ndarray | None] | None = None,
-              initial=None) -> MeanFieldResult:
+              initial=None, prior=None) -> MeanFieldResult:
         """Posterior marginals of every location given one instant's foreground images.
 
         Parameters
@@ -258,6 +258,10 @@ class MeanFieldSolver:
             False on ignored pixels (unobserved regions: no evidence either way); None = all observed.
         initial : array_like, shape (K,), optional
             Starting marginals (default: the prior).
+        prior : array_like, shape (K,), optional
+            Prior of each location, in (0, 1) (default: ``params.prior`` everywhere): what is known of the
+            locations before this instant's images, e.g. people tracked up to it. ``params.prior`` still sets the
+            scale of the convergence test and of the locations left out of the synthetic image.
 
         Returns
         -------
@@ -280,15 +284,22 @@ class MeanFieldSolver:
         if np.array_equal(B32, B):
             B = B32  # binary (or otherwise float32-exact) foreground: half the bytes for the kernel to read, same values
         K = sil.n_locations
+        if prior is None:
+            log_prior_ratio = np.full(K, np.log((1.0 - p.prior) / p.prior))
+        else:
+            prior = np.asarray(prior, dtype=np.float64).ravel()
+            if prior.shape != (K,) or not np.all((prior > 0.0) & (prior < 1.0)):
+                raise ValueError(f"prior must hold {K} location priors in (0, 1), got shape {prior.shape}")
+            log_prior_ratio = np.log1p(-prior) - np.log(prior)
         if initial is None:
-            q = np.full(K, p.prior, dtype=np.float64)
+            q = np.full(K, p.prior, dtype=np.float64) if prior is None else prior.copy()
         else:
             q = np.array(initial, dtype=np.float64).ravel()
             if q.shape != (K,) or not np.isfinite(q).all():
                 raise ValueError(f"initial must hold {K} finite marginals, got shape {q.shape}")
         q = np.clip(q, 0.0, Q_MAX)
         args = (B, W, weighted, self._hw, self._px_off, self._ii_off, sil.boxes_px, q, self._D, self._I2,
-                float(np.log((1.0 - p.prior) / p.prior)), 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
+                log_prior_ratio, 1.0 / p.sigma, int(p.max_iterations), float(p.damping),
                 float(p.tolerance), float(p.ignored_below), Q_MAX, float(p.prior))
         if self.threads == 1:
             n_iter, converged = _solve(*args)
@@ -609,7 +620,7 @@ def _solve_py(B, W, weighted, hw, px_off, ii_off, boxes, q, D, I2, log_prior_rat
                 s = 0.0
                 for c in range(n_cam):
                     s += acc[c, k]  # 0 where the location is not visible in camera c
-                e = log_prior_ratio + s
+                e = log_prior_ratio[k] + s
                 if e > 700.0:
                     e = 700.0
                 qn = damping * qk + (1.0 - damping) * (1.0 / (1.0 + np.exp(e)))

@@ -294,7 +294,8 @@ def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 
 def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
-                  start: int = 0, client=None, occluder_boxes_m=None, correlation_s: float = 0.0) -> EvidenceSource:
+                  start: int = 0, client=None, occluder_boxes_m=None, correlation_s: float = 0.0,
+                  tracked_xy: Callable[[float], np.ndarray] | None = None) -> EvidenceSource:
     """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
     the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
 
@@ -307,6 +308,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     (:class:`planefuse.registration.CameraRegistration`). ``correlation_s`` [s]: each camera's frames weighted by
     their share of the time since its previous live frame (:func:`planefuse.vision.camera_detections`); a resumed
     run takes each camera's last live frame before ``start`` from the restored report's missing frames.
+    ``tracked_xy``: the people tracked so far, predicted to an instant [s] -> (N, 2) [m, world], asked when the
+    instant is computed (the generative model's prior, :func:`planefuse.vision.camera_detections`).
     """
     from ..registration import CameraRegistration
     from ..vision import CameraReport, camera_detections, camera_instants, recording_frames, subtraction_window
@@ -351,14 +354,15 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
                                      windows=[subtraction_window(lk, params) for lk in lookups])
             instants = camera_detections((), lookups, stack, params, names=names, report=report.camera,
                                          registration=registration, foregrounds=fgs, correlation_s=correlation_s,
-                                         last_live_s=last_live_s)
+                                         last_live_s=last_live_s, tracked_xy=tracked_xy)
         else:
             # empty-scene calibration plates prime the background models (no ghosts of people already in view)
             backgrounds = [_background_or_none(rec.camera(n)) for n in names]
             frames = recording_frames(rec, start=start - replay, stride=stride, max_rate_hz=max_rate_hz)
             instants = camera_detections(frames, lookups, stack, params, names=names, report=report.camera,
                                          backgrounds=backgrounds, replay=replay, registration=registration,
-                                         correlation_s=correlation_s, last_live_s=last_live_s)
+                                         correlation_s=correlation_s, last_live_s=last_live_s,
+                                         tracked_xy=tracked_xy)
         report.camera_registration = registration
         for ev, det in instants:
             report.camera_detections.append(det)

@@ -409,6 +409,16 @@ class SystemRun:
         p = self.params
         return p.camera_correlation_s if p.use_filter and p.camera_params.sensor_model == "cell" else 0.0
 
+    def _track_prior(self) -> bool:
+        """Whether the generative camera model takes the tracked people as its prior (with the filter only: the
+        "no filter" ablation keeps nothing from one step to the next)."""
+        cp = self.params.camera_params
+        return self.params.use_filter and cp.sensor_model == "generative" and cp.generative.track_prior_ratio != 1.0
+
+    def _tracked_xy(self, time_s: float) -> np.ndarray:
+        """The confirmed tracks predicted to ``time_s`` [s], when the camera source computes that instant."""
+        return self.tracker.tracker.predicted_xy(time_s)
+
     def _sources(self, consumed: Mapping[str, int]) -> list[EvidenceSource]:
         rec, params, stack, report = self.rec, self.params, self.stack, self.report
         out = []
@@ -416,7 +426,8 @@ class SystemRun:
             out.append(camera_source(rec, stack, params.camera_params, report,
                                      start=consumed.get("cameras", 0), client=self.client,
                                      occluder_boxes_m=params.occluder_boxes_m,
-                                     correlation_s=self._camera_correlation_s()))
+                                     correlation_s=self._camera_correlation_s(),
+                                     tracked_xy=self._tracked_xy if self._track_prior() else None))
         if params.laser and rec.lasers:
             out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:

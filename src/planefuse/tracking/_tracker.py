@@ -363,6 +363,14 @@ class MultiPersonTracker:
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if c < n_det]
 
+    def predicted_xy(self, time_s: float) -> np.ndarray:
+        """Positions (N, 2) [m, world] of the confirmed tracks moved at their velocities from the tracker's time
+        to ``time_s`` [s] (the state is not changed); (0, 2) before the first step."""
+        if self.time_s is None:
+            return np.zeros((0, 2))
+        dt = float(time_s) - self.time_s
+        return np.array([tr.x[:2] + tr.x[2:] * dt for tr in self.tracks if tr.confirmed]).reshape(-1, 2)
+
     def step(self, clusters: Clusters) -> Tracks:
         """Advance to ``clusters.time_s``, associate and update; return the reported tracks."""
         p = self.params

@@ -26,6 +26,14 @@ a body at every frame. Cells no camera
 sees, and planes outside the person's height range, get 0 (unknown). People on the ground are the local
 maxima of the expected number of people within ``radius_m`` of a cell, ``M(X) = sum_{disc} q_k``, above
 ``detection_mass``, at least ``PersonParams.nms_radius_m`` apart, placed at the q-weighted centroid of their disc.
+
+Tracked people as the prior (``track_prior_ratio`` > 1): the locations within ``track_prior_radius_m`` of a
+tracked person's position predicted to the instant (:meth:`GenerativeCameraSensor.location_prior`) start from
+``eps_k = ratio * eps``, so that where the images are ambiguous (a person half hidden, or in a foreground hole)
+the explaining-away keeps the person the tracks expect rather than a ghost elsewhere. The filter already holds
+what the tracks know, so the evidence must not count it again: it is measured against the reference moved by
+the prior's own share, ``logit P_0(eps_k) - logit P_0(eps)`` per cell (``P_0`` as above with the per-location
+priors), which gives exactly the evidence of the uniform prior where the images say nothing.
 """
 
 from __future__ import annotations
@@ -89,6 +97,12 @@ class GenerativeSensorParams:
         ``max_iterations``). With its relative tolerance the solver rarely stops before them on real images (EPFL
         terrace: 97 % of the instants at 100), so they set its cost: one instant of two 360x288 cameras on a
         75 x 110 grid costs ~0.77 ms per iteration (docs/benchmarks.md).
+    track_prior_ratio : float
+        People tracked up to an instant as what is known before its images (module notes, "Tracked people as the
+        prior"): a location within ``track_prior_radius_m`` of a tracked person's predicted position has this
+        times the prior ``eps``; 1 = the same prior everywhere (every instant on its own).
+    track_prior_radius_m : float
+        Radius [m] of the disc around each tracked person's predicted position where ``track_prior_ratio`` applies.
     """
 
     people_per_m2: float = 0.05
@@ -101,9 +115,14 @@ class GenerativeSensorParams:
     evidence_prior: float | None = None
     hidden_unknown: bool = False
     max_iterations: int = GenerativeParams.max_iterations
+    track_prior_ratio: float = 1.0
+    track_prior_radius_m: float = 0.7
 
     def __post_init__(self) -> None:
-        for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass"):
+        if not (np.isfinite(self.track_prior_ratio) and self.track_prior_ratio >= 1.0):
+            raise ValueError(f"GenerativeSensorParams.track_prior_ratio must be finite and >= 1, got "
+                             f"{self.track_prior_ratio}")
+        for name in ("people_per_m2", "sigma", "radius_m", "max_log_odds", "detection_mass", "track_prior_radius_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"GenerativeSensorParams.{name} must be finite and > 0, got {v}")
@@ -122,9 +141,10 @@ class GenerativeSensorParams:
     def solver_params(self, stack: PlaneStack) -> GenerativeParams:
         """Solver parameters with the prior of one location of ``stack``."""
         prior = self.people_per_m2 * stack.cell_size_m ** 2
-        if not 0.0 < prior < 0.5:
-            raise ValueError(f"people_per_m2 {self.people_per_m2} with {stack.cell_size_m} m cells gives a location "
-                             f"prior of {prior}; expected below 0.5")
+        if not 0.0 < prior * self.track_prior_ratio < 0.5:
+            raise ValueError(f"people_per_m2 {self.people_per_m2} with {stack.cell_size_m} m cells (and "
+                             f"track_prior_ratio {self.track_prior_ratio}) gives a location prior of "
+                             f"{prior * self.track_prior_ratio}; expected below 0.5")
         return GenerativeParams(prior=prior, sigma=self.sigma, max_iterations=int(self.max_iterations))
 
 
@@ -223,6 +243,7 @@ class GenerativeCameraSensor:
         # what the evidence is measured against (logit of P_0 or of evidence_prior), as the band of logit P_occ
         # that gives none: one value, or, hidden_unknown, everything between the two
         ref_model = _logit_occupied(log_free_model)
+        self._logit_p0 = ref_model
         self._ref = (ref_model, ref_model)
         if params.evidence_prior is not None:
             ref = _logit_occupied(np.full((stack.ny, stack.nx), np.log1p(-params.evidence_prior)))
@@ -232,6 +253,7 @@ class GenerativeCameraSensor:
         self._planes = (band_mid >= lo) & (band_mid <= hi)
         self._set_silhouettes(silhouettes_from_cameras(self.cameras, stack, self.person))
         self.last_marginals: np.ndarray | None = None
+        self._centres: np.ndarray | None = None
 
     def _set_silhouettes(self, sil: Silhouettes) -> None:
         self.silhouettes = sil
@@ -253,29 +275,53 @@ class GenerativeCameraSensor:
         """Cameras in which no location has a silhouette."""
         return [n for n, v in zip(self.names, self.silhouettes.visible) if not v.any()]
 
-    def marginals(self, foregrounds: Sequence[np.ndarray | None]) -> np.ndarray:
-        """Posterior marginals ``q`` (ny, nx) of one instant; a camera with no frame (None) gives no evidence."""
+    def marginals(self, foregrounds: Sequence[np.ndarray | None], prior: np.ndarray | None = None) -> np.ndarray:
+        """Posterior marginals ``q`` (ny, nx) of one instant; a camera with no frame (None) gives no evidence.
+        ``prior`` (ny, nx): each location's prior (default: the model's ``eps`` everywhere)."""
         if len(foregrounds) != self.n_cameras:
             raise ValueError(f"expected {self.n_cameras} foreground images (None for missing), got {len(foregrounds)}")
         thr = self.params.foreground_threshold
         fg = [np.zeros(o.shape) if f is None else f if thr is None else _likelihood(f) >= thr
               for f, o in zip(foregrounds, self._observed)]
         obs = [b if f is None else o for f, o, b in zip(foregrounds, self._observed, self._blind)]
-        q = self._solver.solve(fg, obs).marginals.reshape(self.stack.ny, self.stack.nx)
+        q = self._solver.solve(fg, obs, prior=None if prior is None else np.ravel(prior)).marginals
+        q = q.reshape(self.stack.ny, self.stack.nx)
         self.last_marginals = q
         return q
 
-    def log_odds_from_marginals(self, q: np.ndarray) -> np.ndarray:
-        """Per-plane evidence (L, ny, nx) float32 from marginals (ny, nx) (module notes)."""
+    def log_odds_from_marginals(self, q: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
+        """Per-plane evidence (L, ny, nx) float32 from marginals (ny, nx) (module notes); ``prior`` (ny, nx): the
+        locations' priors the marginals were solved with (default: ``eps``), whose own share of ``logit P_occ``
+        (``logit P_0`` of that prior minus that of ``eps``) is taken out of the evidence."""
         log_free = cv2.filter2D(np.log1p(-np.clip(q, 0.0, 1.0 - 1e-12)), cv2.CV_64F, self._disc,
                                 borderType=cv2.BORDER_CONSTANT)
         lo, hi = self._ref
+        if prior is not None:
+            shift = _logit_occupied(cv2.filter2D(np.log1p(-np.asarray(prior, np.float64)), cv2.CV_64F, self._disc,
+                                                 borderType=cv2.BORDER_CONSTANT)) - self._logit_p0
+            lo, hi = lo + shift, hi + shift
         logit_occ = _logit_occupied(log_free)
         ev = np.minimum(logit_occ - lo, 0.0) + np.maximum(logit_occ - hi, 0.0)
         ev = np.where(self._seen, np.clip(ev, -self.params.max_log_odds, self.params.max_log_odds), 0.0)
         out = np.zeros(self.stack.shape, np.float32)
         out[self._planes] = ev.astype(np.float32)
         return out
+
+    def location_prior(self, xy_m) -> np.ndarray | None:
+        """Each location's prior (ny, nx) given people tracked at ``xy_m`` (N, 2) [m, world], predicted to the
+        instant: ``eps * track_prior_ratio`` within ``track_prior_radius_m`` of any of them, ``eps`` elsewhere
+        (module notes). None where that is ``eps`` everywhere (no one tracked, or ratio 1)."""
+        p = self.params
+        xy = np.asarray(xy_m, dtype=float).reshape(-1, 2)
+        if p.track_prior_ratio == 1.0 or not len(xy):
+            return None
+        if not np.isfinite(xy).all():
+            raise ValueError(f"tracked positions xy_m must be finite [m], got {xy.tolist()}")
+        if self._centres is None:
+            self._centres = self.stack.cell_centers_xy()
+        d2 = ((self._centres[:, :, None, :] - xy[None, None]) ** 2).sum(axis=-1).min(axis=-1)
+        eps = self._solver_params.prior
+        return np.where(d2 <= p.track_prior_radius_m ** 2, eps * p.track_prior_ratio, eps)
 
     def evidence(self, foregrounds: Sequence[np.ndarray | None], time_s: float,
                  sensor: str = "cameras") -> Evidence:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Iterable, Iterator, Literal, Sequence
+from typing import Callable, Iterable, Iterator, Literal, Sequence
 
 import cv2
 import numpy as np
@@ -360,6 +360,7 @@ def camera_detections(
     foregrounds: Iterable[tuple[float, Sequence[np.ndarray | None], Sequence[str]]] | None = None,
     correlation_s: float = 0.0,
     last_live_s: Sequence[float | None] | None = None,
+    tracked_xy: Callable[[float], np.ndarray] | None = None,
 ) -> Iterator[tuple[Evidence, GroundDetections]]:
     """Run the camera pipeline over a synchronised recording.
 
@@ -413,6 +414,11 @@ def camera_detections(
     last_live_s : sequence of (float or None), optional
         Per camera, the time [s] of its last live frame before the first instant of ``frames`` (a resumed run;
         None: none yet, its next frame counts fully).
+    tracked_xy : callable, optional
+        ``tracked_xy(time_s)`` -> (N, 2) [m, world]: the people tracked so far, predicted to the instant, asked
+        for every computed instant. With the generative sensor model and ``params.generative.track_prior_ratio``
+        > 1 they are its location prior (:meth:`GenerativeCameraSensor.location_prior`); the evidence is then
+        measured against that prior and the detections are the prior's too. Not used otherwise.
 
     Yields
     ------
@@ -464,6 +470,10 @@ def camera_detections(
                       for lk, name, bg in zip(lookups, fusion.names, bgs)]
         foregrounds = camera_foregrounds(frames, front_ends, 0 if selective else replay, registration)
         person = params.generative.person(stack)
+    track_prior = tracked_xy is not None and generative is not None and params.generative.track_prior_ratio != 1.0
+    if selective and replay and track_prior:
+        raise ValueError("a resumed run cannot replay selective_update's people with the tracks' prior "
+                         "(generative_track_prior_ratio > 1): the tracks of the replayed instants are not kept")
     if correlation_s < 0 or not np.isfinite(correlation_s):
         raise ValueError(f"correlation_s must be finite and >= 0 s, got {correlation_s}")
     if correlation_s > 0 and generative is not None:
@@ -487,8 +497,11 @@ def camera_detections(
             if correlation_s > 0:
                 evidence = _weighted(fusion, fgs, evidence, last, correlation_s)
         else:
-            q = generative.marginals(fgs)
-            evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q))
+            prior = None
+            if track_prior and not replayed:
+                prior = generative.location_prior(tracked_xy(float(time_s)))
+            q = generative.marginals(fgs, prior)
+            evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q, prior))
             detections = generative.detections(q, time_s, params.person.nms_radius_m)
         if selective:
             for fe, people in zip(front_ends, people_masks(cameras, detections.xy_m, person)):

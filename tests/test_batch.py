@@ -152,9 +152,11 @@ def test_cli_batch_writes_what_planefuse_run_writes(tmp_path, workers_see_checko
     assert r.exit_code == 2 and "cell_size_m" in r.output
 
 
-def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_see_checkout):
+@pytest.mark.parametrize("cameras", ["cell", "generative, tracks' prior"])
+def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_see_checkout, cameras):
     """``planefuse run --workers 2``: each camera's front end on a worker gives the serial single-threaded run's
-    (``--threads 1``) tables, occupancy and metrics byte for byte, with missing and black frames."""
+    (``--threads 1``) tables, occupancy and metrics byte for byte, with missing and black frames; also with the
+    generative model taking the tracked people as its prior (the workers' foregrounds, the tracks in this process)."""
     import json
 
     import numpy as np
@@ -170,6 +172,9 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     simulate(scenario_config("camera_dropout", seed=3, duration_s=3.0)).write(tmp_path / "rec", image_format="jpg")
     text = (example_yaml("rec").replace("figures: true", "figures: false").replace("animation: gif", "animation: none")
             .replace("report: true", "report: false").replace("chunk_steps: 50", "chunk_steps: 4"))
+    if cameras != "cell":
+        text = text.replace("sensor_model: cell", "sensor_model: generative").replace(
+            "generative_track_prior_ratio: 1.0", "generative_track_prior_ratio: 2.0")
     for name in ("serial", "workers"):
         (tmp_path / f"{name}.yaml").write_text(text.replace("out_dir: planefuse-out", f"out_dir: out-{name}"))
     runner = CliRunner()

@@ -498,7 +498,7 @@ def camera_detections(
                 evidence = _weighted(fusion, fgs, evidence, last, correlation_s)
         else:
             prior = None
-            if track_prior and not replayed:
+            if track_prior:  # never on a replayed instant: refused above
                 prior = generative.location_prior(tracked_xy(float(time_s)))
             q = generative.marginals(fgs, prior)
             evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q, prior))

@@ -5,9 +5,9 @@ The camera front ends (decoding, background subtraction) are most of a run's tim
 generative model, the filter, the clustering or the tracker changes them. This script runs ``scripts/terrace.yaml``
 (with ``--set`` changes) once on frames ``--first``..``--last`` (``planefuse import`` + the run's own camera
 source), keeps every instant's foreground images as the generative model receives them, and then, for each
-``--try``, solves them again with that variant's generative sensor and runs the evidence through
-:class:`planefuse.tracking.EvidenceTracker` exactly as :class:`planefuse.pipeline.SystemRun` does (the tracked
-people as the model's prior at each instant included, ``generative_track_prior_ratio``), scored by
+``--try``, solves them again with that variant's generative sensor and runs the evidence through the tracker of
+that variant's :class:`planefuse.pipeline.SystemRun`, as the run does (the tracked people as the model's prior at
+each instant included, ``generative_track_prior_ratio``), scored by
 ``scripts/terrace.py``'s scorer. The first variant is the configuration itself; a variant that changes the front
 end is refused (it needs a new capture). Tuning only: frames 0-1499. Example::
 
@@ -22,7 +22,6 @@ import pickle
 import shutil
 import sys
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +33,6 @@ from planefuse.config import config_from_dict  # noqa: E402
 from planefuse.grid import Evidence  # noqa: E402
 from planefuse.io import read_recording  # noqa: E402
 from planefuse.pipeline import SystemRun  # noqa: E402
-from planefuse.tracking import EvidenceTracker  # noqa: E402
 from planefuse.vision import GenerativeCameraSensor  # noqa: E402
 
 
@@ -69,23 +67,19 @@ def capture(rec, config: dict):
     return times, kept["fg"], kept["sensor"], params, run.stack
 
 
-def replay(stack, times, foregrounds, sensor, params) -> tuple[list, list]:
+def replay(rec, stack, times, foregrounds, sensor, params) -> tuple[list, list]:
     """The outputs of ``params``' generative sensor, filter, clustering and tracker on the kept ``foregrounds``
-    (as :class:`SystemRun` sets them up and asks for each instant), and the per-frame detections."""
+    (the tracker of a :class:`SystemRun` of ``params`` on ``rec``, asked for the tracked people at each instant
+    as that run asks it), and the per-frame detections."""
     cp = params.camera_params
     if cp.generative != sensor.params:
         sensor = GenerativeCameraSensor(sensor.cameras, stack, cp.generative, names=sensor.names,
                                         ignore_masks=[~o for o in sensor._observed])
-    tp = replace(params.tracking, output_period_s=params.output_period_s,
-                 evidence_correlation_s={"cameras": params.camera_correlation_s, **params.tracking.evidence_correlation_s})
-    if not params.use_filter:
-        tp = replace(tp, bof=replace(tp.bof, decay_rate_hz=1e6), evidence_correlation_s={},
-                     cluster=replace(tp.cluster, position_from_step_evidence=False))
-    tracker = EvidenceTracker(stack, tp)
-    track_prior = params.use_filter and cp.generative.track_prior_ratio != 1.0
+    run = SystemRun(rec, params, stack)  # its sources are never started: only its tracker is used
+    tracker, track_prior = run.tracker, run._track_prior()
     outs, detections = [], []
     for t, fgs in zip(times, foregrounds):
-        prior = sensor.location_prior(tracker.tracker.predicted_xy(t)) if track_prior else None
+        prior = sensor.location_prior(run._tracked_xy(t)) if track_prior else None
         q = sensor.marginals(fgs, prior)
         detections.append(sensor.detections(q, t, cp.person.nms_radius_m))
         outs.extend(tracker.push(Evidence(t, "cameras", sensor.log_odds_from_marginals(q, prior))))
@@ -156,7 +150,7 @@ def main(argv=None) -> int:
                 continue
             cfg = T.with_sets(base, sets)
             params = config_from_dict(T.merged(cfg, {"recording": str(rec.root)})).system_params()
-            outs, dets = replay(stack, times, fgs, sensor, params)
+            outs, dets = replay(rec, stack, times, fgs, sensor, params)
             by_cam = {T._frame_of(d.time_s): d.xy_m for d in dets}
             fr = [f for f in scored if f in by_cam]
             raw = T.score(truth, fr, [by_cam[f] for f in fr])

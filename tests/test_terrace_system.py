@@ -136,7 +136,7 @@ def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
         cfg = terrace.with_sets(base, sets)
         plan = replace(config_from_dict(terrace.merged(cfg, {"recording": str(rec.root)})).plan(), out_dir=None)
         res, _ = run_plan(rec, plan, progress_mode="quiet")
-        outs, dets = R.replay(stack, times, fgs, sensor, plan.params)
+        outs, dets = R.replay(rec, stack, times, fgs, sensor, plan.params)
         assert len(outs) == len(res.outputs)
         for a, b in zip(outs, res.outputs):
             np.testing.assert_array_equal(a.occupancy, b.occupancy)

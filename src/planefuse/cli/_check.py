@@ -63,6 +63,7 @@ def check(
             raise typer.Exit(2) from None
         exit_on_config_error(err)
     report = CheckReport()
+    _check_person_model(cfg, report)
     if not cfg.recording.is_dir():
         report.add("error", "recording", f"folder {cfg.recording} does not exist")
     elif not (cfg.recording / SCENE_FILE).is_file():
@@ -82,6 +83,29 @@ def check(
         console.print("[bold green]OK[/]: ready to run" if report.ok
                       else f"[bold red]{len(report.errors)} error(s)[/]")
     raise typer.Exit(0 if report.ok else 1)
+
+
+def _check_person_model(cfg: RunConfig, report: CheckReport) -> None:
+    """The person detector's model (loaded and checked by :func:`load_config` already): its checksum and its cost
+    per frame on one core, measured here."""
+    cams = cfg.sensors.cameras
+    if not cams.enabled or cams.person_detector != "yolox":
+        return
+    import cv2
+
+    from ..vision import YoloxDetector
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        det = YoloxDetector(cams.person_model, tuple(cams.person_input_px))
+        ms = det.cost_ms((cams.person_input_px[0], cams.person_input_px[1]))
+    finally:
+        cv2.setNumThreads(threads)
+    info = det.info
+    report.add("info", "sensors.cameras.person_model",
+               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, run at {info.input_wh_px[0]} x "
+               f"{info.input_wh_px[1]} px, {ms:.1f} ms per frame on one core (measured now)")
 
 
 def _check_camera_rate(cfg: RunConfig, rec, report: CheckReport) -> None:

@@ -113,10 +113,11 @@ class CameraSensorConfig(_Model):
     """Cameras: background subtraction, then registration of the foreground on the planes (planefuse.vision)."""
 
     enabled: bool = _field(description="Use the cameras", library="system.cameras")
-    foreground_method: Literal["knn", "mog2", "cnt", "mean"] = _field(
+    foreground_method: Literal["knn", "mog2", "cnt", "mean", "none"] = _field(
         description="Background subtractor: OpenCV's knn, mog2 or cnt (opencv-contrib), or mean (a running-average "
         "background per pixel, numba: 13x cheaper than knn per frame, for steady lighting; it does not follow a "
-        "real camera's exposure changes)", expected="knn, mog2, cnt or mean",
+        "real camera's exposure changes), or none (no subtraction: the person_detector's boxes alone)",
+        expected="knn, mog2, cnt, mean or none",
         library="system.camera_params.foreground.method",
     )
     history_frames: int = _field(
@@ -211,22 +212,57 @@ class CameraSensorConfig(_Model):
         "learnt (a ghost of a background object that moved still heals)", unit="frames",
         expected="an integer >= 1", library="system.camera_params.foreground.selective_max_frames",
     )
-    person_detector: Literal["hog"] | None = _field(
-        description="A person detector beside the background subtraction: 'hog' = OpenCV's HOG people detector "
-        "(in opencv-contrib from OpenCV 5); the bodies of its boxes are foreground; null = none",
-        expected="null or 'hog'", library="system.camera_params.foreground.person_detector",
+    person_detector: Literal["hog", "yolox"] | None = _field(
+        description="A person detector beside the background subtraction: 'yolox' = a pretrained YOLOX ONNX model "
+        "(person_model; docs/cameras.md), 'hog' = OpenCV's HOG people detector (in opencv-contrib from OpenCV 5); "
+        "its boxes are the people's silhouettes (foreground); null = none",
+        expected="null, 'hog' or 'yolox'", library="system.camera_params.foreground.person_detector",
+    )
+    person_model: str | None = _field(
+        description="With person_detector yolox: the ONNX file of a YOLOX export (Nano, Tiny, S, ... from the YOLOX "
+        "project's releases; planefuse never downloads it), relative to this file", expected="a path or null",
+        library="system.camera_params.foreground.person_model",
+    )
+    person_input_px: tuple[int, int] = _field(
+        description="With person_detector yolox: (width, height) of the canvas each frame is letterboxed into",
+        unit="px", expected="two multiples of 32", library="system.camera_params.foreground.person_input_px",
     )
     person_upscale: float = _field(
-        description="With person_detector: enlargement of the frame before detection (the detector's window is "
+        description="With person_detector hog: enlargement of the frame before detection (the detector's window is "
         "128 px tall)", expected="> 0", library="system.camera_params.foreground.person_upscale",
     )
-    person_min_score: float = _field(
-        description="With person_detector: smallest SVM score of a kept box", expected="a finite number",
+    person_min_score: float | None = _field(
+        description="With person_detector: smallest score of a kept box (yolox: person probability, null = 0.5; "
+        "hog: SVM margin, null = 0.3)", expected="null or a finite number (yolox: in [0, 1])",
         library="system.camera_params.foreground.person_min_score",
     )
-    person_likelihood: float = _field(
-        description="With person_detector: foreground likelihood at least given to a detected body",
-        expected="in [0, 1]", library="system.camera_params.foreground.person_likelihood",
+    person_nms_iou: float = _field(
+        description="With person_detector yolox: a box overlapping a better one by more than this IoU is dropped",
+        expected="in (0, 1]", library="system.camera_params.foreground.person_nms_iou",
+    )
+    person_likelihood: float | None = _field(
+        description="With person_detector: foreground likelihood at least given to a detected person's box; null = "
+        "the boxes leave the foreground as it is (they reach the planes through box_log_odds only)",
+        expected="null or in [0, 1]", library="system.camera_params.foreground.person_likelihood",
+    )
+    box_log_odds: float = _field(
+        description="With person_detector: peak log-odds each box adds around its foot point on the ground, on every "
+        "plane up to the head (one view places a person; docs/cameras.md); 0 = boxes not registered",
+        expected=">= 0", library="system.camera_params.boxes.log_odds",
+    )
+    box_foot_std_frac: float = _field(
+        description="With box_log_odds: standard deviation of a box's foot pixel in each image direction, as a share "
+        "of the box's height (mapped to the ground: grows with distance)", expected="> 0",
+        library="system.camera_params.boxes.foot_std_frac",
+    )
+    box_min_std_m: float = _field(
+        description="With box_log_odds: standard deviation added to a foot point in every ground direction", unit="m",
+        expected="> 0", library="system.camera_params.boxes.min_std_m",
+    )
+    person_outside_weight: float = _field(
+        description="With person_detector: the background subtraction's foreground outside every box is scaled by "
+        "this towards foreground_floor (1 = unchanged, 0 = only the boxes)", expected="in [0, 1]",
+        library="system.camera_params.foreground.person_outside_weight",
     )
     open_px: int = _field(
         description="Side of the morphological opening removing speckle from the foreground; 0 = none", unit="px",
@@ -610,8 +646,8 @@ class RunConfig(_Model):
     outputs: OutputsConfig = _field(OutputsConfig(), description="Outputs")
 
     def resolved(self, base_dir: Path) -> "RunConfig":
-        """Copy with ``recording``, ``outputs.out_dir`` and ``sensors.sound.model_path`` made absolute against
-        ``base_dir``."""
+        """Copy with ``recording``, ``outputs.out_dir``, ``sensors.sound.model_path`` and
+        ``sensors.cameras.person_model`` made absolute against ``base_dir``."""
 
         def absolute(p: Path) -> Path:
             return (p if p.is_absolute() else base_dir / p).resolve()
@@ -619,10 +655,13 @@ class RunConfig(_Model):
         sound = self.sensors.sound
         if sound.model_path is not None:
             sound = sound.model_copy(update={"model_path": absolute(sound.model_path)})
+        cameras = self.sensors.cameras
+        if cameras.person_model is not None:
+            cameras = cameras.model_copy(update={"person_model": str(absolute(Path(cameras.person_model)))})
         return self.model_copy(update={
             "recording": absolute(self.recording),
             "outputs": self.outputs.model_copy(update={"out_dir": absolute(self.outputs.out_dir)}),
-            "sensors": self.sensors.model_copy(update={"sound": sound}),
+            "sensors": self.sensors.model_copy(update={"sound": sound, "cameras": cameras}),
         })
 
     def _library_values(self, root: str) -> dict[tuple[str, ...], Any]:

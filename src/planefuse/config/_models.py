@@ -255,6 +255,11 @@ class CameraSensorConfig(_Model):
         "of the box's height (mapped to the ground: grows with distance)", expected="> 0",
         library="system.camera_params.boxes.foot_std_frac",
     )
+    box_override: bool = _field(
+        description="With box_log_odds: where a box's bump lies, the sensor model's evidence against a person is "
+        "dropped (a detected person who stands still has faded from the background model)",
+        library="system.camera_params.boxes.override",
+    )
     box_min_std_m: float = _field(
         description="With box_log_odds: standard deviation added to a foot point in every ground direction", unit="m",
         expected="> 0", library="system.camera_params.boxes.min_std_m",

@@ -239,6 +239,20 @@ def one_zarr_codec_thread() -> None:
         zarr.config.set({"threading.max_workers": 1})
 
 
+def _write_camera_boxes(out: OutputWriter, step: int, time_s: float, report: ModalityReport) -> None:
+    """Write the person boxes of the camera instants up to ``time_s`` [s] at ``step`` and drop them from the
+    report (memory stays flat over a long run)."""
+    if report.camera is None:
+        return
+    for name, items in report.camera.person_boxes.items():
+        n = 0
+        while n < len(items) and items[n][0] <= time_s + 1e-9:
+            t, found = items[n]
+            out.write_camera_boxes(step, t, name, found.ltwh_px, found.score)
+            n += 1
+        del items[:n]
+
+
 def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                   client=None) -> tuple[SystemResult, dict]:
     """Run the whole system (:class:`SystemRun`) on ``rec`` and write occupancy (zarr), detections, tracks
@@ -292,6 +306,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                 if step >= out.resume_step:
                     out.write_detections(step, o.detections)
                     out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_m_s)
+                    _write_camera_boxes(out, step, o.time_s, run.report)
                     if out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict):
                         return_freed_memory()  # a chunk committed
                 advance(1)

@@ -36,7 +36,7 @@ from ..geometry import PinholeCamera
 from ..grid import PlaneStack
 from ._yolox import PersonBoxes
 
-__all__ = ["BoxEvidenceParams", "box_evidence", "box_feet"]
+__all__ = ["BoxEvidenceParams", "box_evidence", "box_feet", "combine_box_evidence"]
 
 #: The bump is cut where it falls below this share of its peak (3 standard deviations: exp(-4.5)).
 _CUT_MAHALANOBIS2 = 9.0
@@ -58,12 +58,17 @@ class BoxEvidenceParams:
     edge_px : float
         A box whose bottom lies within this many pixels of the image's bottom edge has its feet cut off: no foot
         point [px].
+    override : bool
+        Where the boxes' bumps lie, the sensor model's evidence *against* a person is dropped before the bumps are
+        added (:func:`combine_box_evidence`): a detected person who stands still has faded from the background
+        model, and the subtraction then calls him background. False: the two are added as they are.
     """
 
     log_odds: float = 0.0
     foot_std_frac: float = 0.05
     min_std_m: float = 0.1
     edge_px: float = 2.0
+    override: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self, log_odds=">=0", foot_std_frac=">0", min_std_m=">0", edge_px=">=0")
@@ -169,3 +174,13 @@ def box_evidence(cameras: Sequence[PinholeCamera], boxes: Sequence[PersonBoxes |
             np.maximum(view, g, out=view)
         out += bump
     return out
+
+
+def combine_box_evidence(log_odds: np.ndarray, boxes_log_odds: np.ndarray, params: BoxEvidenceParams) -> np.ndarray:
+    """The sensor model's per-plane ``log_odds`` with the boxes' ``boxes_log_odds`` (:func:`box_evidence`), both
+    ``(L, ny, nx)``: their sum, where ``params.override`` first lifts the sensor model's negative log-odds to 0
+    wherever a bump lies (float32, a new array)."""
+    base = np.asarray(log_odds, np.float32)
+    if params.override:
+        base = np.where(boxes_log_odds > 0, np.maximum(base, 0.0), base)
+    return (base + boxes_log_odds).astype(np.float32, copy=False)

@@ -14,7 +14,7 @@ from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..occupancy import PersonVolume, silhouettes_from_cameras
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
-from ._boxes import BoxEvidenceParams, box_evidence
+from ._boxes import BoxEvidenceParams, box_evidence, combine_box_evidence
 from ._foreground import BackgroundSubtractor, ForegroundParams
 from ._fusion import NEUTRAL_FOREGROUND, NEUTRAL_LEVEL, CameraFusion, FusionParams, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams
@@ -533,8 +533,8 @@ def camera_detections(
                 if found is not None:
                     report.person_boxes.setdefault(name, []).append((float(time_s), found))
         if params.boxes.log_odds > 0 and any(found is not None and len(found) for found in boxes):
-            evidence = Evidence(float(time_s), "cameras",
-                                evidence.log_odds + box_evidence(cameras, boxes, stack, params.boxes, ignore_masks),
+            bumps = box_evidence(cameras, boxes, stack, params.boxes, ignore_masks)
+            evidence = Evidence(float(time_s), "cameras", combine_box_evidence(evidence.log_odds, bumps, params.boxes),
                                 copy=False)
         if selective:
             for fe, people in zip(front_ends, people_masks(cameras, detections.xy_m, person)):

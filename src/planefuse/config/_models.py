@@ -207,6 +207,11 @@ class CameraSensorConfig(_Model):
         "background model (people who stand still do not fade into it); knn only",
         library="system.camera_params.foreground.selective_update",
     )
+    selective_source: Literal["model", "detector"] = _field(
+        description="With selective_update: what is kept out of the background model, the people the cameras' model "
+        "found at the previous instant (model) or the person_detector's boxes of the previous frame (detector)",
+        expected="model or detector", library="system.camera_params.foreground.selective_source",
+    )
     selective_max_frames: int = _field(
         description="With selective_update: a pixel is kept out for at most this many consecutive frames, then "
         "learnt (a ghost of a background object that moved still heals)", unit="frames",

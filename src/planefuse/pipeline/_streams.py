@@ -355,7 +355,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             warnings.warn(f"cameras {sorted(registration.tracks)} follow their IMU: their front ends run in this "
                           "process, not on the dask workers", stacklevel=2)
             remote = None
-        if remote is not None and params.foreground is not None and params.foreground.selective_update:
+        if remote is not None and params.foreground is not None and params.foreground.selective_update \
+                and params.foreground.selective_source == "model":
             # the front ends keep each instant's people out of their background models: they need them at once
             warnings.warn("cameras' selective_update: their front ends run in this process, not on the dask "
                           "workers", stacklevel=2)

@@ -137,6 +137,12 @@ class ForegroundParams:
         foreground decision is the squared colour distance of the frame to that average against the KNN threshold
         (no shadow label). Off: every pixel is learnt (OpenCV's blind update). Not kept for the EPFL terrace
         (frames 0-1499: a little better warm, worse from a cold start; docs/results.md).
+    selective_source : {"model", "detector"}
+        With ``selective_update``, whose pixels are kept out of the model: ``"model"``, the silhouettes of the people
+        the camera model explains at the previous instant (fed back by :func:`planefuse.vision.camera_detections`);
+        ``"detector"``, the boxes the ``person_detector`` found in the previous frame (the subtractor protects
+        itself: a background object that moved -- a ghost -- is no person to a detector, so it heals at once, and
+        the cold start needs no camera model).
     knn_samples : int
         KNN only: background samples kept per pixel (OpenCV's ``setNSamples``; its default, 7). A pixel is
         background once ``kNNSamples`` (2) of them are within the threshold, so the first samples usually decide
@@ -215,6 +221,7 @@ class ForegroundParams:
     downscale: int = 1
     selective_update: bool = False
     selective_max_frames: int = 50
+    selective_source: str = "model"
     knn_samples: int = 7
     cnt_min_stability: int = 15
     mean_foreground_rate: float = 0.2
@@ -247,6 +254,10 @@ class ForegroundParams:
                 f"must be >= 2 (a pixel is background when 2 samples match), got {self.knn_samples}")
         require(not self.selective_update or self.method == "knn", self, "selective_update",
                 f"needs method 'knn' (the decision on protected pixels uses its dist2Threshold), got {self.method!r}")
+        require(self.selective_source in ("model", "detector"), self, "selective_source",
+                f"must be 'model' or 'detector', got {self.selective_source!r}")
+        require(not self.selective_update or self.selective_source != "detector" or self.person_detector is not None,
+                self, "selective_source", "'detector' with selective_update needs a person_detector")
         require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
                 f"must be (rows, cols) >= 1, got {self.gain_blocks}")
         require(self.person_detector in (None, "hog", "yolox"), self, "person_detector",
@@ -412,10 +423,20 @@ class BackgroundSubtractor:
             raise ValueError(f"{self.name}: frame must be uint8, got {img.dtype}")
         return img
 
+    @property
+    def protects_itself(self) -> bool:
+        """True where the selective update keeps the person detector's boxes out of the model
+        (:attr:`ForegroundParams.selective_source` ``"detector"``): nobody else calls :meth:`protect`."""
+        return self.params.selective_update and self.params.selective_source == "detector"
+
     def update(self, frame) -> None:
         """Update the background model with ``frame`` as :meth:`apply` does, without computing the foreground
-        (replaying the frames before a resumed run's first one)."""
-        self._learn(self._check(frame), self._rate)
+        (replaying the frames before a resumed run's first one; with :attr:`protects_itself` the detector still
+        runs, so that the protected pixels are the same)."""
+        img = self._check(frame)
+        self._learn(img, self._rate)
+        if self.protects_itself:
+            self.protect(self._people.silhouettes(self._people.detect(img), self.height_px, self.width_px))
 
     def _learn(self, img: np.ndarray, rate: float) -> np.ndarray:
         # OpenCV's KNN model draws its per-pixel update phases (randu) from cv::theRNG, which every model
@@ -507,6 +528,8 @@ class BackgroundSubtractor:
         like = self._subtract(img, quantised)
         if self._people is not None:
             self._people.mark(img, like, quantised)
+            if self.protects_itself:  # the people it found stay out of the model at the next frame
+                self.protect(self._people.silhouettes(self._people.last_boxes, self.height_px, self.width_px))
         return like
 
     def _subtract(self, img: np.ndarray, quantised: bool) -> np.ndarray:

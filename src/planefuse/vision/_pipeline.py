@@ -468,7 +468,9 @@ def camera_detections(
     generative = None
     if registration is not None:
         cameras, ignore_masks = registration.cameras, registration.ignore_masks
-    selective = params.foreground is not None and params.foreground.selective_update
+    # the camera model's people fed back to the front ends (a detector's boxes stay inside each front end)
+    selective = params.foreground is not None and params.foreground.selective_update and \
+        params.foreground.selective_source == "model"
     if selective and (cameras is None or foregrounds is not None):
         raise ValueError("foreground selective_update needs the calibrated cameras (cameras= or registration=) and "
                          "the front ends in this process (not foregrounds=)")

@@ -108,6 +108,7 @@ CHANGED = {
     "sensors.cameras.box_foot_std_frac": 0.1,
     "sensors.cameras.box_min_std_m": 0.2,
     "sensors.cameras.box_override": True,
+    "sensors.cameras.box_free_log_odds": -1.0,
     "sensors.cameras.selective_source": "detector",
     "sensors.cameras.generative_people_per_m2": 0.1,
     "sensors.cameras.generative_sigma": 0.01,

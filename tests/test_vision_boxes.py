@@ -130,3 +130,35 @@ def test_bad_box_settings_are_refused_naming_the_field():
             BoxEvidenceParams(**change)
     with pytest.raises(ValueError, match="boxes: expected 1 entries"):
         box_evidence([camera()], [], PlaneStack.from_extent((0.1,), (0, 1), (0, 1), 0.1), BoxEvidenceParams(1.0))
+
+
+def test_free_space_where_the_camera_sees_the_ground_outside_every_box():
+    from planefuse.vision import lookups_from_cameras
+
+    cam = camera()
+    stack = PlaneStack.from_extent((0.1, 1.0), (-3.05, 2.95), (-1.05, 4.95), 0.1)
+    lk = lookups_from_cameras([cam], stack)[0]
+    box = drawn_box(cam, (0.0, 2.0), 1.7, width_px=40.0)
+    params = BoxEvidenceParams(free_log_odds=-1.5)
+    L = box_evidence([cam], [PersonBoxes(box[None], np.ones(1))], stack, params, lookups=[lk])
+    seen = lk.visible[0]
+    pix = lk.pixel_index[0]
+    uu, vv = pix % lk.width_px, pix // lk.width_px
+    inside = seen & (uu >= np.floor(box[0])) & (uu < np.ceil(box[0] + box[2])) & (vv >= np.floor(box[1])) & \
+        (vv < np.ceil(box[1] + box[3]))
+    expected = np.where(seen & ~inside, -1.5, 0.0)
+    np.testing.assert_array_equal(L[0], expected)
+    np.testing.assert_array_equal(L[1], expected)  # every plane of the column
+    iy, ix = stack.index_from_xy(np.array([0.0, 2.0]))
+    assert L[0, iy, ix] == 0.0                       # the detected person
+    iy2, ix2 = stack.index_from_xy(np.array([0.0, 3.0]))
+    assert L[0, iy2, ix2] == 0.0                     # behind him: hidden, no evidence
+    assert (L[0][~seen] == 0).all()                  # not seen: nothing
+    # no frame (None): nothing; a frame without boxes: all the seen ground
+    assert (box_evidence([cam], [None], stack, params, lookups=[lk]) == 0).all()
+    np.testing.assert_array_equal(box_evidence([cam], [PersonBoxes.empty()], stack, params, lookups=[lk])[0],
+                                  np.where(seen, -1.5, 0.0))
+    with pytest.raises(ValueError, match="free_log_odds needs one lookup per camera"):
+        box_evidence([cam], [PersonBoxes.empty()], stack, params)
+    with pytest.raises(ValueError, match="free_log_odds must be <= 0"):
+        BoxEvidenceParams(free_log_odds=0.5)

@@ -260,6 +260,11 @@ class CameraSensorConfig(_Model):
         "of the box's height (mapped to the ground: grows with distance)", expected="> 0",
         library="system.camera_params.boxes.foot_std_frac",
     )
+    box_free_log_odds: float = _field(
+        description="With person_detector: log-odds (<= 0) each camera gives a ground cell it sees outside every one "
+        "of its boxes, on every plane (the detector found nobody there; cells inside a box, hidden behind a detected "
+        "person, get none); 0 = none", expected="<= 0", library="system.camera_params.boxes.free_log_odds",
+    )
     box_override: bool = _field(
         description="With box_log_odds: where a box's bump lies, the sensor model's evidence against a person is "
         "dropped (a detected person who stands still has faded from the background model)",

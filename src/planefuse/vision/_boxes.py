@@ -20,8 +20,15 @@ bump of log-odds around ``x_f``::
 
 (per camera the largest bump of its boxes at each cell; the cameras' bumps add, as independent views do). Boxes
 whose foot pixel lies on the image's bottom edge (the feet are cut off) or in an ignore region, and boxes whose
-foot ray does not reach the ground in front of the camera, give nothing. No box gives no evidence against a
-person: a detector misses people hidden in groups, and the background subtraction speaks for the free space.
+foot ray does not reach the ground in front of the camera, give nothing.
+
+A detector that finds nobody at a place it sees says something too (``free_log_odds`` < 0): a cell of the
+ground plane whose pixel in camera c (its lookup on the lowest plane) lies outside every box of c gets
+``free_log_odds`` on every plane -- the detector's miss rate against its rate of boxes on empty ground, about
+``log(1 - recall)``. A cell whose pixel lies inside a box gets nothing from that view: it is the detected person, or
+behind him (hidden: a person there may be missed), so people in groups keep what the other views and the
+background subtraction say. Ghosts of the background subtraction -- light, shadows, a moved object -- are not
+people to a detector, and so lose.
 """
 
 from __future__ import annotations
@@ -58,6 +65,9 @@ class BoxEvidenceParams:
     edge_px : float
         A box whose bottom lies within this many pixels of the image's bottom edge has its feet cut off: no foot
         point [px].
+    free_log_odds : float
+        Log-odds (<= 0) a camera gives a ground cell it sees outside every one of its boxes, on every plane (module
+        doc); 0 = none.
     override : bool
         Where the boxes' bumps lie, the sensor model's evidence *against* a person is dropped before the bumps are
         added (:func:`combine_box_evidence`): a detected person who stands still has faded from the background
@@ -68,10 +78,19 @@ class BoxEvidenceParams:
     foot_std_frac: float = 0.05
     min_std_m: float = 0.1
     edge_px: float = 2.0
+    free_log_odds: float = 0.0
     override: bool = False
 
     def __post_init__(self) -> None:
-        check_fields(self, log_odds=">=0", foot_std_frac=">0", min_std_m=">0", edge_px=">=0")
+        check_fields(self, log_odds=">=0", foot_std_frac=">0", min_std_m=">0", edge_px=">=0", free_log_odds="finite")
+        if self.free_log_odds > 0:
+            raise ValueError(f"BoxEvidenceParams.free_log_odds must be <= 0 (evidence against a person), got "
+                             f"{self.free_log_odds}")
+
+    @property
+    def active(self) -> bool:
+        """True where boxes give any evidence (a bump or a free-space term)."""
+        return self.log_odds > 0 or self.free_log_odds < 0
 
 
 def box_feet(camera: PinholeCamera, boxes: PersonBoxes, foot_std_frac: float = 0.05, min_std_m: float = 0.1,
@@ -128,7 +147,8 @@ def box_feet(camera: PinholeCamera, boxes: PersonBoxes, foot_std_frac: float = 0
 
 
 def box_evidence(cameras: Sequence[PinholeCamera], boxes: Sequence[PersonBoxes | None], stack: PlaneStack,
-                 params: BoxEvidenceParams, ignore_masks: Sequence[np.ndarray | None] | None = None) -> np.ndarray:
+                 params: BoxEvidenceParams, ignore_masks: Sequence[np.ndarray | None] | None = None,
+                 lookups: Sequence | None = None) -> np.ndarray:
     """Log-odds ``(L, ny, nx)`` float32 the cameras' person boxes add on the stack (module doc).
 
     Parameters
@@ -140,10 +160,19 @@ def box_evidence(cameras: Sequence[PinholeCamera], boxes: Sequence[PersonBoxes |
     params : BoxEvidenceParams
     ignore_masks : sequence of (bool ndarray or None), optional
         Per camera, pixels that are not scene evidence.
+    lookups : sequence of ImagePlaneLookup, optional
+        Per camera, the stack's cells -> pixels (ignore regions already left out); needed by
+        ``params.free_log_odds``.
     """
     if len(boxes) != len(cameras):
         raise ValueError(f"boxes: expected {len(cameras)} entries (None where absent), got {len(boxes)}")
     out = np.zeros(stack.shape, np.float32)
+    if params.free_log_odds < 0:
+        if lookups is None or len(lookups) != len(cameras):
+            raise ValueError("box_evidence: free_log_odds needs one lookup per camera")
+        for lk, found in zip(lookups, boxes):
+            if found is not None:
+                out += params.free_log_odds * _seen_outside_boxes(lk, found)[None]
     if params.log_odds == 0:
         return out
     heights = np.asarray(stack.heights_m)
@@ -181,6 +210,19 @@ def combine_box_evidence(log_odds: np.ndarray, boxes_log_odds: np.ndarray, param
     ``(L, ny, nx)``: their sum, where ``params.override`` first lifts the sensor model's negative log-odds to 0
     wherever a bump lies (float32, a new array)."""
     base = np.asarray(log_odds, np.float32)
-    if params.override:
+    if params.override and params.log_odds > 0:
         base = np.where(boxes_log_odds > 0, np.maximum(base, 0.0), base)
     return (base + boxes_log_odds).astype(np.float32, copy=False)
+
+
+def _seen_outside_boxes(lookup, found: PersonBoxes) -> np.ndarray:
+    """Cells ``(ny, nx)`` float32 (1 or 0) of the ground whose pixel in the camera (``lookup`` on the lowest plane)
+    lies outside every box of ``found``."""
+    w, h = lookup.width_px, lookup.height_px
+    inside = np.zeros((h, w), bool)
+    for x, y, bw, bh in np.asarray(found.ltwh_px, float).reshape(-1, 4):
+        c0, c1 = max(0, int(np.floor(x))), min(w, int(np.ceil(x + bw)))
+        r0, r1 = max(0, int(np.floor(y))), min(h, int(np.ceil(y + bh)))
+        inside[r0:r1, c0:c1] = True
+    flat = np.append(inside.ravel(), True)  # the lookup's sentinel (unseen) counts as inside: no evidence
+    return (~flat[lookup.pixel_index[0]]).astype(np.float32)

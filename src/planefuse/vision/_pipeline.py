@@ -505,7 +505,7 @@ def camera_detections(
     last = [None] * fusion.n_cameras if last_live_s is None else list(last_live_s)
     if len(last) != fusion.n_cameras:
         raise ValueError(f"last_live_s: expected {fusion.n_cameras} times (None where none), got {len(last)}")
-    if params.boxes.log_odds > 0 and cameras is None and params.foreground is not None \
+    if params.boxes.active and cameras is None and params.foreground is not None \
             and params.foreground.person_detector is not None:
         raise ValueError("CameraParams.boxes registers person boxes: it needs the calibrated cameras (cameras= or "
                          "registration=)")
@@ -534,8 +534,8 @@ def camera_detections(
             for name, found in zip(fusion.names, boxes):
                 if found is not None:
                     report.person_boxes.setdefault(name, []).append((float(time_s), found))
-        if params.boxes.log_odds > 0 and any(found is not None and len(found) for found in boxes):
-            bumps = box_evidence(cameras, boxes, stack, params.boxes, ignore_masks)
+        if params.boxes.active and any(found is not None for found in boxes):
+            bumps = box_evidence(cameras, boxes, stack, params.boxes, ignore_masks, lookups)
             evidence = Evidence(float(time_s), "cameras", combine_box_evidence(evidence.log_odds, bumps, params.boxes),
                                 copy=False)
         if selective:

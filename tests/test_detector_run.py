@@ -40,7 +40,8 @@ def _params(model: str, box_log_odds: float = 2.0) -> SystemParams:
     cams = base.camera_params
     fg = replace(cams.foreground, person_detector="yolox", person_model=model, person_input_px=(SIDE, SIDE),
                  person_likelihood=None)
-    return replace(base, camera_params=replace(cams, foreground=fg, boxes=replace(cams.boxes, log_odds=box_log_odds)))
+    boxes = replace(cams.boxes, log_odds=box_log_odds, free_log_odds=0.0)
+    return replace(base, camera_params=replace(cams, foreground=fg, boxes=boxes))
 
 
 def _run(rec, out, params, resume=True):

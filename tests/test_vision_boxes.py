@@ -91,7 +91,7 @@ def test_evidence_bumps_the_planes_of_the_body_only():
     cam = camera()
     stack = PlaneStack.from_extent((0.1, 0.5, 1.0, 1.5, 1.9), (-3.05, 2.95), (-1.05, 4.95), 0.1)
     box = drawn_box(cam, (0.0, 2.0), 1.2)  # a cell centre; the head between the planes at 1.0 and 1.5 m
-    params = BoxEvidenceParams(log_odds=3.0)
+    params = BoxEvidenceParams(log_odds=3.0, free_log_odds=0.0)
     L = box_evidence([cam], [PersonBoxes(box[None], np.ones(1))], stack, params)
     iy, ix = stack.index_from_xy(np.array([0.0, 2.0]))
     assert L[:3, iy, ix] == pytest.approx([3.0, 3.0, 3.0], rel=1e-6)
@@ -112,7 +112,7 @@ def test_views_add_and_one_views_boxes_do_not():
     b0 = PersonBoxes(drawn_box(c0, xy, 1.7)[None], np.ones(1))
     foot1 = c1.project(np.array([[*xy, 0.0]]))[0]
     b1 = PersonBoxes(np.array([[foot1[0] - 15, foot1[1] - 120, 30.0, 120.0]]), np.ones(1))
-    params = BoxEvidenceParams(log_odds=2.0)
+    params = BoxEvidenceParams(log_odds=2.0, free_log_odds=0.0)
     iy, ix = stack.index_from_xy(np.array(xy))
     one = box_evidence([c0, c1], [b0, None], stack, params)
     both = box_evidence([c0, c1], [b0, b1], stack, params)
@@ -120,7 +120,7 @@ def test_views_add_and_one_views_boxes_do_not():
     assert one[0, iy, ix] == pytest.approx(2.0, rel=1e-5)
     assert both[0, iy, ix] == pytest.approx(4.0, rel=1e-3)
     np.testing.assert_array_equal(twice, one)
-    assert (box_evidence([c0, c1], [b0, b1], stack, BoxEvidenceParams(log_odds=0.0)) == 0).all()
+    assert (box_evidence([c0, c1], [b0, b1], stack, BoxEvidenceParams(log_odds=0.0, free_log_odds=0.0)) == 0).all()
 
 
 def test_bad_box_settings_are_refused_naming_the_field():
@@ -129,7 +129,7 @@ def test_bad_box_settings_are_refused_naming_the_field():
         with pytest.raises(ValueError, match=field):
             BoxEvidenceParams(**change)
     with pytest.raises(ValueError, match="boxes: expected 1 entries"):
-        box_evidence([camera()], [], PlaneStack.from_extent((0.1,), (0, 1), (0, 1), 0.1), BoxEvidenceParams(1.0))
+        box_evidence([camera()], [], PlaneStack.from_extent((0.1,), (0, 1), (0, 1), 0.1), BoxEvidenceParams(1.0, free_log_odds=0.0))
 
 
 def test_free_space_where_the_camera_sees_the_ground_outside_every_box():
@@ -162,3 +162,13 @@ def test_free_space_where_the_camera_sees_the_ground_outside_every_box():
         box_evidence([cam], [PersonBoxes.empty()], stack, params)
     with pytest.raises(ValueError, match="free_log_odds must be <= 0"):
         BoxEvidenceParams(free_log_odds=0.5)
+
+
+def test_each_detectors_default_free_space_evidence():
+    """The documented defaults: YOLOX's boxes give -3 of free space, HOG's none; a set value is kept."""
+    assert BoxEvidenceParams().for_detector("yolox").free_log_odds == -3.0
+    assert BoxEvidenceParams().for_detector("hog").free_log_odds == 0.0
+    assert BoxEvidenceParams().for_detector(None).free_log_odds == 0.0
+    assert BoxEvidenceParams(free_log_odds=-1.0).for_detector("yolox").free_log_odds == -1.0
+    with pytest.raises(ValueError, match="resolve free_log_odds"):
+        box_evidence([camera()], [None], PlaneStack.from_extent((0.1,), (0, 1), (0, 1), 0.1), BoxEvidenceParams())

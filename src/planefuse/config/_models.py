@@ -246,9 +246,10 @@ class CameraSensorConfig(_Model):
         expected="in (0, 1]", library="system.camera_params.foreground.person_nms_iou",
     )
     person_likelihood: float | None = _field(
-        description="With person_detector: foreground likelihood at least given to a detected person's box; null = "
-        "the boxes leave the foreground as it is (they reach the planes through box_log_odds only)",
-        expected="null or in [0, 1]", library="system.camera_params.foreground.person_likelihood",
+        description="With person_detector: foreground likelihood at least given to a detected person's box; 0 = the "
+        "boxes leave the foreground as it is; null = the detector's default (hog 0.9, yolox 0: its boxes reach the "
+        "planes as evidence, box_free_log_odds)", expected="null or in [0, 1]",
+        library="system.camera_params.foreground.person_likelihood",
     )
     box_log_odds: float = _field(
         description="With person_detector: peak log-odds each box adds around its foot point on the ground, on every "
@@ -260,10 +261,11 @@ class CameraSensorConfig(_Model):
         "of the box's height (mapped to the ground: grows with distance)", expected="> 0",
         library="system.camera_params.boxes.foot_std_frac",
     )
-    box_free_log_odds: float = _field(
+    box_free_log_odds: float | None = _field(
         description="With person_detector: log-odds (<= 0) each camera gives a ground cell it sees outside every one "
         "of its boxes, on every plane (the detector found nobody there; cells inside a box, hidden behind a detected "
-        "person, get none); 0 = none", expected="<= 0", library="system.camera_params.boxes.free_log_odds",
+        "person, get none); 0 = none; null = the detector's default (yolox -3, chosen on the EPFL terrace's tuning "
+        "frames; hog 0)", expected="null or <= 0", library="system.camera_params.boxes.free_log_odds",
     )
     box_override: bool = _field(
         description="With box_log_odds: where a box's bump lies, the sensor model's evidence against a person is "

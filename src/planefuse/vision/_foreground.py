@@ -165,8 +165,9 @@ class ForegroundParams:
         first frame; docs/results.md).
     person_detector : {None, "hog", "yolox"}
         A person detector run on every frame beside the subtractor; the boxes it finds are each person's
-        silhouette in that view, and the likelihood inside them is at least ``person_likelihood`` (a person who
-        stands still and has faded into the background model is still foreground). ``"yolox"``: a pretrained
+        silhouette in that view: the likelihood inside them is at least ``person_likelihood`` (a person who
+        stands still and has faded into the background model is still foreground), and they reach the planes as
+        :class:`~planefuse.vision.BoxEvidenceParams` evidence (``CameraParams.boxes``). ``"yolox"``: a pretrained
         YOLOX ONNX model (``person_model``; :class:`~planefuse.vision.YoloxDetector`), the whole box.
         ``"hog"``: OpenCV's HOG + linear SVM people detector (Dalal & Triggs 2005, trained on INRIA Person; its
         model ships inside OpenCV: the core module in OpenCV 4, ``opencv-contrib`` from OpenCV 5), the body of
@@ -190,9 +191,13 @@ class ForegroundParams:
     person_nms_iou : float
         ``"yolox"``: a box overlapping a better one by more than this IoU is suppressed (YOLOX's 0.45).
     person_likelihood : float or None
-        Foreground likelihood at least given to a detected person's box, in [0, 1]; None: the boxes do not change
-        the foreground (they reach the planes only as :class:`~planefuse.vision.BoxEvidenceParams` evidence) and
-        ``person_outside_weight`` is not used.
+        Foreground likelihood at least given to a detected person's box, in [0, 1]; 0 leaves the foreground as it
+        is (and ``person_outside_weight`` is not used). None: the detector's default, ``"hog"`` 0.9, ``"yolox"`` 0:
+        YOLOX's boxes filled into the foreground the generative model explains were worse than the subtraction
+        alone on the EPFL terrace's tuning frames (1000-1499 cold, filtered MODA 0.621 / 0.781 at 0.5 / 1.0 m
+        against 0.696 / 0.895; the boxes alone, 0.638 / 0.808): a box holds the background beside the person, which
+        the model explains by more people. YOLOX's boxes reach the planes as evidence of free space instead
+        (:class:`~planefuse.vision.BoxEvidenceParams` ``free_log_odds``).
     person_outside_weight : float
         The subtractor's foreground outside every box, relative to ``floor``, is multiplied by this, in [0, 1]:
         foreground a detector does not explain counts less (a shadow, a lighting change), but a person the
@@ -231,7 +236,7 @@ class ForegroundParams:
     person_upscale: float = 2.0
     person_min_score: float | None = None
     person_nms_iou: float = 0.45
-    person_likelihood: float | None = 0.9
+    person_likelihood: float | None = None
     person_outside_weight: float = 1.0
 
     def __post_init__(self) -> None:
@@ -276,6 +281,13 @@ class ForegroundParams:
                 require(False, self, "person_input_px", str(exc))
         require(self.method != "none" or self.person_detector is not None, self, "method",
                 "'none' (no background subtraction) needs a person_detector: nothing else would see people")
+
+    @property
+    def person_level(self) -> float:
+        """:attr:`person_likelihood`, or the detector's default (``"hog"`` 0.9, ``"yolox"`` 0)."""
+        if self.person_likelihood is not None:
+            return float(self.person_likelihood)
+        return 0.9 if self.person_detector == "hog" else 0.0
 
     @property
     def min_person_score(self) -> float:
@@ -600,9 +612,8 @@ class PersonDetector:
                                  f"{cv2.__version__} (OpenCV 5 moved it to opencv-contrib-python-headless)")
             self._hog = cv2.HOGDescriptor()
             self._hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
-        self._level = None if params.person_likelihood is None else float(params.person_likelihood)
-        self._quantised_level = None if self._level is None else \
-            int(quantise_foreground(np.float32([self._level])).ravel()[0])
+        self._level = params.person_level
+        self._quantised_level = int(quantise_foreground(np.float32([self._level])).ravel()[0])
         self.last_boxes = PersonBoxes.empty()
 
     def detect(self, frame: np.ndarray) -> PersonBoxes:
@@ -639,9 +650,9 @@ class PersonDetector:
     def mark(self, frame: np.ndarray, like: np.ndarray, quantised: bool) -> None:
         """Raise ``like`` (the frame's foreground likelihood, float or quantised) to at least ``person_likelihood``
         on the people found in ``frame``, and scale what lies outside them by ``person_outside_weight`` towards
-        ``floor``, in place (:attr:`last_boxes` only, where ``person_likelihood`` is None)."""
+        ``floor``, in place (:attr:`last_boxes` only, where the level is 0)."""
         self.last_boxes = self.detect(frame)
-        if self._level is None:
+        if self._level == 0:
             return
         h, w = like.shape
         inside = self.silhouettes(self.last_boxes, h, w)

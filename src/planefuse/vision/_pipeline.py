@@ -505,8 +505,9 @@ def camera_detections(
     last = [None] * fusion.n_cameras if last_live_s is None else list(last_live_s)
     if len(last) != fusion.n_cameras:
         raise ValueError(f"last_live_s: expected {fusion.n_cameras} times (None where none), got {len(last)}")
-    if params.boxes.active and cameras is None and params.foreground is not None \
-            and params.foreground.person_detector is not None:
+    detector = None if params.foreground is None else params.foreground.person_detector
+    box_params = params.boxes.for_detector(detector)
+    if detector is not None and box_params.active and cameras is None:
         raise ValueError("CameraParams.boxes registers person boxes: it needs the calibrated cameras (cameras= or "
                          "registration=)")
     for i, (time_s, fgs, status, boxes) in enumerate(foregrounds):
@@ -534,9 +535,9 @@ def camera_detections(
             for name, found in zip(fusion.names, boxes):
                 if found is not None:
                     report.person_boxes.setdefault(name, []).append((float(time_s), found))
-        if params.boxes.active and any(found is not None for found in boxes):
-            bumps = box_evidence(cameras, boxes, stack, params.boxes, ignore_masks, lookups)
-            evidence = Evidence(float(time_s), "cameras", combine_box_evidence(evidence.log_odds, bumps, params.boxes),
+        if box_params.active and any(found is not None for found in boxes):
+            bumps = box_evidence(cameras, boxes, stack, box_params, ignore_masks, lookups)
+            evidence = Evidence(float(time_s), "cameras", combine_box_evidence(evidence.log_odds, bumps, box_params),
                                 copy=False)
         if selective:
             for fe, people in zip(front_ends, people_masks(cameras, detections.xy_m, person)):

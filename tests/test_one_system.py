@@ -28,7 +28,9 @@ def _metrics(folder: Path) -> dict:
     return {k: v for k, v in m.items() if k not in TIMING}
 
 
-def test_demo_and_run_of_its_recording_write_the_same_tracks_detections_and_metrics(tmp_path):
+def test_demo_equals_simulate_config_init_and_run_byte_for_byte(tmp_path):
+    """``planefuse demo`` = ``planefuse simulate`` + ``planefuse config init --recording`` + ``planefuse run``: the
+    same tracks, detections and metrics (issue 38: config init wrote planes from 0.0 m and the whole room)."""
     demo, run = tmp_path / "demo", tmp_path / "run"
     r = runner.invoke(app, ["demo", "--out", str(demo), "--duration-s", "3", "--seed", "1", "--quiet"])
     assert r.exit_code == 0, r.output
@@ -40,8 +42,12 @@ def test_demo_and_run_of_its_recording_write_the_same_tracks_detections_and_metr
     assert cfg == yaml.safe_load(RunConfig(recording=Path(cfg["recording"]),
                                            outputs={"out_dir": Path(cfg["outputs"]["out_dir"])}
                                            ).plan().config_text)  # the default configuration
-    cfg["recording"], cfg["outputs"]["out_dir"] = str(tmp_path / "rec"), str(run)
-    (tmp_path / "run.yaml").write_text(yaml.safe_dump(cfg))
+    # the user's way: `config init` on the simulated recording writes the simulated profile, the library's defaults
+    r = runner.invoke(app, ["config", "init", str(tmp_path / "run.yaml"), "--recording", str(tmp_path / "rec")],
+                      terminal_width=200)
+    assert r.exit_code == 0 and "profile simulated" in r.output, r.output
+    text = (tmp_path / "run.yaml").read_text()
+    (tmp_path / "run.yaml").write_text(text.replace("out_dir: planefuse-out", f"out_dir: {run}"))
     r = runner.invoke(app, ["run", str(tmp_path / "run.yaml")], terminal_width=200)
     assert r.exit_code == 0, r.output
     flat = " ".join(r.output.split())

@@ -54,7 +54,7 @@ def check(
 ) -> None:
     """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running."""
     try:
-        cfg = load_config(config) if not config.is_dir() else recording_check_config(config)
+        cfg, chosen = (load_config(config), ()) if not config.is_dir() else recording_check_config(config)
     except ConfigError as err:
         if log_json:
             print(json.dumps({"ok": False, "file": str(err.file), "issues": [
@@ -63,6 +63,8 @@ def check(
             raise typer.Exit(2) from None
         exit_on_config_error(err)
     report = CheckReport()
+    for message in chosen:
+        report.add("info", "configuration", message)
     if not cfg.recording.is_dir():
         report.add("error", "recording", f"folder {cfg.recording} does not exist")
     elif not (cfg.recording / SCENE_FILE).is_file():
@@ -139,7 +141,11 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
                    "video, filtered MODA 0.58 generative against -3.0 per cell; simulated, 0.65-0.67 against -0.45 to "
                    "-0.80; docs/results.md). Consider sensor_model: generative with scripts/terrace.yaml's settings")
     if cams:
+        from ..registration import camera_view_findings
+
         _check_camera_rate(cfg, rec, report)
+        for level, subject, message in camera_view_findings(rec.cameras, stack):
+            report.add(level, subject, message)
     sub = check_recording(rec.cameras if cams else [], stack, times, recording=rec,
                           frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues

@@ -688,10 +688,11 @@ def test_a_recording_imported_without_an_area_gets_one_proposed_no_error_loop(in
              "--calib", f"c1={d / 'c1.yaml'}")
     assert r.exit_code == 0, r.output
     assert "room_xy_m" not in (out / "scene.yaml").read_text()
-    r = _cli("check", out, "--log-json")
+    r = _cli("check", out, "--log-json", "--figures", d / "pictures")
     found = json.loads(r.output)
     assert any("monitored area proposed" in i["message"] for i in found["issues"]), r.output
     assert r.exit_code == 0 and found["ok"], r.output
+    assert sorted(p.name for p in (d / "pictures").iterdir()) == ["camera_c0.png", "camera_c1.png", "coverage.png"]
     r = _cli("config", "init", d / "run.yaml", "--recording", out)
     assert r.exit_code == 0 and "monitored area proposed" in " ".join(r.output.split()), r.output
     cfg = load_config(d / "run.yaml")

@@ -26,7 +26,7 @@ MIN_PERSON_PX = 20.0
 #: Camera height [m] below which people hide each other in the views (warned about).
 LOW_CAMERA_M = 2.5
 #: Depression of the optical axis below the horizon [deg] under which a camera looks nearly horizontally.
-SHALLOW_AXIS_DEG = 20.0
+SHALLOW_AXIS_DEG = 12.0
 
 
 def max_useful_range_m(camera: PinholeCamera, min_person_px: float = MIN_PERSON_PX) -> float:

@@ -13,12 +13,24 @@ from ._figures import (
     png_bytes,
     run_figures,
 )
+from ._preview import (
+    area_outline_world,
+    ground_grid_world,
+    installation_preview,
+    plot_camera_preview,
+    plot_coverage,
+)
 from ._rerun import RerunLogger, plane_entity, rrd_entity_paths
 
 __all__ = [
     "FigureInputs",
     "RerunLogger",
     "animate_stack",
+    "area_outline_world",
+    "ground_grid_world",
+    "installation_preview",
+    "plot_camera_preview",
+    "plot_coverage",
     "grid_lines_world",
     "occupancy_mean",
     "plane_entity",

@@ -33,3 +33,41 @@ def test_installation_preview_draws_every_camera_and_the_coverage_map():
     pictures = installation_preview(rec, stack, frame_index=-1)
     assert sorted(pictures) == sorted([f"camera_{c.name}" for c in rec.cameras] + ["coverage"])
     assert all(png.startswith(b"\x89PNG") for png in pictures.values())
+
+
+def test_animation_max_frames_subsamples_with_a_warning_and_none_shows_every_step(tmp_path):
+    """Issue 38: the animation's step limit is a configuration field (outputs.animation_max_frames); None = all."""
+    import warnings
+
+    import imageio.v3 as iio
+    import pytest
+
+    from planefuse.viz import animate_stack
+
+    stack = PlaneStack.from_extent((0.1, 1.0), (0.0, 1.0), (0.0, 1.0), 0.25)
+    occ = np.random.default_rng(0).random((12,) + stack.shape).astype(np.float32)
+    with pytest.warns(UserWarning, match=r"shows 5 of 12 steps.*animation_max_frames: null"):
+        animate_stack(tmp_path / "a.gif", stack, occ, max_frames=5)
+    assert iio.improps(tmp_path / "a.gif", index=None).shape[0] == 5
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        animate_stack(tmp_path / "b.gif", stack, occ, max_frames=None)
+    assert iio.improps(tmp_path / "b.gif", index=None).shape[0] == 12
+
+
+def test_camera_tracks_are_drawn_from_the_feet_to_the_head_in_their_floor_plan_colour():
+    from planefuse.viz import plot_camera_tracks, track_colour
+
+    rec = simulate(default_scene_config(duration_s=0.2, seed=1))
+    cam = rec.cameras[0]
+    image = rec.camera(cam.name).frame(0)[..., ::-1]
+    tracks = {"step": np.array([0, 0]), "track_id": np.array([3, 7]), "x_m": np.array([4.0, 6.0]),
+              "y_m": np.array([5.0, 4.0])}
+    fig = plot_camera_tracks(cam, [(0, 0.0, image)], np.array([0.0]), tracks)
+    ax = fig.axes[0]
+    lines = [l for l in ax.get_lines() if l.get_linestyle() == "-"]
+    assert len(lines) == 2 and "frame 0, t = 0.00 s (step 0): 2 tracks" in ax.get_title()
+    for line, tid, x, y in zip(lines, (3, 7), (4.0, 6.0), (5.0, 4.0)):
+        expected = cam.project(np.array([[x, y, 0.0], [x, y, 1.7]]))
+        np.testing.assert_allclose(np.c_[line.get_xdata(), line.get_ydata()], expected)
+        assert line.get_color() == track_colour(tid)

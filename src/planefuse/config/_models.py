@@ -560,6 +560,11 @@ class OutputsConfig(_Model):
                          library="outputs.rerun")
     figure_dpi: int = _field(description="Resolution of the figures", unit="dpi", expected="an integer >= 1",
                              library="outputs.figure_dpi")
+    animation_max_frames: int | None = _field(
+        description="The animation shows at most this many output steps, evenly spaced (a longer run is subsampled "
+        "and a warning says so); null = every step", unit="steps", expected="null or an integer >= 1",
+        library="outputs.animation_max_frames",
+    )
 
 
 def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:

@@ -31,11 +31,16 @@ def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) 
     from ..viz import FigureInputs
 
     cams = rec.cameras
-    images, ignored = {}, {}
+    images, labels, frames, ignored = {}, {}, {}, {}
     for c in cams:
         cs = rec.camera(c.name)
         if len(cs):
-            images[c.name] = cs.frame(len(cs) // 2)
+            mid = len(cs) // 2
+            images[c.name] = cs.frame(mid)[..., ::-1]  # BGR -> RGB
+            labels[c.name] = f"frame {mid}, t = {cs.times_s[mid]:.2f} s"
+            # four frames across the run with the tracks drawn (RGB for matplotlib)
+            picks = np.unique(np.linspace(0, len(cs) - 1, min(4, len(cs))).round().astype(int))
+            frames[c.name] = [(int(i), float(cs.times_s[i]), cs.frame(int(i))[..., ::-1]) for i in picks]
         if cs.ignore_mask is not None:
             ignored[c.name] = cs.ignore_mask
     rep = report
@@ -51,7 +56,8 @@ def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) 
     return FigureInputs(cameras=cams, camera_images=images, laser_points_world=laser, saliency=sal,
                         saliency_times_s=np.asarray(rep.sound_times_s) if sal is not None else None,
                         saliency_azimuth_rad=rep.sound_azimuth_grid_rad if sal is not None else None,
-                        ground_truth=gt, ignore_masks=ignored)
+                        ground_truth=gt, ignore_masks=ignored, camera_image_labels=labels,
+                        camera_frames=frames)
 
 
 def _log_modalities(logger, rec: Recording, report: ModalityReport, step_times: np.ndarray,
@@ -194,7 +200,8 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         from ..viz import animate_stack
 
         p = out.out_dir / f"animation.{settings.animation}"
-        animate_stack(p, out.stack, out.occupancy_array(), out.tracks_table())
+        animate_stack(p, out.stack, out.occupancy_array(), out.tracks_table(),
+                      max_frames=settings.animation_max_frames)
         written["animation"] = p
     if settings.report:
         from ..report import write_report

@@ -6,12 +6,14 @@ from ._figures import (
     grid_lines_world,
     occupancy_mean,
     plot_camera_grid,
+    plot_camera_tracks,
     plot_laser_points,
     plot_metrics,
     plot_plane_occupancy,
     plot_saliency,
     png_bytes,
     run_figures,
+    track_colour,
 )
 from ._preview import (
     area_outline_world,
@@ -35,6 +37,7 @@ __all__ = [
     "occupancy_mean",
     "plane_entity",
     "plot_camera_grid",
+    "plot_camera_tracks",
     "plot_laser_points",
     "plot_metrics",
     "plot_plane_occupancy",
@@ -43,4 +46,5 @@ __all__ = [
     "rrd_entity_paths",
     "run_figures",
     "stack_frames",
+    "track_colour",
 ]

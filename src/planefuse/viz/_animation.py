@@ -111,7 +111,7 @@ def animate_stack(
     tracks: Mapping[str, np.ndarray] | None = None,
     *,
     fps: float = 10.0,
-    max_frames: int = 300,
+    max_frames: int | None = 300,
     max_width_px: int = 1200,
     block_steps: int = 16,
 ) -> Path:
@@ -125,8 +125,8 @@ def animate_stack(
     tracks : dict of column arrays, optional
     fps : float
         Frames per second of the animation.
-    max_frames : int
-        Longer runs are subsampled evenly (the count dropped is warned about).
+    max_frames : int or None
+        Longer runs are subsampled evenly (the count dropped is warned about); None = every step.
     max_width_px : int
         Cells are drawn with as many pixels as fit this width (at least 1, at most 8).
     block_steps : int
@@ -144,9 +144,11 @@ def animate_stack(
     T = occupancy.shape[0]
     if T == 0:
         raise ValueError("occupancy has no time steps to animate")
-    idx = np.unique(np.linspace(0, T - 1, min(T, max_frames)).round().astype(int))
+    shown = T if max_frames is None else min(T, int(max_frames))
+    idx = np.unique(np.linspace(0, T - 1, shown).round().astype(int))
     if len(idx) < T:
-        warnings.warn(f"animation shows {len(idx)} of {T} steps (max_frames={max_frames})", stacklevel=2)
+        warnings.warn(f"animation shows {len(idx)} of {T} steps, evenly spaced (max_frames={max_frames}; every step: "
+                      "outputs.animation_max_frames: null)", stacklevel=2)
     L, ny, nx = stack.shape
     cell_px = max(1, min(8, (max_width_px - 4 * (L - 1)) // (L * nx)))
 

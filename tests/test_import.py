@@ -698,3 +698,30 @@ def test_a_recording_imported_without_an_area_gets_one_proposed_no_error_loop(in
     cfg = load_config(d / "run.yaml")
     assert cfg.planes.x_range_m is not None and cfg.planes.y_range_m is not None
     assert cfg.planes.heights_m == [0.1, 0.5, 1.0, 1.5]  # import's default planes are the library's
+
+
+def test_ignore_rects_in_the_run_configuration_equal_the_imports(installation):
+    """Issue 38: an ignore region can be set in the run configuration (sensors.cameras.ignore_rects_px) as well as at
+    import (--ignore-rect): the same pixels are unobserved; a wrong camera or a rectangle past the image is refused."""
+    from planefuse.io import read_recording
+    from planefuse.pipeline import recording_with_ignore_rects
+
+    d, *_ = installation
+    base = ["--camera", f"c0={d / 'c0.mkv'}", "--camera", f"c1={d / 'c1'}", "--rate", "c1=25", "--calib-format",
+            "opencv", "--units", "mm", "--calib", f"c0={d / 'c0.yaml'}", "--calib", f"c1={d / 'c1.yaml'}"]
+    assert _cli("import", d / "with", *base, "--ignore-rect", "c0=10,5,40,30").exit_code == 0
+    assert _cli("import", d / "without", *base).exit_code == 0
+    imported = read_recording(d / "with").camera("c0").ignore_mask
+    plain = read_recording(d / "without")
+    configured = recording_with_ignore_rects(plain, (("c0", 10, 5, 40, 30),))
+    np.testing.assert_array_equal(configured.camera("c0").ignore_mask, imported)
+    assert plain.camera("c0").ignore_mask is None  # the recording itself is not changed
+    with pytest.raises(ValueError, match="names camera 'c9', which the recording does not have"):
+        recording_with_ignore_rects(plain, (("c9", 0, 0, 5, 5),))
+    with pytest.raises(ValueError, match=r"reaches past its 96x72 px image"):
+        recording_with_ignore_rects(plain, (("c1", 50, 50, 97, 60),))
+    r = _cli("config", "init", d / "run.yaml", "--recording", d / "without")
+    assert r.exit_code == 0
+    text = (d / "run.yaml").read_text().replace("ignore_rects_px: []", "ignore_rects_px: [[c0, 10, 5, 40, 30]]")
+    (d / "run.yaml").write_text(text)
+    assert load_config(d / "run.yaml").system_params().camera_ignore_rects_px == (("c0", 10, 5, 40, 30),)

@@ -79,6 +79,7 @@ CHANGED = {
     "sensors.cameras.attitude_tolerance_px": 2.0,
     "sensors.cameras.imu_filter": "mahony",
     "sensors.cameras.sensor_model": "generative",
+    "sensors.cameras.ignore_rects_px": [("cam0", 0, 0, 360, 200)],
     "sensors.cameras.learning_rate": 0.01,
     "sensors.cameras.shadow_likelihood": 0.5,
     "sensors.cameras.gain_compensation": True,
@@ -226,7 +227,7 @@ RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cam
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
-              "models.filter.camera_correlation_s", "scene.occluder_boxes_m"]
+              "models.filter.camera_correlation_s", "scene.occluder_boxes_m", "sensors.cameras.ignore_rects_px"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)

@@ -154,6 +154,12 @@ class CameraSensorConfig(_Model):
         expected="imufusion, madgwick, mahony or ekf",
         library="system.camera_params.registration.imu_filter",
     )
+    ignore_rects_px: list[tuple[str, int, int, int, int]] = _field(
+        [], description="Image regions that are not scene evidence, besides the recording's own (planefuse import "
+        "--ignore-rect): [camera, u_min, v_min, u_max, v_max] each, max exclusive (a watermark, a TV, a privacy "
+        "zone found after the import)", unit="px", expected="camera name and 0 <= u_min < u_max, 0 <= v_min < v_max",
+        library="system.camera_ignore_rects_px",
+    )
     sensor_model: Literal["cell", "generative"] = _field(
         description="Cameras' evidence on the planes: per cell (each cell scored on its own) or generative (people "
                     "on the grid explain each whole foreground image, Fleuret et al. 2008; docs/cameras.md)",

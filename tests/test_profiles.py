@@ -128,8 +128,10 @@ def test_config_for_a_simulated_recording_is_the_library_defaults_and_real_video
         fit = config_for_recording(_rec(source, cams, room=None))
         assert (*fit.config.planes.x_range_m, *fit.config.planes.y_range_m) == pytest.approx((-0.5, 2.5, -2.0, 2.0))
         assert any("monitored area proposed" in m for m in fit.messages)
-    with pytest.raises(ValueError, match="no monitored area .* share no ground"):
-        config_for_recording(_rec("planefuse import x", [_nadir("a", 0.0), _nadir("b", 20.0)], room=None))
+    # no shared ground: a configuration to edit (no error that sends the user back), and the message saying what to set
+    fit = config_for_recording(_rec("planefuse import x", [_nadir("a", 0.0), _nadir("b", 20.0)], room=None))
+    assert fit.config.planes.x_range_m is None
+    assert any("set planes.x_range_m and planes.y_range_m" in m for m in fit.messages)
     with pytest.raises(ValueError, match="unknown profile 'indoor'"):
         config_for_recording(_rec("planefuse import x", cams), "indoor")
 

@@ -228,7 +228,8 @@ def config_for_recording(rec, profile: str | None = None) -> FittedConfig:
     Raises
     ------
     ValueError
-        An unknown profile, or a recording without a monitored area whose cameras share no ground.
+        An unknown profile. (A recording without a monitored area whose cameras share no ground gets a
+        configuration without one, ``planes.x_range_m`` null, and a message asking for it.)
     """
     from ..registration import proposed_area_xy_m
     from ._load import config_from_dict
@@ -252,16 +253,21 @@ def config_for_recording(rec, profile: str | None = None) -> FittedConfig:
     if area is None:
         area = proposed_area_xy_m(rec.cameras) if rec.camera_streams else None
         if area is None:
-            raise ValueError(f"{rec.root}: the recording has no monitored area (room_xy_m) and its cameras share no "
-                             "ground seen by two of them: give it with `planefuse import --room X0,X1,Y0,Y1`, or set "
-                             "planes.x_range_m and planes.y_range_m in the configuration")
-        messages.append(f"monitored area proposed from the ground at least two cameras see (people >= 20 px tall): "
-                        f"x {area[0]:g}..{area[1]:g} m, y {area[2]:g}..{area[3]:g} m; check it on the pictures of "
-                        "`planefuse check`, and change planes.x_range_m / y_range_m where it should differ")
-    if chosen.name != SIMULATED.name or rec.room_xy_m is None:
-        changes["planes"] = {"x_range_m": [area[0], area[1]], "y_range_m": [area[2], area[3]]}
+            messages.append("the recording has no monitored area (room_xy_m) and no ground is seen by two of its "
+                            "cameras: set planes.x_range_m and planes.y_range_m in the configuration (or import "
+                            "again with --room X0,X1,Y0,Y1)")
+        else:
+            messages.append(f"monitored area proposed from the ground at least two cameras see (people >= 20 px "
+                            f"tall): x {area[0]:g}..{area[1]:g} m, y {area[2]:g}..{area[3]:g} m; check it on the "
+                            "pictures of `planefuse check --figures`, and change planes.x_range_m / y_range_m where "
+                            "it should differ")
+    planes: dict = {}
+    if area is not None and (chosen.name != SIMULATED.name or rec.room_xy_m is None):
+        planes.update(x_range_m=[area[0], area[1]], y_range_m=[area[2], area[3]])
     if chosen.name != SIMULATED.name:
-        changes["planes"]["heights_m"] = list(rec.planes_heights_m)
+        planes["heights_m"] = list(rec.planes_heights_m)
+    if planes:
+        changes["planes"] = planes
     data = _merged(_merged(data, changes), chosen.changes())
     return FittedConfig(config_from_dict(data, f"profile {chosen.name}"), chosen, tuple(messages))
 

@@ -146,7 +146,8 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport, figures: Path | N
                    f"{len(rec.cameras)} camera(s) with the per-cell model: it reports people where the views' lines of "
                    "sight cross (ghosts); the generative model explains them away (two cameras: EPFL terrace real "
                    "video, filtered MODA 0.58 generative against -3.0 per cell; simulated, 0.65-0.67 against -0.45 to "
-                   "-0.80; docs/results.md). Consider sensor_model: generative with scripts/terrace.yaml's settings")
+                   "-0.80; docs/results.md). Use the real-video profile's sensor_model: generative and its companions: "
+                   "planefuse config init --profile real-video")
     if cams:
         from ..registration import camera_view_findings
 

@@ -164,6 +164,7 @@ CHANGED = {
     "outputs.rerun": True,
     "outputs.figure_dpi": 60,
     "outputs.animation_max_frames": 40,
+    "outputs.camera_videos": True,
 }
 
 
@@ -260,7 +261,7 @@ def test_resume_key_ignores_output_options_and_follows_models(short_recording, t
     key = resume_key(cfg.plan(), short_recording)
     for path, value in (("outputs.figures", False), ("outputs.out_dir", "elsewhere"), ("outputs.report", False),
                         ("outputs.animation", "none"), ("outputs.figure_dpi", 50), ("outputs.rerun", True),
-                        ("outputs.animation_max_frames", None)):
+                        ("outputs.animation_max_frames", None), ("outputs.camera_videos", True)):
         assert resume_key(config_from_dict(_nested(path, value)).plan(), short_recording) == key, path
     for path, value in (("models.filter.decay_rate_hz", 1.0), ("outputs.chunk_steps", 10), ("planes.heights_m", [1.0])):
         assert resume_key(config_from_dict(_nested(path, value)).plan(), short_recording) != key, path

@@ -71,3 +71,41 @@ def test_camera_tracks_are_drawn_from_the_feet_to_the_head_in_their_floor_plan_c
         expected = cam.project(np.array([[x, y, 0.0], [x, y, 1.7]]))
         np.testing.assert_allclose(np.c_[line.get_xdata(), line.get_ydata()], expected)
         assert line.get_color() == track_colour(tid)
+
+
+def test_camera_track_frames_draw_each_track_in_its_colour_at_its_step():
+    from planefuse.viz import camera_track_frames, track_colour
+
+    rec = simulate(default_scene_config(duration_s=0.4, seed=1))
+    cam = rec.cameras[0]
+    stream = rec.camera(cam.name)
+    step_times = np.array([0.0, 0.2])
+    tracks = {"step": np.array([1]), "track_id": np.array([2]), "x_m": np.array([4.0]), "y_m": np.array([5.0])}
+    plain, drawn = list(camera_track_frames(cam, stream, step_times, tracks))
+    i = int(np.argmin(np.abs(stream.times_s - 0.2)))
+    uv = cam.project(np.array([[4.0, 5.0, 0.85]]))[0]  # the segment's middle
+    u, v = (int(round(c)) for c in uv)
+    b, g, r = (int(x) for x in drawn[v, u])
+    expected = tuple(int(255 * c) for c in track_colour(2)[:3])
+    assert max(abs(r - expected[0]), abs(g - expected[1]), abs(b - expected[2])) <= 2
+    # step 0 has no track: only the label differs from the camera's frame
+    frame0 = stream.frame(int(np.argmin(np.abs(stream.times_s))))
+    assert np.array_equal(plain[40:], frame0[40:]) and not np.array_equal(drawn[40:], stream.frame(i)[40:])
+
+
+def test_outputs_camera_videos_writes_one_video_per_camera_with_a_frame_per_step(tmp_path):
+    import cv2
+
+    from planefuse.outputs import OutputSettings
+    from planefuse.pipeline import RunPlan, run_to_folder
+
+    rec = simulate(default_scene_config(duration_s=1.4, seed=2))
+    settings = OutputSettings(zarr=False, figures=False, animation="none", report=False, camera_videos=True)
+    run_to_folder(rec, RunPlan(SystemParams(laser=False, sound=False), tmp_path / "out", settings),
+                  progress_mode="quiet")
+    for cam in rec.cameras:
+        cap = cv2.VideoCapture(str(tmp_path / "out" / "figures" / f"camera_{cam.name}_tracks.mp4"))
+        assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 7  # 1.4 s at the output period 0.2 s
+        cap.release()
+    listed = (tmp_path / "out" / "figures" / ".planefuse-figures").read_text().split()
+    assert sorted(listed) == sorted(f"camera_{c.name}_tracks.mp4" for c in rec.cameras)

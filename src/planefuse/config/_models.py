@@ -571,6 +571,10 @@ class OutputsConfig(_Model):
         "and a warning says so); null = every step", unit="steps", expected="null or an integer >= 1",
         library="outputs.animation_max_frames",
     )
+    camera_videos: bool = _field(
+        description="Also write figures/camera_<name>_tracks.mp4 per camera: its frame at each output step with the tracks "
+        "drawn from the feet to the head (at most animation_max_frames steps)", library="outputs.camera_videos",
+    )
 
 
 def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:

@@ -1,6 +1,6 @@
 """What a user looks at: matplotlib figures, the plane-stack animation and the rerun recording."""
 
-from ._animation import animate_stack, stack_frames
+from ._animation import animate_stack, camera_track_frames, camera_tracks_video, stack_frames
 from ._figures import (
     FigureInputs,
     grid_lines_world,
@@ -29,6 +29,8 @@ __all__ = [
     "RerunLogger",
     "animate_stack",
     "area_outline_world",
+    "camera_track_frames",
+    "camera_tracks_video",
     "ground_grid_world",
     "installation_preview",
     "plot_camera_preview",

@@ -66,6 +66,8 @@ class FigureInputs:
     camera_frames : dict of str -> list of (int, float, ndarray)
         Per camera name, a few frames ``(frame index, time [s], image RGB (H, W, 3) uint8)`` on which the tracks
         of the output step nearest in time are drawn (``camera_<name>_tracks``).
+    camera_streams : dict of str -> planefuse.io.CameraStream
+        Per camera name, all its frames (for ``outputs.camera_videos``).
     """
 
     cameras: list[PinholeCamera] = field(default_factory=list)
@@ -78,6 +80,7 @@ class FigureInputs:
     ignore_masks: dict[str, np.ndarray] = field(default_factory=dict)
     camera_image_labels: dict[str, str] = field(default_factory=dict)
     camera_frames: dict[str, list] = field(default_factory=dict)
+    camera_streams: dict[str, object] = field(default_factory=dict)
 
 
 def png_bytes(fig: Figure, dpi: int = 100) -> bytes:

@@ -572,8 +572,8 @@ class OutputsConfig(_Model):
         library="outputs.animation_max_frames",
     )
     camera_videos: bool = _field(
-        description="Also write figures/camera_<name>_tracks.mp4 per camera: its frame at each output step with the tracks "
-        "drawn from the feet to the head (at most animation_max_frames steps)", library="outputs.camera_videos",
+        description="Also write figures/camera_<name>_tracks.mp4 per camera: its frame at each output step with the "
+        "tracks drawn from the feet to the head (at most animation_max_frames steps)", library="outputs.camera_videos",
     )
 
 

@@ -110,7 +110,7 @@ REAL_VIDEO = Profile(
                        "(EPFL terrace frames 1000-1499 from a cold start, filtered MOTA 0.358 against 0.480)"),
         ProfileSetting("sensors.cameras.sensor_model", "generative",
                        "few cameras: the generative model explains each image by people, removing the ghosts where "
-                       f"two views' silhouettes cross (terrace filtered MODA 0.58 against -3.0 per cell)"),
+                       "two views' silhouettes cross (terrace filtered MODA 0.58 against -3.0 per cell)"),
         ProfileSetting("sensors.cameras.generative_sigma", 0.005, f"chosen on the {_TERRACE}"),
         ProfileSetting("sensors.cameras.generative_people_per_m2", 0.05, f"chosen on the {_TERRACE}"),
         ProfileSetting("sensors.cameras.generative_evidence_prior", "detection",

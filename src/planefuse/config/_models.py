@@ -155,6 +155,12 @@ class CameraSensorConfig(_Model):
         expected="imufusion, madgwick, mahony or ekf",
         library="system.camera_params.registration.imu_filter",
     )
+    ignore_rects_px: list[tuple[str, int, int, int, int]] = _field(
+        [], description="Image regions that are not scene evidence, besides the recording's own (planefuse import "
+        "--ignore-rect): [camera, u_min, v_min, u_max, v_max] each, max exclusive (a watermark, a TV, a privacy "
+        "zone found after the import)", unit="px", expected="camera name and 0 <= u_min < u_max, 0 <= v_min < v_max",
+        library="system.camera_ignore_rects_px",
+    )
     sensor_model: Literal["cell", "generative"] = _field(
         description="Cameras' evidence on the planes: per cell (each cell scored on its own) or generative (people "
                     "on the grid explain each whole foreground image, Fleuret et al. 2008; docs/cameras.md)",
@@ -613,6 +619,15 @@ class OutputsConfig(_Model):
                          library="outputs.rerun")
     figure_dpi: int = _field(description="Resolution of the figures", unit="dpi", expected="an integer >= 1",
                              library="outputs.figure_dpi")
+    animation_max_frames: int | None = _field(
+        description="The animation shows at most this many output steps, evenly spaced (a longer run is subsampled "
+        "and a warning says so); null = every step", unit="steps", expected="null or an integer >= 1",
+        library="outputs.animation_max_frames",
+    )
+    camera_videos: bool = _field(
+        description="Also write figures/camera_<name>_tracks.mp4 per camera: its frame at each output step with the "
+        "tracks drawn from the feet to the head (at most animation_max_frames steps)", library="outputs.camera_videos",
+    )
 
 
 def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:

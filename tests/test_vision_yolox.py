@@ -158,6 +158,40 @@ def test_a_model_without_the_person_class_is_refused(tmp_path):
         load_yolox(path, (SIDE, SIDE), class_index=1)
 
 
+@pytest.mark.parametrize("frame, canvas", [((360, 288), (384, 288)), ((1920, 1080), (416, 256)),
+                                           ((640, 480), (416, 320)), ((100, 50), (128, 64)), ((416, 416), (416, 416)),
+                                           ((10, 2000), (32, 416))])
+def test_the_fitted_canvas_keeps_small_frames_and_reduces_large_ones_to_416(frame, canvas):
+    from planefuse.vision import fitted_input_size
+    assert fitted_input_size(frame) == canvas
+
+
+def test_the_fitted_canvas_follows_each_frame_size(tmp_path):
+    rows = raw_rows()
+    set_row(rows, 32, 0, 0, (0.5, 0.5, 0.0, 0.0), 0.9, 0.9)  # centre (16, 16), 32 x 32 on any canvas
+    sizes = []
+    original = YoloxDetector.__init__
+
+    def spy(self, path, input_wh_px=(416, 416), *a, **kw):
+        sizes.append(tuple(input_wh_px))
+        original(self, path, input_wh_px, *a, **kw)
+
+    import planefuse.vision._foreground as fgmod
+    # a model of fixed 64 x 64 input runs only on 64 x 64 canvases: frames of 64 x 64 and 60 x 40 px (fitted 64 x 64)
+    det = PersonDetector(ForegroundParams(person_detector="yolox", person_model=constant_model(tmp_path / "m.onnx", rows)))
+    fgmod.YoloxDetector.__init__ = spy
+    try:
+        a = det.detect(np.zeros((64, 64, 3), np.uint8))
+        b = det.detect(np.zeros((40, 60, 3), np.uint8))
+        det.detect(np.zeros((40, 60, 3), np.uint8))
+    finally:
+        fgmod.YoloxDetector.__init__ = original
+    assert sizes == [(64, 64)]  # one detector per canvas, built once
+    np.testing.assert_allclose(a.ltwh_px, [[0.0, 0.0, 32.0, 32.0]])
+    # the 60 x 40 frame fills the 64 x 64 canvas at r = min(64 / 60, 64 / 40): the box is 32 / r frame pixels
+    np.testing.assert_allclose(b.ltwh_px, [[0.0, 0.0, 32.0 * 60 / 64, 32.0 * 60 / 64]], rtol=1e-6)
+
+
 @pytest.mark.parametrize("size", [(0, 64), (64, 50), (64.5, 64), (64,)])
 def test_canvas_sizes_must_be_multiples_of_32(size):
     with pytest.raises(ValueError, match="person_input_px"):
@@ -268,14 +302,14 @@ def test_config_builds_the_detector_front_end(tmp_path):
 
 @pytest.mark.realdata
 def test_yolox_nano_finds_the_annotated_people_of_real_terrace_frames():
-    """Terrace c1, frames 0-1499 every 100th (tuning frames), the library's defaults (416 x 416, score 0.5): the
-    detector's boxes against the annotators' visible boxes at IoU 0.5."""
+    """Terrace c1, frames 0-1499 every 100th (tuning frames), the library's defaults (the canvas fitted to the
+    360 x 288 frames: 384 x 288; score 0.5): the detector's boxes against the annotators' visible boxes at IoU 0.5."""
     model = shared_model("yolox_nano") / "yolox_nano.onnx"
     video, pom = shared_data("epfl_video"), shared_data("epfl_pom") / "EPFL-Terrace"
     from planefuse.calib import load_epfl_boxes
     gt = load_epfl_boxes(pom / "terrace1-c1" / "gt" / "gt.txt")
     det = PersonDetector(ForegroundParams(person_detector="yolox", person_model=str(model)))
-    assert det._yolox.info.sha256 == "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab14"
+    assert load_yolox(model)[1].sha256 == "695e750a5d5754bb5a8d5325643b59282191a7e7a564e435a415fd3c578eab14"
     cap = cv2.VideoCapture(str(video / "terrace1-c1.mp4"))
     tp = n_gt = n_det = 0
     for f in range(0, 1500, 100):

@@ -107,14 +107,16 @@ def _check_person_model(cfg: RunConfig, report: CheckReport) -> None:
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
-        det = YoloxDetector(cams.person_model, tuple(cams.person_input_px))
-        ms = det.cost_ms((cams.person_input_px[0], cams.person_input_px[1]))
+        wh = tuple(cams.person_input_px or (416, 416))
+        det = YoloxDetector(cams.person_model, wh)
+        ms = det.cost_ms(wh)
     finally:
         cv2.setNumThreads(threads)
     info = det.info
     report.add("info", "sensors.cameras.person_model",
-               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, run at {info.input_wh_px[0]} x "
-               f"{info.input_wh_px[1]} px, {ms:.1f} ms per frame on one core (measured now)")
+               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, {ms:.1f} ms per frame on one core at "
+               f"{wh[0]} x {wh[1]} px (measured now; person_input_px null fits each camera's frames: their own size, "
+               "or a longer side of 416 px)")
 
 
 def _check_camera_rate(cfg: RunConfig, rec, report: CheckReport) -> None:

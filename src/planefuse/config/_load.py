@@ -219,7 +219,7 @@ def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
     cameras = cfg.sensors.cameras
     if cameras.enabled and cameras.person_detector == "yolox":
         loc = ("sensors", "cameras", "person_model")
-        problem = _person_model_problem(cameras.person_model, cameras.person_input_px)
+        problem = _person_model_problem(cameras.person_model, cameras.person_input_px or (416, 416))
         if problem:
             raise ConfigError(path, [ConfigIssue(".".join(loc), problem, _expected(_field_info(loc)),
                                                  _line_of(root, loc))])

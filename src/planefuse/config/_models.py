@@ -234,9 +234,11 @@ class CameraSensorConfig(_Model):
         "project's releases; planefuse never downloads it), relative to this file", expected="a path or null",
         library="system.camera_params.foreground.person_model",
     )
-    person_input_px: tuple[int, int] = _field(
-        description="With person_detector yolox: (width, height) of the canvas each frame is letterboxed into",
-        unit="px", expected="two multiples of 32", library="system.camera_params.foreground.person_input_px",
+    person_input_px: tuple[int, int] | None = _field(
+        description="With person_detector yolox: (width, height) of the canvas each frame is letterboxed into; null "
+        "= fitted to the frame (its own size, or its longer side reduced to 416, each side up to a multiple of 32)",
+        unit="px", expected="null or two multiples of 32",
+        library="system.camera_params.foreground.person_input_px",
     )
     person_upscale: float = _field(
         description="With person_detector hog: enlargement of the frame before detection (the detector's window is "

@@ -17,7 +17,7 @@ import numpy as np
 from .._params import check_fields, require
 from ._fusion import quantise_foreground
 from ._mean_background import MeanBackground
-from ._yolox import PersonBoxes, YoloxDetector, check_input_size
+from ._yolox import PersonBoxes, YoloxDetector, check_input_size, fitted_input_size
 
 __all__ = [
     "BackgroundSubtractor",
@@ -176,11 +176,13 @@ class ForegroundParams:
     person_model : str or None
         ``"yolox"``: path of the ONNX file (a YOLOX export of the raw-head layout: Nano, Tiny, S, ...; the user
         downloads it from the YOLOX project's releases, planefuse never downloads anything).
-    person_input_px : (int, int)
-        ``"yolox"``: canvas (width, height) [px] the frame is letterboxed into, multiples of 32. 416 x 416 (the
-        Nano model's own, the 360 x 288 terrace frames enlarged 1.16 times) against 384 x 288 (the frames' own
-        size), EPFL terrace tuning frames 0-1475 every 25th, both cameras, IoU 0.5, at score 0.5: recall 0.833 /
-        precision 0.936 against 0.821 / 0.879, 19.8 against 12.2 ms per frame on one core (docs/cameras.md).
+    person_input_px : (int, int) or None
+        ``"yolox"``: canvas (width, height) [px] the frame is letterboxed into, multiples of 32. None: fitted to the
+        frame (:func:`~planefuse.vision.fitted_input_size`: its own size, or reduced to a longer side of 416 px, the
+        Nano model's own input, never enlarged). Per camera on the EPFL terrace's tuning frames 0-1475 every 25th
+        (both cameras, IoU 0.5, score 0.5) the fitted 384 x 288 against 416 x 416 (the frames enlarged 1.16 times):
+        recall 0.821 / precision 0.879 against 0.833 / 0.936, 12.2 against 19.8 ms per frame on one core; the whole
+        system scored the same or better with it (:func:`~planefuse.vision.fitted_input_size`).
     person_upscale : float
         ``"hog"``: factor the frame is enlarged by before detection: the detector's window is 128 px tall,
         people in a 288 px high frame are often 40-120 px.
@@ -232,7 +234,7 @@ class ForegroundParams:
     mean_foreground_rate: float = 0.2
     person_detector: str | None = None
     person_model: str | None = None
-    person_input_px: tuple[int, int] = (416, 416)
+    person_input_px: tuple[int, int] | None = None
     person_upscale: float = 2.0
     person_min_score: float | None = None
     person_nms_iou: float = 0.45
@@ -274,7 +276,7 @@ class ForegroundParams:
         require(self.person_detector != "yolox" or self.person_min_score is None or
                 0 <= self.person_min_score <= 1, self, "person_min_score",
                 f"must lie in [0, 1] for 'yolox' (a probability), got {self.person_min_score}")
-        if self.person_detector == "yolox":
+        if self.person_detector == "yolox" and self.person_input_px is not None:
             try:
                 check_input_size(self.person_input_px)
             except ValueError as exc:
@@ -604,8 +606,10 @@ class PersonDetector:
         self.params = params
         self.min_score = params.min_person_score
         if params.person_detector == "yolox":
-            self._yolox = YoloxDetector(params.person_model, params.person_input_px, self.min_score,
-                                        params.person_nms_iou)
+            # one detector per canvas size (fitted to each frame size where person_input_px is None)
+            self._yolox: dict[tuple[int, int], YoloxDetector] = {}
+            if params.person_input_px is not None:
+                self._yolox_for(params.person_input_px)
         else:
             if not hasattr(cv2, "HOGDescriptor"):
                 raise ValueError(f"person_detector 'hog' needs OpenCV's HOG people detector, absent from this OpenCV "
@@ -616,10 +620,18 @@ class PersonDetector:
         self._quantised_level = int(quantise_foreground(np.float32([self._level])).ravel()[0])
         self.last_boxes = PersonBoxes.empty()
 
+    def _yolox_for(self, input_wh_px) -> YoloxDetector:
+        wh = tuple(int(v) for v in input_wh_px)
+        if wh not in self._yolox:
+            self._yolox[wh] = YoloxDetector(self.params.person_model, wh, self.min_score, self.params.person_nms_iou)
+        return self._yolox[wh]
+
     def detect(self, frame: np.ndarray) -> PersonBoxes:
         """The people in ``frame`` (grey or BGR uint8): boxes in the frame's pixels and their scores."""
         if self.params.person_detector == "yolox":
-            return self._yolox.detect(frame)
+            h, w = np.shape(frame)[:2]
+            wh = self.params.person_input_px or fitted_input_size((w, h))
+            return self._yolox_for(wh).detect(frame)
         k = self.params.person_upscale
         img = frame if k == 1 else cv2.resize(frame, None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
         rects, scores = self._hog.detectMultiScale(img, winStride=(8, 8), padding=(8, 8), scale=1.05)

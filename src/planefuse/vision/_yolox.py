@@ -28,8 +28,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["YOLOX_STRIDES", "PersonBoxes", "YoloxDetector", "YoloxModelInfo", "decode_yolox", "letterbox",
-           "load_yolox", "yolox_grid"]
+__all__ = ["YOLOX_STRIDES", "PersonBoxes", "YoloxDetector", "YoloxModelInfo", "decode_yolox", "fitted_input_size",
+           "letterbox", "load_yolox", "yolox_grid"]
 
 #: Strides [px] of YOLOX's three output grids, finest first (the order of the output rows).
 YOLOX_STRIDES = (8, 16, 32)
@@ -94,6 +94,28 @@ def check_input_size(input_wh_px) -> tuple[int, int]:
     if w < s or h < s or w % s or h % s or (w, h) != tuple(input_wh_px):
         raise ValueError(f"YOLOX input size (width, height) must be positive multiples of {s} px, got {input_wh_px!r}")
     return w, h
+
+
+#: The longest canvas side [px] of :func:`fitted_input_size`: YOLOX-Nano's own 416 x 416 input.
+FIT_MAX_SIDE_PX = 416
+
+
+def fitted_input_size(frame_wh_px: tuple[int, int], max_side_px: int = FIT_MAX_SIDE_PX) -> tuple[int, int]:
+    """The canvas ``(W, H)`` [px] for frames of ``frame_wh_px``: the frame at its own size, or reduced so that its
+    longer side is ``max_side_px`` (never enlarged), each side rounded up to a multiple of 32.
+
+    People keep the scale the model's own square canvas would give a frame larger than it (a 1920 x 1080 frame:
+    416 x 256 instead of 416 x 416, the same people in 37 % fewer pixels); a smaller frame is not enlarged. On the
+    EPFL terrace (360 x 288 frames, canvas 384 x 288) the system scored as with 416 x 416 on its tuning frames
+    (cold starts at 0 and 1000, filtered MODA 0.5 / 1.0 m, MOTA, IDF1: 0.803 / 0.893, 0.788, 0.895 and 0.739 /
+    0.897, 0.731, 0.808 against 0.800 / 0.890, 0.788, 0.895 and 0.735 / 0.893, 0.723, 0.811) at 62 % of the cost.
+    """
+    w, h = (int(v) for v in frame_wh_px)
+    if w < 1 or h < 1:
+        raise ValueError(f"frame size must be positive (width, height) px, got {frame_wh_px!r}")
+    r = min(1.0, max_side_px / max(w, h))
+    s = YOLOX_STRIDES[-1]
+    return tuple(max(s, -(-int(round(v * r)) // s) * s) for v in (w, h))
 
 
 @lru_cache(maxsize=8)

@@ -150,3 +150,13 @@ def test_camera_view_findings_warn_about_low_horizontal_and_barely_overlapping_c
     apart = [_nadir("a", 0.0), _nadir("b", 4.8)]
     found = camera_view_findings(apart, stack)
     assert any(s == "a+b" and "barely overlap" in m for _, s, m in found), found
+
+
+def test_a_person_model_turns_the_detector_on_with_the_librarys_box_settings():
+    cams = [_nadir("a", 0.0), _nadir("b", 2.0)]
+    fit = config_for_recording(_rec("planefuse import x", cams), person_model="models/yolox_nano.onnx")
+    c = fit.config.sensors.cameras
+    assert (c.person_detector, c.person_model) == ("yolox", "models/yolox_nano.onnx")
+    assert c.box_free_log_odds is None and c.person_input_px is None and c.person_likelihood is None  # the defaults
+    assert any("person detector: YOLOX" in m for m in fit.messages)
+    assert config_for_recording(_rec("planefuse import x", cams)).config.sensors.cameras.person_detector is None

@@ -41,6 +41,9 @@ def config_init(
                                 "recording: simulated, or real-video for imported camera video), "
                                 "simulated (the library's defaults) or real-video (chosen on the EPFL terrace; "
                                 "planefuse.config.REAL_VIDEO)."),
+    person_model: Path | None = typer.Option(None, "--person-model", help="A YOLOX ONNX file you downloaded (e.g. "
+                                             "yolox_nano.onnx from the YOLOX project's releases): the cameras run "
+                                             "it as their person detector (docs/cameras.md, 'Person detector')."),
     force: bool = typer.Option(False, "--force", help="Overwrite an existing file."),
 ) -> None:
     """Write a commented example configuration (every field, its unit and range); for an existing recording, the
@@ -56,7 +59,14 @@ def config_init(
     fitted, notes, header = None, None, ()
     if (Path(recording) / "scene.yaml").is_file():
         try:
-            fit = config_for_recording(read_recording(Path(recording)), None if profile == "auto" else profile)
+            model = None
+            if person_model is not None:
+                from ..vision import load_yolox
+
+                load_yolox(person_model)  # a missing file or another layout: one line now, not at the run
+                model = os.path.relpath(person_model.resolve(), path.resolve().parent)
+            fit = config_for_recording(read_recording(Path(recording)), None if profile == "auto" else profile,
+                                       model)
         except (ValueError, OSError) as exc:
             exit_with_error(str(exc), 1)
         fitted, notes = fit.config, fit.profile.notes()
@@ -73,6 +83,8 @@ def config_init(
                       f"{area}, sensors {', '.join(used) or 'none'} (those the recording has)", highlight=False)
     elif profile != "auto":
         exit_with_error(f"--profile {profile}: needs an existing --recording (a folder with scene.yaml)", 2)
+    elif person_model is not None:
+        exit_with_error("--person-model: needs an existing --recording (a folder with scene.yaml)", 2)
     where = recording
     if recording != EXAMPLE_RECORDING and not Path(recording).is_absolute():
         # the configuration's paths are relative to its own folder, the option's to the working directory

@@ -207,7 +207,7 @@ class FittedConfig:
     messages: tuple[str, ...]
 
 
-def config_for_recording(rec, profile: str | None = None) -> FittedConfig:
+def config_for_recording(rec, profile: str | None = None, person_model: str | None = None) -> FittedConfig:
     """The run configuration ``planefuse config init --recording`` writes for a recording.
 
     - sensors: the library's, less those the recording lacks;
@@ -224,6 +224,9 @@ def config_for_recording(rec, profile: str | None = None) -> FittedConfig:
     rec : planefuse.io.Recording
     profile : str or None
         A key of :data:`PROFILES`; None = chosen from the recording.
+    person_model : str or None
+        A YOLOX ONNX file (the user's download): the cameras run it as their person detector (``person_detector:
+        yolox``) at the library's settings for its boxes (docs/cameras.md, "Person detector"); written as given.
 
     Raises
     ------
@@ -269,6 +272,11 @@ def config_for_recording(rec, profile: str | None = None) -> FittedConfig:
     if planes:
         changes["planes"] = planes
     data = _merged(_merged(data, changes), chosen.changes())
+    if person_model is not None:
+        if not rec.camera_streams:
+            raise ValueError("a person model was given but the recording has no cameras")
+        data = _merged(data, {"sensors": {"cameras": {"person_detector": "yolox", "person_model": str(person_model)}}})
+        messages.append(f"person detector: YOLOX {person_model}, its boxes as evidence on the planes (docs/cameras.md)")
     return FittedConfig(config_from_dict(data, f"profile {chosen.name}"), chosen, tuple(messages))
 
 

@@ -1,0 +1,124 @@
+"""Test helper: a planefuse recording (simulated) written as a ROS 2 bag with ``rosbags`` -- raw BGR images with
+their CameraInfo, Imu, LaserScan (float32 ranges, as the message holds them) and the sensors' poses in
+``/tf_static`` -- so that ``planefuse.io.import_bag`` can be checked against the recording it came from."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+ORIGIN_NS = 1_700_000_000 * 1_000_000_000  # an epoch-like clock: time 0 of the recording
+
+
+def _ns(t_s: float) -> int:
+    return ORIGIN_NS + int(round(t_s * 1e9))
+
+
+def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = None, skip_tf: tuple[str, ...] = (),
+              storage: str = "sqlite3", compressed: tuple[str, ...] = ()) -> dict[str, str]:
+    """Write ``rec``'s cameras, IMUs and lasers (fixed, untilted) into the ROS 2 bag folder ``path``.
+
+    ``image_order[name]`` lists the frame indices of camera ``name`` in the order they are written (repeats,
+    omissions and swaps make duplicated, missing and out-of-order frames); ``skip_tf`` leaves out those
+    frames' transforms; cameras in ``compressed`` go out as PNG ``CompressedImage``. Returns the topic of
+    every sensor.
+    """
+    import cv2
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
+
+    def header(t_ns: int, frame: str):
+        return Header(stamp=Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000), frame_id=frame)
+
+    def tf(parent: str, child: str, T_parent_child: np.ndarray):
+        q = Rotation.from_matrix(T_parent_child[:3, :3]).as_quat()
+        t = T_parent_child[:3, 3]
+        return T["geometry_msgs/msg/TransformStamped"](
+            header=header(ORIGIN_NS, parent), child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](x=t[0], y=t[1], z=t[2]),
+                rotation=T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])))
+
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    topics = {}
+    edges = []
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        def conn(topic, msgtype):
+            return w.add_connection(topic, msgtype, typestore=ts)
+
+        def put(c, t_ns, msg):
+            w.write(c, t_ns, ts.serialize_cdr(msg, c.msgtype))
+
+        c_tf = conn("/tf_static", "tf2_msgs/msg/TFMessage")
+        for cs in rec.camera_streams.values():
+            frame = f"{cs.name}_optical"
+            edges.append(("world", frame, cs.camera.T_world_cam))
+        for s in rec.imus.values():
+            edges.append((f"{s.attached_to}_optical", f"{s.name}_link", s.T_cam_imu))
+        for s in rec.lasers.values():
+            edges.append(("world", f"{s.name}_link", s.T_world_laser))
+        put(c_tf, ORIGIN_NS, T["tf2_msgs/msg/TFMessage"](
+            transforms=[tf(p, c, M) for p, c, M in edges if c not in skip_tf]))
+        for cs in rec.camera_streams.values():
+            frame = f"{cs.name}_optical"
+            kind = "compressed" if cs.name in compressed else "image_raw"
+            c_img = conn(f"/{cs.name}/{kind}", "sensor_msgs/msg/CompressedImage" if cs.name in compressed
+                         else "sensor_msgs/msg/Image")
+            c_info = conn(f"/{cs.name}/camera_info", "sensor_msgs/msg/CameraInfo")
+            topics[cs.name] = c_img.topic
+            cam = cs.camera
+            W, H = cam.intrinsics.width_px, cam.intrinsics.height_px
+            info = T["sensor_msgs/msg/CameraInfo"](
+                header=header(_ns(cs.times_s[0]), frame), height=H, width=W, distortion_model="plumb_bob",
+                d=np.asarray(cam.intrinsics.dist, dtype=float), k=np.asarray(cam.K, dtype=float).ravel(),
+                r=np.eye(3).ravel(), p=np.column_stack([cam.K, np.zeros(3)]).ravel(), binning_x=0, binning_y=0,
+                roi=T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
+            put(c_info, _ns(cs.times_s[0]), info)
+            order = image_order.get(cs.name, range(len(cs))) if image_order else range(len(cs))
+            for i in order:
+                t_ns = _ns(cs.times_s[i])
+                img = cs.frame(i)
+                if cs.name in compressed:
+                    msg = T["sensor_msgs/msg/CompressedImage"](header=header(t_ns, frame), format="png",
+                                                               data=cv2.imencode(".png", img)[1].ravel())
+                else:
+                    msg = T["sensor_msgs/msg/Image"](header=header(t_ns, frame), height=H, width=W, encoding="bgr8",
+                                                     is_bigendian=0, step=3 * W, data=img.reshape(-1).copy())
+                put(c_img, t_ns, msg)
+        for s in rec.imus.values():
+            c = conn(f"/{s.name}/imu", "sensor_msgs/msg/Imu")
+            topics[s.name] = c.topic
+            d = s.read()
+            V = T["geometry_msgs/msg/Vector3"]
+            cov = np.zeros(9)
+            for k in range(len(d)):
+                t_ns = _ns(d.times_s[k])
+                g, a = d.gyro_rad_s[k], d.accel_m_s2[k]
+                put(c, t_ns, T["sensor_msgs/msg/Imu"](
+                    header=header(t_ns, f"{s.name}_link"),
+                    orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                    orientation_covariance=np.r_[-1.0, np.zeros(8)],
+                    angular_velocity=V(x=g[0], y=g[1], z=g[2]), angular_velocity_covariance=cov,
+                    linear_acceleration=V(x=a[0], y=a[1], z=a[2]), linear_acceleration_covariance=cov))
+        for s in rec.lasers.values():
+            c = conn(f"/{s.name}/scan", "sensor_msgs/msg/LaserScan")
+            topics[s.name] = c.topic
+            d = s.read()
+            if np.any(d.tilt_rad != 0):
+                raise ValueError("a LaserScan holds an untilted scan: simulate the laser with tilt 0")
+            sc = s.model["scanner"]
+            for k in range(len(d)):
+                t_ns = _ns(d.times_s[k])
+                put(c, t_ns, T["sensor_msgs/msg/LaserScan"](
+                    header=header(t_ns, f"{s.name}_link"), angle_min=float(d.angles_rad[0]),
+                    angle_max=float(d.angles_rad[-1]), angle_increment=float(sc["angle_increment_rad"]),
+                    time_increment=0.0, scan_time=1.0 / s.rate_hz, range_min=float(sc["range_min_m"]),
+                    range_max=float(sc["range_max_m"]), ranges=d.ranges_m[k].astype(np.float32),
+                    intensities=np.zeros(0, dtype=np.float32)))
+    return topics

@@ -81,8 +81,10 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
                 roi=T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
             put(c_info, _ns(cs.times_s[0]), info)
             order = image_order.get(cs.name, range(len(cs))) if image_order else range(len(cs))
+            last_ns = 0
             for i in order:
                 t_ns = _ns(cs.times_s[i])
+                last_ns = max(t_ns, last_ns + 1)  # received in the order sent: the bag's log time
                 img = cs.frame(i)
                 if cs.name in compressed:
                     msg = T["sensor_msgs/msg/CompressedImage"](header=header(t_ns, frame), format="png",
@@ -90,7 +92,7 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
                 else:
                     msg = T["sensor_msgs/msg/Image"](header=header(t_ns, frame), height=H, width=W, encoding="bgr8",
                                                      is_bigendian=0, step=3 * W, data=img.reshape(-1).copy())
-                put(c_img, t_ns, msg)
+                put(c_img, last_ns, msg)
         for s in rec.imus.values():
             c = conn(f"/{s.name}/imu", "sensor_msgs/msg/Imu")
             topics[s.name] = c.topic

@@ -263,12 +263,11 @@ class _TfTree:
             return np.eye(4)
         chain = self.chain(frame)
         if world not in chain:
-            known = sorted(set(self.parent) | set(self.roots()))
-            if frame not in known:
-                raise ValueError(f"the bag has no transform of frame {frame!r} ({what}): it is in neither /tf_static "
-                                 f"nor /tf (tf frames: {known}); give one with --tf {world},{frame},X,Y,Z,YAW,PITCH,ROLL")
-            raise ValueError(f"frame {frame!r} ({what}) is not below the world frame {world!r} in tf (its chain: "
-                             f"{' <- '.join(chain)}); give --world-frame or the missing transform with --tf")
+            top = chain[-1]  # the frame without a parent: its transform is what is missing
+            via = f" (frame {frame!r} is below it)" if top != frame else ""
+            raise ValueError(f"the bag has no transform of frame {top!r}{via} ({what}) to the world frame {world!r} in "
+                             f"/tf_static or /tf (tf frames: {sorted(set(self.parent) | set(self.roots()))}); give it "
+                             f"with --tf {world},{top},X,Y,Z,YAW,PITCH,ROLL or choose --world-frame")
         T = np.eye(4)
         for f in chain[: chain.index(world)]:
             parent, T_parent_f = self.parent[f]

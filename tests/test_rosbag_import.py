@@ -1,0 +1,200 @@
+"""ROS bags as recordings (``planefuse.io.import_bag``): a simulated recording written as a ROS 2 bag imports to
+the same streams and runs to the same tracks as the folder recording; faulty camera topics are reported per
+topic; a missing transform is one line naming the frame."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+from _bags import ORIGIN_NS, write_bag
+from planefuse.io import read_recording
+from planefuse.io._rosbag import bag_topics, import_bag, static_transform
+from planefuse.outputs import OutputSettings
+from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
+from planefuse.sim import default_scene_config, simulate
+
+
+@pytest.fixture(scope="module")
+def sim_dir(tmp_path_factory):
+    """3 s, 3 people, 4 cameras with IMUs, an untilted laser (a LaserScan holds a flat scan)."""
+    scene = default_scene_config(duration_s=3.0, seed=4, n_people=3, head=None,
+                                 laser={"tilt_min_deg": 0.0, "tilt_max_deg": 0.0, "resolution_deg": 1.0})
+    d = tmp_path_factory.mktemp("bag") / "folder"
+    simulate(scene).write(d)
+    return d
+
+
+@pytest.fixture(scope="module")
+def bag(sim_dir):
+    p = sim_dir.parent / "bag"
+    write_bag(read_recording(sim_dir), p)
+    return p
+
+
+@pytest.fixture(scope="module")
+def imported(sim_dir, bag):
+    rec = read_recording(sim_dir)
+    out = sim_dir.parent / "imported"
+    res = import_bag(bag, out, world_frame="world", room_xy_m=rec.room_xy_m, planes_heights_m=rec.planes_heights_m)
+    return out, res
+
+
+def _quantised(T) -> list:
+    """A pose as a bag carries it: the rotation through a quaternion (geometry_msgs/Transform)."""
+    T = np.array(T, dtype=float)
+    T[:3, :3] = Rotation.from_quat(Rotation.from_matrix(T[:3, :3]).as_quat()).as_matrix()
+    return T.tolist()
+
+
+def test_listing_names_every_topic_with_its_type_count_and_use(bag):
+    topics = {t.topic: t for t in bag_topics(bag)}
+    assert topics["/cam0/image_raw"].msgtype == "sensor_msgs/msg/Image"
+    assert topics["/cam0/image_raw"].count == 75  # 3 s at 25 Hz
+    assert topics["/laser0/scan"].count == 120  # 3 s at 40 Hz
+    assert topics["/tf_static"].use.startswith("sensor poses")
+    assert topics["/cam0/camera_info"].use.startswith("camera intrinsics")
+
+
+def test_imported_streams_are_the_recordings(sim_dir, imported):
+    ref, (out, res) = read_recording(sim_dir), imported
+    imp = read_recording(out)
+    assert res.origin_ns == ORIGIN_NS and res.world_frame == "world"
+    assert all(r.n_written == r.n_messages and not (r.n_out_of_order or r.n_duplicate or r.n_missing)
+               for r in res.topics)
+    assert sorted(imp.camera_streams) == sorted(ref.camera_streams)
+    for name, cs in ref.camera_streams.items():
+        ci = imp.camera(name)
+        np.testing.assert_array_equal(ci.times_s, cs.times_s)  # header stamps in ns, read back exactly
+        np.testing.assert_array_equal(ci.camera.K, cs.camera.K)
+        np.testing.assert_array_equal(ci.camera.intrinsics.dist, cs.camera.intrinsics.dist)
+        np.testing.assert_allclose(ci.camera.T_world_cam, cs.camera.T_world_cam, atol=1e-12)
+        for i in range(0, len(cs), 7):
+            np.testing.assert_array_equal(ci.frame(i), cs.frame(i))
+    for name, s in ref.imus.items():
+        a, b = s.read(), imp.imu(name).read()
+        assert imp.imu(name).attached_to == s.attached_to
+        np.testing.assert_array_equal(b.times_s, a.times_s)
+        np.testing.assert_array_equal(b.gyro_rad_s, a.gyro_rad_s)
+        np.testing.assert_array_equal(b.accel_m_s2, a.accel_m_s2)
+        np.testing.assert_allclose(imp.imu(name).T_cam_imu, s.T_cam_imu, atol=1e-12)
+    a, b = ref.laser().read(), imp.laser("laser0").read()
+    np.testing.assert_array_equal(b.times_s, a.times_s)
+    # LaserScan holds float32 ranges and angle_min/increment: that is all the bag keeps
+    np.testing.assert_array_equal(b.ranges_m, a.ranges_m.astype(np.float32).astype(float))
+    np.testing.assert_allclose(b.angles_rad, a.angles_rad, atol=1e-6)
+    np.testing.assert_allclose(imp.laser("laser0").T_world_laser, ref.laser().T_world_laser, atol=1e-12)
+    assert imp.duration_s == pytest.approx(ref.duration_s, abs=1e-12)
+
+
+def _run(rec_dir: Path, out: Path) -> None:
+    s = OutputSettings(animation="none", figures=False, report=False)
+    run_to_folder(read_recording(rec_dir), RunPlan(SystemParams(), out, s), progress_mode="quiet")
+
+
+def test_bag_runs_to_the_same_tracks_as_the_folder_recording(sim_dir, imported, tmp_path):
+    """The folder recording holding what the bag holds (no background plate, poses through quaternions, float32
+    ranges) and the imported bag give byte-identical detections and tracks."""
+    out, _ = imported
+    ref = tmp_path / "folder"
+    import shutil
+
+    shutil.copytree(sim_dir, ref)
+    m = yaml.safe_load((ref / "scene.yaml").read_text())
+    for s in m["sensors"]:
+        s.pop("background_file", None)  # a bag has no background plate
+        for key in ("T_world_cam", "T_world_laser"):
+            if key in s:
+                s[key] = _quantised(s[key])
+    (ref / "scene.yaml").write_text(yaml.safe_dump(m, sort_keys=False))
+    for f in (ref / "laser").rglob("*.npz"):
+        z = dict(np.load(f))
+        z["ranges_m"] = z["ranges_m"].astype(np.float32).astype(float)
+        np.savez(f, **z)
+    _run(ref, tmp_path / "out_folder")
+    _run(out, tmp_path / "out_bag")
+    a, b = (tmp_path / "out_folder"), (tmp_path / "out_bag")
+    assert len((a / "tracks.csv").read_text().splitlines()) > 10  # people are tracked
+    for name in ("tracks.csv", "detections.csv", "tracks_mot.txt"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+
+
+def test_dropped_duplicated_and_out_of_order_images_are_reported_per_topic(sim_dir, tmp_path):
+    rec = read_recording(sim_dir)
+    n = len(rec.camera("cam0"))
+    order = [0, 1, 3, 2, 4, 4] + list(range(6, n))  # 2/3 swapped, 4 twice, 5 never sent
+    bag = tmp_path / "faulty"
+    write_bag(rec, bag, image_order={"cam0": order})
+    with pytest.warns(UserWarning, match=r"/cam0/image_raw .*out of order 1, duplicated 1, missing 1"):
+        res = import_bag(bag, tmp_path / "imp", lasers={}, imus={}, world_frame="world",
+                         room_xy_m=rec.room_xy_m)
+    reps = {r.topic: r for r in res.topics}
+    r = reps["/cam0/image_raw"]
+    assert (r.n_messages, r.n_written, r.n_out_of_order, r.n_duplicate, r.n_missing) == (n, n - 1, 1, 1, 1)
+    for cam in ("cam1", "cam2", "cam3"):
+        q = reps[f"/{cam}/image_raw"]
+        assert (q.n_messages, q.n_written, q.n_out_of_order, q.n_duplicate, q.n_missing) == (n, n, 0, 0, 0)
+    imp = read_recording(tmp_path / "imp").camera("cam0")
+    kept = [i for i in range(n) if i != 5]  # in stamp order, the duplicate's second copy left out
+    np.testing.assert_array_equal(imp.times_s, rec.camera("cam0").times_s[kept])
+    for j in (2, 3, 4, 5):
+        np.testing.assert_array_equal(imp.frame(j), rec.camera("cam0").frame(kept[j]))
+    assert len(list((tmp_path / "imp" / "cameras" / "cam0" / "frames").iterdir())) == n - 1
+
+
+def test_missing_transform_is_one_line_naming_the_frame(sim_dir, tmp_path):
+    rec = read_recording(sim_dir)
+    bag = tmp_path / "no_tf"
+    write_bag(rec, bag, image_order={c: [0, 1] for c in rec.camera_streams}, skip_tf=("cam2_optical",))
+    with pytest.raises(ValueError, match=r"no transform of frame .cam2_optical. \(camera 'cam2', topic "
+                                         r"/cam2/image_raw\).*--tf world,cam2_optical") as err:
+        import_bag(bag, tmp_path / "imp", imus={}, lasers={}, world_frame="world")
+    assert "\n" not in str(err.value)
+    # the frame given with --tf completes the tree
+    T = rec.camera("cam2").camera.T_world_cam
+    res = import_bag(bag, tmp_path / "imp2", imus={}, lasers={}, world_frame="world",
+                     extra_transforms=[("world", "cam2_optical", T)])
+    assert res.world_frame == "world"
+    np.testing.assert_array_equal(read_recording(tmp_path / "imp2").camera("cam2").camera.T_world_cam, T)
+
+
+def test_compressed_images_in_an_mcap_bag_keep_their_bytes(sim_dir, tmp_path):
+    rec = read_recording(sim_dir)
+    bag = tmp_path / "mcap_bag"
+    write_bag(rec, bag, storage="mcap", compressed=("cam1",), image_order={c: range(5) for c in rec.camera_streams})
+    assert any(p.suffix == ".mcap" for p in bag.iterdir())
+    import_bag(bag, tmp_path / "imp", cameras={"cam1": ("/cam1/compressed", "/cam1/camera_info")}, imus={},
+               lasers={}, world_frame="world")
+    imp = read_recording(tmp_path / "imp").camera("cam1")
+    assert imp.frame_files[0].suffix == ".png"
+    for i in range(5):
+        np.testing.assert_array_equal(imp.frame(i), rec.camera("cam1").frame(i))  # PNG: lossless
+
+
+def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):
+    with pytest.raises(ValueError, match="bag .*nowhere does not exist"):
+        import_bag(tmp_path / "nowhere", tmp_path / "o1")
+    with pytest.raises(ValueError, match=r"no topic '/cam9/image_raw'"):
+        import_bag(bag, tmp_path / "o2", cameras={"cam9": ("/cam9/image_raw", None)})
+    with pytest.raises(ValueError, match=r"topic /laser0/scan of bag .* is a sensor_msgs/msg/LaserScan, not "
+                                         r"sensor_msgs/msg/Image"):
+        import_bag(bag, tmp_path / "o3", cameras={"cam0": ("/laser0/scan", "/cam0/camera_info")})
+    with pytest.raises(ValueError, match="cannot tell the world frame"):
+        import_bag(bag, tmp_path / "o4", extra_transforms=[static_transform("other,x,0,0,0,0,0,0")])
+    with pytest.raises(ValueError, match="need a camera"):
+        import_bag(bag, tmp_path / "o5", cameras={}, lasers={}, world_frame="world")
+    with pytest.raises(ValueError, match="PARENT,CHILD,X,Y,Z,YAW,PITCH,ROLL"):
+        static_transform("world,laser,1,2,3")
+
+
+def test_static_transform_uses_ros_order_and_units():
+    parent, child, T = static_transform("/world,laser,1,2,0.5,1.5707963267948966,0,0")
+    assert (parent, child) == ("world", "laser")
+    np.testing.assert_allclose(T[:3, 3], [1, 2, 0.5])
+    np.testing.assert_allclose(T[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-12)  # yaw 90 deg: x -> y

@@ -16,7 +16,8 @@ from scipy.spatial.transform import Rotation
 from _bags import ORIGIN_NS, write_bag
 from planefuse.io import read_recording
 from planefuse.io._rosbag import bag_topics, import_bag, static_transform
-from planefuse.outputs import OutputSettings
+from planefuse.outputs import OutputSettings, read_table
+from planefuse.outputs._mcap import read_mcap_messages
 from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
 from planefuse.sim import default_scene_config, simulate
 
@@ -93,8 +94,8 @@ def test_imported_streams_are_the_recordings(sim_dir, imported):
     assert imp.duration_s == pytest.approx(ref.duration_s, abs=1e-12)
 
 
-def _run(rec_dir: Path, out: Path) -> None:
-    s = OutputSettings(animation="none", figures=False, report=False)
+def _run(rec_dir: Path, out: Path, **kw) -> None:
+    s = OutputSettings(animation="none", figures=False, report=False, **kw)
     run_to_folder(read_recording(rec_dir), RunPlan(SystemParams(), out, s), progress_mode="quiet")
 
 
@@ -118,11 +119,21 @@ def test_bag_runs_to_the_same_tracks_as_the_folder_recording(sim_dir, imported, 
         z["ranges_m"] = z["ranges_m"].astype(np.float32).astype(float)
         np.savez(f, **z)
     _run(ref, tmp_path / "out_folder")
-    _run(out, tmp_path / "out_bag")
+    _run(out, tmp_path / "out_bag", mcap=True)
     a, b = (tmp_path / "out_folder"), (tmp_path / "out_bag")
     assert len((a / "tracks.csv").read_text().splitlines()) > 10  # people are tracked
     for name in ("tracks.csv", "detections.csv", "tracks_mot.txt"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    # the run's MCAP, read back with the mcap reader, holds tracks.csv's values
+    table = read_table(b / "tracks.csv")
+    got = []
+    for _, t_ns, m in read_mcap_messages(b / "planefuse.mcap", topics=["/planefuse/tracks"]):
+        for e in m.get("entities", []):
+            meta = {kv["key"]: float(kv["value"]) for kv in e["metadata"]}
+            got.append((t_ns, int(meta["track_id"]), meta["x_m"], meta["y_m"], meta["vx_m_s"], meta["vy_m_s"]))
+    expected = [(int(round(t * 1e9)), int(i), x, y, vx, vy) for t, i, x, y, vx, vy in
+                zip(*(table[c] for c in ("time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")))]
+    assert sorted(got) == sorted(expected)
 
 
 def test_dropped_duplicated_and_out_of_order_images_are_reported_per_topic(sim_dir, tmp_path):

@@ -560,6 +560,10 @@ class OutputsConfig(_Model):
                          library="outputs.rerun")
     figure_dpi: int = _field(description="Resolution of the figures", unit="dpi", expected="an integer >= 1",
                              library="outputs.figure_dpi")
+    mcap: bool = _field(description="Write planefuse.mcap: tracks, detections and occupancy grids in Foxglove's "
+                        "schemas (opens in Foxglove)", library="outputs.mcap")
+    ros2_bag: bool = _field(description="Write ros2_bag/: people_msgs/People, MarkerArray, PoseArray and an "
+                            "OccupancyGrid per plane in a ROS 2 bag", library="outputs.ros2_bag")
 
 
 def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:

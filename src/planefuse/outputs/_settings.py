@@ -33,6 +33,12 @@ class OutputSettings:
         Write ``planefuse.rrd`` for the rerun viewer.
     figure_dpi : int
         Resolution of the figures [dots per inch].
+    mcap : bool
+        Write ``planefuse.mcap``: tracks, detections and each plane's occupancy grid in Foxglove's schemas
+        (``planefuse.outputs.write_run_mcap``; opens in Foxglove with no ROS).
+    ros2_bag : bool
+        Write ``ros2_bag/``: the same as ROS 2 messages (``people_msgs/People``, ``visualization_msgs/MarkerArray``,
+        ``geometry_msgs/PoseArray``, ``nav_msgs/OccupancyGrid`` per plane) in a ROS 2 bag (MCAP storage).
 
     Only ``zarr`` and ``chunk_steps`` decide what a resumed run can reuse; the others may change between
     an interrupted run and its resumption.
@@ -45,6 +51,8 @@ class OutputSettings:
     report: bool = True
     rerun: bool = False
     figure_dpi: int = 100
+    mcap: bool = False
+    ros2_bag: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self, chunk_steps="int>=1", figure_dpi="int>=1")

@@ -196,6 +196,14 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         p = out.out_dir / f"animation.{settings.animation}"
         animate_stack(p, out.stack, out.occupancy_array(), out.tracks_table())
         written["animation"] = p
+    if (settings.mcap or settings.ros2_bag) and out.n_steps:
+        from ..outputs._mcap import MCAP_FILE, ROS2_BAG_DIR, write_run_mcap, write_run_ros2_bag
+
+        for wanted, write, name in ((settings.mcap, write_run_mcap, MCAP_FILE),
+                                    (settings.ros2_bag, write_run_ros2_bag, ROS2_BAG_DIR)):
+            if wanted:
+                written[name] = write(out.out_dir / name, out.stack, out.times_s(), out.occupancy_array(),
+                                      out.detections_table(), out.tracks_table(), person_radius_m=out.person_radius_m)
     if settings.report:
         from ..report import write_report
 

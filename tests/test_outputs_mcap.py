@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from planefuse.grid import PlaneStack
-from planefuse.outputs._mcap import occupancy_topic, read_mcap_messages, write_run_mcap, write_run_ros2_bag
+from planefuse.outputs import occupancy_topic, read_mcap_messages, write_run_mcap, write_run_ros2_bag
 
 STACK = PlaneStack.from_extent([0.0, 1.0], (0.0, 2.0), (0.0, 1.5), 0.25)
 

@@ -15,9 +15,9 @@ from scipy.spatial.transform import Rotation
 
 from _bags import ORIGIN_NS, write_bag
 from planefuse.io import read_recording
-from planefuse.io._rosbag import bag_topics, import_bag, static_transform
+from planefuse.io import bag_topics, import_bag, static_transform
 from planefuse.outputs import OutputSettings, read_table
-from planefuse.outputs._mcap import read_mcap_messages
+from planefuse.outputs import read_mcap_messages
 from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
 from planefuse.sim import default_scene_config, simulate
 

@@ -37,7 +37,7 @@ def import_bag_cmd(
     """
     import warnings
 
-    from ..io._rosbag import bag_topics, import_bag, static_transform
+    from ..io import bag_topics, import_bag, static_transform
 
     try:
         if list_topics:

@@ -209,3 +209,32 @@ def test_static_transform_uses_ros_order_and_units():
     assert (parent, child) == ("world", "laser")
     np.testing.assert_allclose(T[:3, 3], [1, 2, 0.5])
     np.testing.assert_allclose(T[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-12)  # yaw 90 deg: x -> y
+
+
+@pytest.mark.realdata
+def test_real_ros1_bag_imports_the_scans_the_laser_reader_gives(tmp_path):
+    """The leg-tracker's ROS 1 bag through import_bag: the same scans as planefuse.laser.read_laser_scans, 0.0
+    ("no return" below range_min) as NaN (invalid), times from the header stamps; no /tf, so --tf places it."""
+    from conftest import shared_data
+    from planefuse.laser import read_laser_scans
+
+    bag = shared_data("lrf2d_people_leg_tracker") / "positive_1_extracted.bag"
+    with pytest.raises(ValueError, match=r"no transform of frame 'right_laser' \(laser 'right', topic /training_scan\)"):
+        import_bag(bag, tmp_path / "r0", lasers={"right": "/training_scan"}, cameras={}, imus={},
+                   extra_transforms=[static_transform("world,base,0,0,0,0,0,0")])
+    with pytest.warns(UserWarning, match=r"/training_scan .* missing [1-9]"):  # extracted scans: sparse in time
+        res = import_bag(bag, tmp_path / "r", lasers={"right": "/training_scan"}, cameras={}, imus={},
+                         extra_transforms=[static_transform("world,right_laser,0,0,0.4,0,0,0")])
+    rep = res.topics[0]
+    assert (rep.n_messages, rep.n_written, rep.frame_id) == (197, 197, "right_laser")
+    scans, _ = read_laser_scans(bag, "/training_scan")
+    with pytest.warns(UserWarning, match="gap in timestamps"):
+        got = read_recording(tmp_path / "r").laser("right").read()
+    stamps = np.array([s.time_s for s in scans])
+    order = np.argsort(stamps, kind="stable")
+    np.testing.assert_allclose(got.times_s, stamps[order] - stamps.min(), atol=1e-6)
+    ref = np.array([s.ranges_m for s in scans])[order].astype(np.float32).astype(float)
+    below = ref < 0.03  # range_min of this scanner
+    np.testing.assert_array_equal(np.isnan(got.ranges_m), below | np.isnan(ref))
+    np.testing.assert_array_equal(got.ranges_m[~below], ref[~below])
+    np.testing.assert_array_equal(read_recording(tmp_path / "r").laser("right").T_world_laser[:3, 3], [0, 0, 0.4])

@@ -238,3 +238,24 @@ def test_real_ros1_bag_imports_the_scans_the_laser_reader_gives(tmp_path):
     np.testing.assert_array_equal(np.isnan(got.ranges_m), below | np.isnan(ref))
     np.testing.assert_array_equal(got.ranges_m[~below], ref[~below])
     np.testing.assert_array_equal(read_recording(tmp_path / "r").laser("right").T_world_laser[:3, 3], [0, 0, 0.4])
+
+
+def test_cli_lists_topics_imports_chosen_ones_and_refuses_in_one_line(bag, tmp_path):
+    from typer.testing import CliRunner
+
+    from planefuse.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["import-bag", str(bag), "--list"], env={"COLUMNS": "200"})
+    assert res.exit_code == 0 and "/cam0/image_raw" in res.output and "sensor_msgs/msg/LaserScan" in res.output
+    res = runner.invoke(app, ["import-bag", str(bag), str(tmp_path / "rec"), "--camera", "c0=/cam0/image_raw",
+                              "--laser", "lrf=/laser0/scan", "--world-frame", "world", "--room", "0,10,0,10"],
+                        env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    rec = read_recording(tmp_path / "rec")
+    assert sorted(rec.camera_streams) == ["c0"] and sorted(rec.lasers) == ["lrf"] and not rec.imus
+    assert rec.room_xy_m == (0.0, 10.0, 0.0, 10.0)
+    res = runner.invoke(app, ["import-bag", str(bag), str(tmp_path / "rec2"), "--laser", "lrf=/laser0/scan",
+                              "--world-frame", "nowhere"], env={"COLUMNS": "200"})
+    assert res.exit_code == 2 and res.output.startswith("error:") and "laser0_link" in res.output
+    assert len(res.output.strip().splitlines()) == 1

@@ -101,3 +101,49 @@ def test_ros2_bag_holds_people_markers_detections_and_occupancy_grids(run, tmp_p
     assert markers[2][1][0][3] == 3  # DELETEALL first
     assert sorted(mk[1] for mk in markers[2][1] if mk[0] == "tracks" and mk[3] == 0) == [3, 7]  # ADD
     assert poses[1][1] == list(zip(dets["x_m"], dets["y_m"])) and poses[0][1] == []
+
+
+class _Frames:
+    """A camera stream in memory: ``camera``, ``times_s``, ``frame(i)``."""
+
+    def __init__(self, camera, times_s, frames):
+        self.camera, self.times_s, self.frames = camera, np.asarray(times_s), frames
+
+    def frame(self, i):
+        return self.frames[i]
+
+
+def test_camera_frames_go_out_with_their_calibration_pose_and_projected_tracks(run, tmp_path):
+    import cv2
+
+    from planefuse.geometry import CameraIntrinsics, PinholeCamera, T_world_cam_look_at
+
+    times, occ, dets, tracks = run
+    K = np.array([[150.0, 0, 79.5], [0, 150.0, 59.5], [0, 0, 1]])
+    cam = PinholeCamera(CameraIntrinsics(K, 160, 120, np.array([-0.05, 0.01, 0, 0, 0])),
+                        T_world_cam_look_at((1.0, -3.0, 2.5), (1.0, 0.75, 0.0)), name="cam0")
+    rng = np.random.default_rng(1)
+    frames = [cv2.GaussianBlur(rng.integers(0, 255, (120, 160, 3), dtype=np.uint8), (9, 9), 3) for _ in range(8)]
+    # frames at 0.1 s: the latest at or before each output step (0, 0.2, 0.4, 0.6 s) is frame 2k
+    p = write_run_mcap(tmp_path / "run.mcap", STACK, times, occ, dets, tracks, cameras=[_Frames(cam, np.arange(8) * 0.1,
+                                                                                               frames)])
+    msgs = list(read_mcap_messages(p))
+    images = [m for t, _, m in msgs if t == "/planefuse/cameras/cam0/image"]
+    assert len(images) == len(times)
+    for k, m in enumerate(images):
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(m["data"]), np.uint8), cv2.IMREAD_COLOR)
+        assert m["frame_id"] == "cam0" and np.abs(img.astype(int) - frames[2 * k]).mean() < 3  # JPEG 90
+    (calib,) = [m for t, _, m in msgs if t == "/planefuse/cameras/cam0/calibration"]
+    np.testing.assert_array_equal(np.reshape(calib["K"], (3, 3)), K)
+    (tf,) = [m for t, _, m in msgs if t == "/tf"]
+    tr = tf["transforms"][0]
+    assert (tr["parent_frame_id"], tr["child_frame_id"]) == ("world", "cam0")
+    np.testing.assert_allclose([tr["translation"][a] for a in "xyz"], [1.0, -3.0, 2.5])
+    notes = [m for t, _, m in msgs if t == "/planefuse/cameras/cam0/annotations"]
+    rows = np.flatnonzero(tracks["step"] == 2)
+    feet = cam.project(np.column_stack([tracks["x_m"][rows], tracks["y_m"][rows], np.zeros(len(rows))]))
+    got = np.array([[c["position"]["x"], c["position"]["y"]] for c in notes[2]["circles"]])
+    assert len(got) == 2  # both tracks of step 2 in view
+    np.testing.assert_allclose(got, feet[np.isfinite(feet).all(1)])
+    assert [t["text"] for t in notes[2]["texts"]] == [str(i) for i, f in zip(tracks["track_id"][rows], feet)
+                                                       if np.isfinite(f).all()]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import colorsys
 import os
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +54,8 @@ def _ns(time_s: float) -> int:
 
 
 def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapping[str, np.ndarray],
-                   tracks: Mapping[str, np.ndarray], *, person_radius_m: float = 0.25) -> Path:
+                   tracks: Mapping[str, np.ndarray], *, person_radius_m: float = 0.25, cameras: Sequence = (),
+                   jpeg_quality: int = 90) -> Path:
     """Write a run as MCAP in Foxglove's schemas (protobuf encoding), openable in Foxglove with no ROS.
 
     Parameters
@@ -70,12 +71,21 @@ def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapp
         The run's tables (``detections.csv``, ``tracks.csv`` columns).
     person_radius_m : float
         Radius of the cylinders drawn for tracks and detections [m].
+    cameras : sequence of camera streams
+        Objects with ``camera`` (:class:`~planefuse.geometry.PinholeCamera`), ``times_s`` (F,) and ``frame(i)``
+        (H, W, 3) uint8 BGR (``planefuse.io.CameraStream``): at every output step the camera's latest frame at or
+        before it goes out as JPEG (``jpeg_quality``) with the tracks drawn over it.
 
     Topics: ``/planefuse/tracks`` and ``/planefuse/detections`` (``foxglove.SceneUpdate``: one entity per track /
     detection, id ``track/<id>`` / ``detection/<step>/<i>``, pose = position [m]; the exact values in the
     entity's metadata: ``track_id``, ``x_m``, ``y_m``, ``vx_m_s``, ``vy_m_s`` / ``x_m``, ``y_m``, ``height_m``,
     ``confidence``, ``source``, as ``repr`` of the float64), and one ``foxglove.Grid`` per plane
-    (:func:`occupancy_topic`; float32 field ``occupancy``, row-major with rows along +y).
+    (:func:`occupancy_topic`; float32 field ``occupancy``, row-major with rows along +y). Per camera ``<name>``:
+    ``/planefuse/cameras/<name>/image`` (``foxglove.CompressedImage``, frame ``<name>``: the camera's optical
+    frame), ``.../calibration`` (``foxglove.CameraCalibration``: K, plumb_bob D, P = K [I | 0]) and
+    ``.../annotations`` (``foxglove.ImageAnnotations``: per track a circle at its floor point, a line up to 1.7 m
+    and its id, projected with the lens distortion); ``/tf`` (``foxglove.FrameTransforms``, once, at the first
+    step): ``world`` -> ``<name>`` from ``T_world_cam``.
     """
     import foxglove
     from foxglove import channels as ch
@@ -94,10 +104,15 @@ def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapp
             c_dets = ch.SceneUpdateChannel("/planefuse/detections", context=ctx)
             c_grid = [ch.GridChannel(occupancy_topic(h), context=ctx) for h in stack.heights_m]
             tr_rows, det_rows = _steps(len(times), tracks), _steps(len(times), detections)
+            views = _CameraViews(ctx, cameras, jpeg_quality) if len(cameras) else None
             alive: set[str] = set()
             for k, t in enumerate(times):
                 ns = _ns(t)
                 stamp = fm.Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
+                if views is not None:
+                    rows = tr_rows[k]
+                    views.log(k, float(t), ns, stamp, np.asarray(tracks["track_id"])[rows].astype(int),
+                              np.column_stack([np.asarray(tracks["x_m"])[rows], np.asarray(tracks["y_m"])[rows]]))
                 occ = np.asarray(occupancy[k], dtype="<f4")
                 for ll in range(L):
                     pose = fm.Pose(position=fm.Vector3(x=stack.x_min_m, y=stack.y_min_m, z=float(stack.heights_m[ll])),
@@ -157,6 +172,78 @@ def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapp
     finally:
         tmp.unlink(missing_ok=True)
     return path
+
+
+class _CameraViews:
+    """The cameras' channels of :func:`write_run_mcap`: image, calibration and track overlays per output step."""
+
+    def __init__(self, ctx, cameras: Sequence, jpeg_quality: int) -> None:
+        from foxglove import channels as ch
+
+        self.cameras = list(cameras)
+        self.quality = int(jpeg_quality)
+        self.tf = ch.FrameTransformsChannel("/tf", context=ctx)
+        self.image, self.calib, self.notes = [], [], []
+        for cs in self.cameras:
+            base = f"/planefuse/cameras/{cs.camera.name}"
+            self.image.append(ch.CompressedImageChannel(f"{base}/image", context=ctx))
+            self.calib.append(ch.CameraCalibrationChannel(f"{base}/calibration", context=ctx))
+            self.notes.append(ch.ImageAnnotationsChannel(f"{base}/annotations", context=ctx))
+
+    def log(self, k: int, t: float, ns: int, stamp, ids: np.ndarray, xy_m: np.ndarray) -> None:
+        import cv2
+        from foxglove import messages as fm
+        from scipy.spatial.transform import Rotation
+
+        if k == 0:
+            transforms = []
+            for cs in self.cameras:
+                T = cs.camera.T_world_cam
+                q = Rotation.from_matrix(T[:3, :3]).as_quat()
+                transforms.append(fm.FrameTransform(
+                    timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=cs.camera.name,
+                    translation=fm.Vector3(x=float(T[0, 3]), y=float(T[1, 3]), z=float(T[2, 3])),
+                    rotation=fm.Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))))
+            self.tf.log(fm.FrameTransforms(transforms=transforms), log_time=ns)
+        feet = np.column_stack([xy_m, np.zeros(len(xy_m))])
+        heads = np.column_stack([xy_m, np.full(len(xy_m), _PERSON_HEIGHT_M)])
+        for c, cs in enumerate(self.cameras):
+            i = int(np.searchsorted(np.asarray(cs.times_s), t, side="right")) - 1
+            if i < 0:
+                continue
+            cam = cs.camera
+            K = np.asarray(cam.K, dtype=float)
+            ok, jpg = cv2.imencode(".jpg", cs.frame(i), [cv2.IMWRITE_JPEG_QUALITY, self.quality])
+            if not ok:
+                raise ValueError(f"camera {cam.name!r}: frame {i} could not be encoded as JPEG")
+            self.image[c].log(fm.CompressedImage(timestamp=stamp, frame_id=cam.name, data=jpg.tobytes(),
+                                                 format="jpeg"), log_time=ns)
+            if k == 0:
+                self.calib[c].log(fm.CameraCalibration(
+                    timestamp=stamp, frame_id=cam.name, width=cam.intrinsics.width_px, height=cam.intrinsics.height_px,
+                    distortion_model="plumb_bob", D=[float(v) for v in cam.intrinsics.dist],
+                    K=K.ravel().tolist(), R=np.eye(3).ravel().tolist(),
+                    P=np.column_stack([K, np.zeros(3)]).ravel().tolist()), log_time=ns)
+            circles, lines, texts = [], [], []
+            if len(xy_m):
+                uv_feet, uv_heads = cam.project(feet), cam.project(heads)
+                for tid, f, h in zip(ids, uv_feet, uv_heads):
+                    if not np.isfinite(f).all():
+                        continue
+                    r, g, b, a = _rgba(int(tid))
+                    color = fm.Color(r=r, g=g, b=b, a=1.0)
+                    circles.append(fm.CircleAnnotation(
+                        timestamp=stamp, position=fm.Point2(x=float(f[0]), y=float(f[1])), diameter=12.0,
+                        thickness=2.0, fill_color=fm.Color(r=r, g=g, b=b, a=0.3), outline_color=color))
+                    texts.append(fm.TextAnnotation(
+                        timestamp=stamp, position=fm.Point2(x=float(f[0]) + 8, y=float(f[1])), text=str(int(tid)),
+                        font_size=14.0, text_color=color, background_color=fm.Color(r=0.0, g=0.0, b=0.0, a=0.5)))
+                    if np.isfinite(h).all():
+                        lines.append(fm.PointsAnnotation(
+                            timestamp=stamp, type=fm.PointsAnnotationType.LineStrip,
+                            points=[fm.Point2(x=float(f[0]), y=float(f[1])), fm.Point2(x=float(h[0]), y=float(h[1]))],
+                            outline_color=color, thickness=2.0))
+            self.notes[c].log(fm.ImageAnnotations(circles=circles, points=lines, texts=texts), log_time=ns)
 
 
 def _rgba(track_id: int) -> tuple[float, float, float, float]:

@@ -156,7 +156,7 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
 
 
 def write_presentation(out: OutputWriter, settings: OutputSettings, figure_inputs: FigureInputs | None = None,
-                       progress=None) -> dict[str, Path]:
+                       progress=None, cameras=()) -> dict[str, Path]:
     """Figures, animation and ``report.html`` of a finished run folder, as ``settings`` asks.
 
     Parameters
@@ -168,6 +168,8 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
     progress : ProgressReporter, optional
         Reports the figure step.
+    cameras : sequence of CameraStream
+        The recording's cameras, whose frames (with the tracks drawn over them) go into ``planefuse.mcap``.
 
     Returns
     -------
@@ -199,11 +201,14 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
     if (settings.mcap or settings.ros2_bag) and out.n_steps:
         from ..outputs._mcap import MCAP_FILE, ROS2_BAG_DIR, write_run_mcap, write_run_ros2_bag
 
-        for wanted, write, name in ((settings.mcap, write_run_mcap, MCAP_FILE),
-                                    (settings.ros2_bag, write_run_ros2_bag, ROS2_BAG_DIR)):
-            if wanted:
-                written[name] = write(out.out_dir / name, out.stack, out.times_s(), out.occupancy_array(),
-                                      out.detections_table(), out.tracks_table(), person_radius_m=out.person_radius_m)
+        tables = (out.out_dir, out.stack, out.times_s(), out.occupancy_array(), out.detections_table(),
+                  out.tracks_table())
+        if settings.mcap:
+            written[MCAP_FILE] = write_run_mcap(tables[0] / MCAP_FILE, *tables[1:], person_radius_m=out.person_radius_m,
+                                                cameras=cameras)
+        if settings.ros2_bag:
+            written[ROS2_BAG_DIR] = write_run_ros2_bag(tables[0] / ROS2_BAG_DIR, *tables[1:],
+                                                       person_radius_m=out.person_radius_m)
     if settings.report:
         from ..report import write_report
 
@@ -323,7 +328,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         try:
             # the figures' material (a frame per camera, laser points, saliency) only where figures are drawn
             inputs = _figure_inputs(rec, run.report, times) if settings.figures or settings.report else None
-            write_presentation(out, settings, inputs, progress)
+            write_presentation(out, settings, inputs, progress, cameras=list(rec.camera_streams.values()))
         except (KeyboardInterrupt, MemoryError):
             raise
         except Exception as exc:  # the tables are complete: say what failed, in one line, and keep them

@@ -33,6 +33,13 @@ def run():
 def test_mcap_read_back_gives_the_tables_and_the_grids(run, tmp_path):
     times, occ, dets, tracks = run
     p = write_run_mcap(tmp_path / "run.mcap", STACK, times, occ, dets, tracks)
+    from mcap.reader import make_reader
+
+    with open(p, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert {ch.topic: summary.schemas[ch.schema_id].name for ch in summary.channels.values()} == {
+        "/planefuse/tracks": "foxglove.SceneUpdate", "/planefuse/detections": "foxglove.SceneUpdate",
+        occupancy_topic(0.0): "foxglove.Grid", occupancy_topic(1.0): "foxglove.Grid"}  # Foxglove's own schemas
     msgs = list(read_mcap_messages(p))
     assert {t for t, _, _ in msgs} == {"/planefuse/tracks", "/planefuse/detections", occupancy_topic(0.0),
                                       occupancy_topic(1.0)}

@@ -84,6 +84,7 @@ def test_ros2_bag_holds_people_markers_detections_and_occupancy_grids(run, tmp_p
 
     times, occ, dets, tracks = run
     p = write_run_ros2_bag(tmp_path / "bag", STACK, times, occ, dets, tracks)
+    assert sorted(f.name for f in p.iterdir()) == ["bag.mcap", "metadata.yaml"] and len(list(tmp_path.iterdir())) == 1
     people, grids, markers, poses = [], {}, [], []
     with AnyReader([p]) as r:
         for c, t_ns, raw in r.messages():

@@ -310,8 +310,10 @@ def write_run_ros2_bag(path: str | Path, stack, times_s, occupancy, detections: 
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     path = Path(path)
-    tmp = path.with_name(f".{path.name}{TMP_MARK}run")
-    shutil.rmtree(tmp, ignore_errors=True)
+    work = path.with_name(f".{path.name}{TMP_MARK}run")
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir()
+    tmp = work / path.name  # the bag's data file is named after its folder: <name>.mcap
     ts = _ros_types()
     T = ts.types
     Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
@@ -383,5 +385,5 @@ def write_run_ros2_bag(path: str | Path, stack, times_s, occupancy, detections: 
         shutil.rmtree(path, ignore_errors=True)
         os.replace(tmp, path)
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        shutil.rmtree(work, ignore_errors=True)
     return path

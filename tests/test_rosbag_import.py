@@ -186,6 +186,13 @@ def test_compressed_images_in_an_mcap_bag_keep_their_bytes(sim_dir, tmp_path):
     assert imp.frame_files[0].suffix == ".png"
     for i in range(5):
         np.testing.assert_array_equal(imp.frame(i), rec.camera("cam1").frame(i))  # PNG: lossless
+    # the bag's .mcap file alone (no metadata.yaml) is read too
+    (mcap_file,) = bag.glob("*.mcap")
+    import_bag(mcap_file, tmp_path / "imp_file", cameras={"cam1": ("/cam1/compressed", None)}, imus={}, lasers={},
+               world_frame="world")
+    for i in range(5):
+        np.testing.assert_array_equal(read_recording(tmp_path / "imp_file").camera("cam1").frame(i),
+                                      rec.camera("cam1").frame(i))
 
 
 def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):

@@ -26,7 +26,8 @@ def run():
               "track_id": np.array([3, 3, 3, 7, 3, 7]), "x_m": rng.random(6) * 2, "y_m": rng.random(6) * 1.5,
               "vx_m_s": rng.normal(size=6), "vy_m_s": rng.normal(size=6)}
     dets = {"step": np.array([1, 1]), "time_s": times[[1, 1]], "x_m": rng.random(2), "y_m": rng.random(2),
-            "height_m": np.array([1.0, np.nan]), "confidence": np.array([0.9, 0.4]), "source": np.array(["bof", "laser"])}
+            "height_m": np.array([1.0, np.nan]), "confidence": np.array([0.9, 0.4]),
+            "source": np.array(["bof", "laser"])}
     return times, occ, dets, tracks
 
 

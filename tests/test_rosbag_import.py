@@ -4,12 +4,13 @@ topic; a missing transform is one line naming the frame."""
 
 from __future__ import annotations
 
-import json
-import warnings
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import yaml
 from scipy.spatial.transform import Rotation
 
@@ -104,8 +105,6 @@ def test_bag_runs_to_the_same_tracks_as_the_folder_recording(sim_dir, imported, 
     ranges) and the imported bag give byte-identical detections and tracks."""
     out, _ = imported
     ref = tmp_path / "folder"
-    import shutil
-
     shutil.copytree(sim_dir, ref)
     m = yaml.safe_load((ref / "scene.yaml").read_text())
     for s in m["sensors"]:
@@ -226,7 +225,8 @@ def test_real_ros1_bag_imports_the_scans_the_laser_reader_gives(tmp_path):
     from planefuse.laser import read_laser_scans
 
     bag = shared_data("lrf2d_people_leg_tracker") / "positive_1_extracted.bag"
-    with pytest.raises(ValueError, match=r"no transform of frame 'right_laser' \(laser 'right', topic /training_scan\)"):
+    with pytest.raises(ValueError, match=r"no transform of frame 'right_laser' \(laser 'right', "
+                                         r"topic /training_scan\)"):
         import_bag(bag, tmp_path / "r0", lasers={"right": "/training_scan"}, cameras={}, imus={},
                    extra_transforms=[static_transform("world,base,0,0,0,0,0,0")])
     with pytest.warns(UserWarning, match=r"/training_scan .* missing [1-9]"):  # extracted scans: sparse in time
@@ -266,3 +266,55 @@ def test_cli_lists_topics_imports_chosen_ones_and_refuses_in_one_line(bag, tmp_p
                               "--world-frame", "nowhere"], env={"COLUMNS": "200"})
     assert res.exit_code == 2 and res.output.startswith("error:") and "laser0_link" in res.output
     assert len(res.output.strip().splitlines()) == 1
+
+
+# -- message conversions and stamp bookkeeping -----------------------------------------------------------------------
+def test_image_encodings_and_padded_rows_give_bgr(rng):
+    from types import SimpleNamespace
+
+    import cv2
+
+    from planefuse.io._rosbag import image_from_msg
+
+    bgr = rng.integers(0, 255, (5, 7, 3), dtype=np.uint8)
+    for enc, img in (("bgr8", bgr), ("rgb8", bgr[..., ::-1]), ("bgra8", cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)),
+                     ("rgba8", cv2.cvtColor(bgr, cv2.COLOR_BGR2RGBA)), ("mono8", bgr[..., 0])):
+        ch = 1 if img.ndim == 2 else img.shape[2]
+        rows = np.zeros((5, 7 * ch + 3), np.uint8)  # 3 bytes of row padding (step > width * channels)
+        rows[:, : 7 * ch] = img.reshape(5, -1)
+        msg = SimpleNamespace(encoding=enc, height=5, width=7, step=7 * ch + 3, data=rows.ravel())
+        want = cv2.cvtColor(bgr[..., 0], cv2.COLOR_GRAY2BGR) if enc == "mono8" else bgr
+        np.testing.assert_array_equal(image_from_msg(msg, "/t"), want)
+    with pytest.raises(ValueError, match=r"topic /t: image encoding '16UC1' is not supported"):
+        image_from_msg(SimpleNamespace(encoding="16UC1", height=1, width=1, step=2, data=np.zeros(2, np.uint8)), "/t")
+    with pytest.raises(ValueError, match="image data of 10 bytes"):
+        image_from_msg(SimpleNamespace(encoding="bgr8", height=2, width=2, step=6, data=np.zeros(10, np.uint8)), "/t")
+
+
+def test_laser_ranges_follow_rep_117_into_planefuse_convention():
+    from types import SimpleNamespace
+
+    from planefuse.io._rosbag import _laser_ranges
+
+    r = np.array([0.0, 0.05, 1.0, 30.0, 31.0, np.inf, -np.inf, np.nan], dtype=np.float32)
+    got = _laser_ranges(SimpleNamespace(ranges=r, range_min=0.1, range_max=30.0))
+    np.testing.assert_array_equal(got, [np.nan, np.nan, 1.0, 30.0, np.inf, np.inf, np.nan, np.nan])
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.lists(st.integers(0, 30), min_size=1, max_size=40))
+def test_stamp_bookkeeping_counts_against_a_direct_count(sent):
+    """Frames k (stamp k x 40 ms) sent in any order, repeated or not at all: written in stamp order once each;
+    out of order = messages earlier than one before them; duplicated = repeats; missing = holes at 25 Hz."""
+    from planefuse.io._rosbag import TopicReport, _Stamps
+
+    s = _Stamps([ORIGIN_NS + 40_000_000 * k for k in sent])
+    rep = TopicReport("/t", "c", "camera")
+    idx = s.order(rep)
+    uniq = sorted(set(sent))
+    assert [sent[i] for i in idx] == uniq
+    assert rep.n_duplicate == len(sent) - len(uniq) and rep.n_written == len(uniq)
+    assert rep.n_out_of_order == sum(any(sent[j] > sent[i] for j in range(i)) for i in range(len(sent)))
+    gaps = np.diff(uniq)
+    if len(gaps) and np.median(gaps) == 1:  # a nominal period of 40 ms: every hole counts
+        assert rep.n_missing == uniq[-1] - uniq[0] + 1 - len(uniq)

@@ -12,7 +12,7 @@ from ._import import _floats, _pairs
 
 @app.command("import-bag")
 def import_bag_cmd(
-    bag: Path = typer.Argument(..., help="ROS 2 bag folder (sqlite3 or MCAP storage) or ROS 1 .bag file."),
+    bag: Path = typer.Argument(..., help="ROS 2 bag folder (sqlite3 or MCAP storage), .mcap file or ROS 1 .bag file."),
     out: Path = typer.Argument(None, help="Recording folder to create (not needed with --list)."),
     list_topics: bool = typer.Option(False, "--list", help="List the bag's topics (type, count, what planefuse "
                                      "makes of them) and stop."),

@@ -389,7 +389,8 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
     Parameters
     ----------
     path : path
-        ROS 2 bag folder (``metadata.yaml``; sqlite3 or MCAP storage) or ROS 1 ``.bag`` file.
+        ROS 2 bag folder (``metadata.yaml``; sqlite3 or MCAP storage), bare ``.mcap`` file of ROS 2 messages, or
+        ROS 1 ``.bag`` file.
     out_dir : path
         The recording folder; must be empty unless ``overwrite``.
     cameras : dict name -> (image topic, CameraInfo topic)

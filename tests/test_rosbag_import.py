@@ -67,7 +67,7 @@ def test_listing_names_every_topic_with_its_type_count_and_use(bag):
 def test_imported_streams_are_the_recordings(sim_dir, imported):
     ref, (out, res) = read_recording(sim_dir), imported
     imp = read_recording(out)
-    assert res.origin_ns == ORIGIN_NS and res.world_frame == "world"
+    assert res.origin_ns == ORIGIN_NS == imp.clock_origin_ns and res.world_frame == "world"
     assert all(r.n_written == r.n_messages and not (r.n_out_of_order or r.n_duplicate or r.n_missing)
                for r in res.topics)
     assert sorted(imp.camera_streams) == sorted(ref.camera_streams)
@@ -130,7 +130,8 @@ def test_bag_runs_to_the_same_tracks_as_the_folder_recording(sim_dir, imported, 
         for e in m.get("entities", []):
             meta = {kv["key"]: float(kv["value"]) for kv in e["metadata"]}
             got.append((t_ns, int(meta["track_id"]), meta["x_m"], meta["y_m"], meta["vx_m_s"], meta["vy_m_s"]))
-    expected = [(int(round(t * 1e9)), int(i), x, y, vx, vy) for t, i, x, y, vx, vy in
+    # stamped on the bag's clock: time 0 is the bag's first header stamp
+    expected = [(ORIGIN_NS + int(round(t * 1e9)), int(i), x, y, vx, vy) for t, i, x, y, vx, vy in
                 zip(*(table[c] for c in ("time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")))]
     assert sorted(got) == sorted(expected)
 

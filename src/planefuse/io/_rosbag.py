@@ -615,7 +615,7 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
                                   n_scans=len(t), files=files, model=device))
         ends.append(t[-1] + 1 / _rate(rep))
     manifest = RecordingManifest(duration_s=float(max(ends)), planes_heights_m=list(planes_heights_m),
-                                 room_xy_m=room_xy_m, sensors=sensors,
+                                 room_xy_m=room_xy_m, sensors=sensors, clock_origin_ns=origin_ns,
                                  source=f"planefuse import-bag {path.name} (world frame {world}, time 0 = header "
                                         f"stamp {origin_ns} ns)")
     text = yaml.safe_dump(manifest.model_dump(mode="json", exclude_none=True), sort_keys=False, width=120)

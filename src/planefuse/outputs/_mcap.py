@@ -49,13 +49,13 @@ def _steps(n_steps: int, table: Mapping[str, np.ndarray]) -> list[np.ndarray]:
     return [order[bounds[k]:bounds[k + 1]] for k in range(n_steps)]
 
 
-def _ns(time_s: float) -> int:
-    return int(round(float(time_s) * 1e9))
+def _ns(time_s: float, origin_ns: int = 0) -> int:
+    return int(origin_ns) + int(round(float(time_s) * 1e9))
 
 
 def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapping[str, np.ndarray],
                    tracks: Mapping[str, np.ndarray], *, person_radius_m: float = 0.25, cameras: Sequence = (),
-                   jpeg_quality: int = 90) -> Path:
+                   jpeg_quality: int = 90, clock_origin_ns: int | None = None) -> Path:
     """Write a run as MCAP in Foxglove's schemas (protobuf encoding), openable in Foxglove with no ROS.
 
     Parameters
@@ -75,6 +75,9 @@ def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapp
         Objects with ``camera`` (:class:`~planefuse.geometry.PinholeCamera`), ``times_s`` (F,) and ``frame(i)``
         (H, W, 3) uint8 BGR (``planefuse.io.CameraStream``): at every output step the camera's latest frame at or
         before it goes out as JPEG (``jpeg_quality``) with the tracks drawn over it.
+    clock_origin_ns : int, optional
+        Time 0 on the source's clock [ns] (``Recording.clock_origin_ns``: a ROS bag's first header stamp): every
+        stamp and log time is ``clock_origin_ns + round(time_s * 1e9)``, so the messages line up with the bag's.
 
     Topics: ``/planefuse/tracks`` and ``/planefuse/detections`` (``foxglove.SceneUpdate``: one entity per track /
     detection, id ``track/<id>`` / ``detection/<step>/<i>``, pose = position [m]; the exact values in the
@@ -107,7 +110,7 @@ def write_run_mcap(path: str | Path, stack, times_s, occupancy, detections: Mapp
             views = _CameraViews(ctx, cameras, jpeg_quality) if len(cameras) else None
             alive: set[str] = set()
             for k, t in enumerate(times):
-                ns = _ns(t)
+                ns = _ns(t, clock_origin_ns or 0)
                 stamp = fm.Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
                 if views is not None:
                     rows = tr_rows[k]
@@ -294,10 +297,12 @@ def _ros_types():
 
 
 def write_run_ros2_bag(path: str | Path, stack, times_s, occupancy, detections: Mapping[str, np.ndarray],
-                       tracks: Mapping[str, np.ndarray], *, person_radius_m: float = 0.25) -> Path:
+                       tracks: Mapping[str, np.ndarray], *, person_radius_m: float = 0.25,
+                       clock_origin_ns: int | None = None) -> Path:
     """Write a run as a ROS 2 bag folder (MCAP storage) of standard messages, with ``rosbags`` (no ROS needed).
 
-    Topics (all in frame ``world``, header stamps = log times = ``time_s * 1e9`` ns on the recording clock):
+    Topics (all in frame ``world``, header stamps = log times = ``clock_origin_ns + round(time_s * 1e9)`` ns, as
+    :func:`write_run_mcap`):
 
     * ``/planefuse/people`` ``people_msgs/msg/People``: one ``Person`` per track, ``name`` = track id,
       ``position`` (x, y [m], z = 0), ``velocity`` (vx, vy [m/s], 0), ``reliability`` 1.
@@ -345,7 +350,7 @@ def write_run_ros2_bag(path: str | Path, stack, times_s, occupancy, detections: 
             c_grid = [conn(occupancy_topic(h), "nav_msgs/msg/OccupancyGrid") for h in stack.heights_m]
             tr_rows, det_rows = _steps(len(times), tracks), _steps(len(times), detections)
             for k, t in enumerate(times):
-                ns = _ns(t)
+                ns = _ns(t, clock_origin_ns or 0)
                 header = Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id=WORLD_FRAME)
                 people, markers = [], [marker(header, 0, 3, 0, "tracks", Pose(position=Point(x=0.0, y=0.0, z=0.0),
                                                                                    orientation=q0),

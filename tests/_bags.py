@@ -17,24 +17,35 @@ def _ns(t_s: float) -> int:
 
 
 def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = None, skip_tf: tuple[str, ...] = (),
-              storage: str = "sqlite3", compressed: tuple[str, ...] = ()) -> dict[str, str]:
+              storage: str = "sqlite3", compressed: tuple[str, ...] = (), ros1: bool = False) -> dict[str, str]:
     """Write ``rec``'s cameras, IMUs and lasers (fixed, untilted) into the ROS 2 bag folder ``path``.
 
     ``image_order[name]`` lists the frame indices of camera ``name`` in the order they are written (repeats,
     omissions and swaps make duplicated, missing and out-of-order frames); ``skip_tf`` leaves out those
-    frames' transforms; cameras in ``compressed`` go out as PNG ``CompressedImage``. Returns the topic of
-    every sensor.
+    frames' transforms; cameras in ``compressed`` go out as PNG ``CompressedImage``; ``ros1`` writes a ROS 1
+    ``.bag`` file (noetic messages: ``seq`` in headers, CameraInfo's upper-case ``D K R P``) instead. Returns the
+    topic of every sensor.
     """
     import cv2
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
-    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if ros1:  # noetic's store lacks tf2_msgs: its one-line definition
+        from rosbags.typesys import get_types_from_msg
+
+        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
     T = ts.types
     Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
+    serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    seq = {"n": 0} if ros1 else None
 
     def header(t_ns: int, frame: str):
-        return Header(stamp=Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000), frame_id=frame)
+        stamp = Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+        if seq is None:
+            return Header(stamp=stamp, frame_id=frame)
+        seq["n"] += 1
+        return Header(seq=seq["n"], stamp=stamp, frame_id=frame)
 
     def tf(parent: str, child: str, T_parent_child: np.ndarray):
         q = Rotation.from_matrix(T_parent_child[:3, :3]).as_quat()
@@ -48,12 +59,18 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     topics = {}
     edges = []
-    with Writer(path, version=9, storage_plugin=plugin) as w:
+    if ros1:
+        from rosbags.rosbag1 import Writer as Writer1
+
+        writer = Writer1(path)
+    else:
+        writer = Writer(path, version=9, storage_plugin=plugin)
+    with writer as w:
         def conn(topic, msgtype):
             return w.add_connection(topic, msgtype, typestore=ts)
 
         def put(c, t_ns, msg):
-            w.write(c, t_ns, ts.serialize_cdr(msg, c.msgtype))
+            w.write(c, t_ns, serialize(msg, c.msgtype))
 
         c_tf = conn("/tf_static", "tf2_msgs/msg/TFMessage")
         for cs in rec.camera_streams.values():
@@ -74,10 +91,11 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
             topics[cs.name] = c_img.topic
             cam = cs.camera
             W, H = cam.intrinsics.width_px, cam.intrinsics.height_px
+            matrices = {"d": np.asarray(cam.intrinsics.dist, dtype=float), "k": np.asarray(cam.K, dtype=float).ravel(),
+                        "r": np.eye(3).ravel(), "p": np.column_stack([cam.K, np.zeros(3)]).ravel()}
             info = T["sensor_msgs/msg/CameraInfo"](
                 header=header(_ns(cs.times_s[0]), frame), height=H, width=W, distortion_model="plumb_bob",
-                d=np.asarray(cam.intrinsics.dist, dtype=float), k=np.asarray(cam.K, dtype=float).ravel(),
-                r=np.eye(3).ravel(), p=np.column_stack([cam.K, np.zeros(3)]).ravel(), binning_x=0, binning_y=0,
+                **{(k.upper() if ros1 else k): v for k, v in matrices.items()}, binning_x=0, binning_y=0,
                 roi=T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False))
             put(c_info, _ns(cs.times_s[0]), info)
             order = image_order.get(cs.name, range(len(cs))) if image_order else range(len(cs))

@@ -195,6 +195,24 @@ def test_compressed_images_in_an_mcap_bag_keep_their_bytes(sim_dir, tmp_path):
                                       rec.camera("cam1").frame(i))
 
 
+
+def test_ros1_bag_with_cameras_imports_the_same_streams(sim_dir, tmp_path):
+    """A ROS 1 bag (noetic: CameraInfo's K and D upper-case, headers with seq) through the same route."""
+    rec = read_recording(sim_dir)
+    bag = tmp_path / "rig.bag"
+    write_bag(rec, bag, ros1=True, image_order={c: range(6) for c in rec.camera_streams})
+    res = import_bag(bag, tmp_path / "imp", world_frame="world", imus={})
+    imp = read_recording(tmp_path / "imp")
+    assert res.origin_ns == ORIGIN_NS and sorted(imp.camera_streams) == sorted(rec.camera_streams)
+    for name, cs in rec.camera_streams.items():
+        ci = imp.camera(name)
+        np.testing.assert_array_equal(ci.camera.K, cs.camera.K)
+        np.testing.assert_array_equal(ci.camera.intrinsics.dist, cs.camera.intrinsics.dist)
+        np.testing.assert_allclose(ci.camera.T_world_cam, cs.camera.T_world_cam, atol=1e-12)
+        np.testing.assert_array_equal(ci.times_s, cs.times_s[:6])
+        np.testing.assert_array_equal(ci.frame(5), cs.frame(5))
+    np.testing.assert_array_equal(imp.laser("laser0").read().times_s, rec.laser().read().times_s)
+
 def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):
     with pytest.raises(ValueError, match="bag .*nowhere does not exist"):
         import_bag(tmp_path / "nowhere", tmp_path / "o1")

@@ -325,9 +325,16 @@ def _compressed_suffix(data: np.ndarray, topic: str) -> str:
     raise ValueError(f"topic {topic}: CompressedImage is neither JPEG nor PNG (starts with {head!r})")
 
 
+def _k_d(info) -> tuple[list[float], list[float]]:
+    """CameraInfo's K (9) and D: ``k``, ``d`` in ROS 2, ``K``, ``D`` in ROS 1."""
+    k = info.k if hasattr(info, "k") else info.K
+    d = info.d if hasattr(info, "d") else info.D
+    return [float(v) for v in k], [float(v) for v in d]
+
+
 def _intrinsics(info, topic: str) -> tuple[int, int, list[list[float]], list[float]]:
-    K = np.asarray(info.k, dtype=float).reshape(3, 3)
-    d = [float(v) for v in info.d]
+    k, d = _k_d(info)
+    K = np.asarray(k, dtype=float).reshape(3, 3)
     model = str(info.distortion_model)
     if model not in ("plumb_bob", "rational_polynomial", "") or (model == "" and any(d)):
         raise ValueError(f"topic {topic}: distortion model {model!r} is not supported (plumb_bob: k1 k2 p1 p2 k3)")
@@ -498,8 +505,8 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
             kind, name = sensor_of[conn.topic]
             if kind == "info":
                 first = info_of.setdefault(name, msg)
-                if (first is not msg and (list(first.k) != list(msg.k) or list(first.d) != list(msg.d)
-                                          or (first.width, first.height) != (msg.width, msg.height))):
+                if first is not msg and (_k_d(first) != _k_d(msg) or (first.width, first.height) != (msg.width,
+                                                                                                     msg.height)):
                     raise ValueError(f"topic {conn.topic}: the calibration changes during the bag (K, D or size); "
                                      "planefuse's cameras have one calibration")
                 continue

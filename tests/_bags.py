@@ -17,13 +17,16 @@ def _ns(t_s: float) -> int:
 
 
 def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = None, skip_tf: tuple[str, ...] = (),
-              storage: str = "sqlite3", compressed: tuple[str, ...] = (), ros1: bool = False) -> dict[str, str]:
+              storage: str = "sqlite3", compressed: tuple[str, ...] = (), ros1: bool = False,
+              clouds: bool = False) -> dict[str, str]:
     """Write ``rec``'s cameras, IMUs and lasers (fixed, untilted) into the ROS 2 bag folder ``path``.
 
     ``image_order[name]`` lists the frame indices of camera ``name`` in the order they are written (repeats,
     omissions and swaps make duplicated, missing and out-of-order frames); ``skip_tf`` leaves out those
     frames' transforms; cameras in ``compressed`` go out as PNG ``CompressedImage``; ``ros1`` writes a ROS 1
-    ``.bag`` file (noetic messages: ``seq`` in headers, CameraInfo's upper-case ``D K R P``) instead. Returns the
+    ``.bag`` file (noetic messages: ``seq`` in headers, CameraInfo's upper-case ``D K R P``) instead; ``clouds``
+    also writes each laser's scans as a PointCloud2 on ``/<name>/points`` (float32 x y z of the returns at z = 0,
+    plus a ring of points 0.5 m away at z = 1 m and a NaN row, which a slice at z = 0 must leave out). Returns the
     topic of every sensor.
     """
     import cv2
@@ -141,4 +144,21 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
                     time_increment=0.0, scan_time=1.0 / s.rate_hz, range_min=float(sc["range_min_m"]),
                     range_max=float(sc["range_max_m"]), ranges=d.ranges_m[k].astype(np.float32),
                     intensities=np.zeros(0, dtype=np.float32)))
+            if clouds:
+                c_pts = conn(f"/{s.name}/points", "sensor_msgs/msg/PointCloud2")
+                F = T["sensor_msgs/msg/PointField"]
+                fields = [F(name=a, offset=4 * j, datatype=7, count=1) for j, a in enumerate("xyz")]
+                ring = np.linspace(-np.pi, np.pi, 50, endpoint=False)
+                for k in range(len(d)):
+                    t_ns = _ns(d.times_s[k])
+                    r = d.ranges_m[k]
+                    ok = np.isfinite(r)
+                    pts = np.column_stack([r[ok] * np.cos(d.angles_rad[ok]), r[ok] * np.sin(d.angles_rad[ok]),
+                                           np.zeros(ok.sum())])
+                    pts = np.vstack([pts, np.column_stack([0.5 * np.cos(ring), 0.5 * np.sin(ring), np.ones(50)]),
+                                     [[np.nan, np.nan, np.nan]]]).astype("<f4")
+                    put(c_pts, t_ns, T["sensor_msgs/msg/PointCloud2"](
+                        header=header(t_ns, f"{s.name}_link"), height=1, width=len(pts), fields=fields,
+                        is_bigendian=False, point_step=12, row_step=12 * len(pts),
+                        data=np.frombuffer(pts.tobytes(), np.uint8).copy(), is_dense=False))
     return topics

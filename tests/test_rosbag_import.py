@@ -213,6 +213,28 @@ def test_ros1_bag_with_cameras_imports_the_same_streams(sim_dir, tmp_path):
         np.testing.assert_array_equal(ci.frame(5), cs.frame(5))
     np.testing.assert_array_equal(imp.laser("laser0").read().times_s, rec.laser().read().times_s)
 
+
+def test_point_cloud_becomes_a_laser_by_slicing_it(sim_dir, tmp_path):
+    """The simulated laser's returns sent as PointCloud2 (with points above the slice and a NaN row) come back, at
+    1 deg beams over 360 deg, as its ranges (float32 x, y), at the beams of its angles; other beams no return."""
+    rec = read_recording(sim_dir)
+    bag = tmp_path / "clouds"
+    write_bag(rec, bag, clouds=True, image_order={c: [] for c in rec.camera_streams})
+    res = import_bag(bag, tmp_path / "imp", cameras={}, imus={}, lasers={}, clouds={"cloud0": "/laser0/points"},
+                     cloud_band_m=(-0.1, 0.1), cloud_beams=360, cloud_range_m=(0.1, 30.0), world_frame="world")
+    assert res.topics[0].kind == "laser" and res.topics[0].n_written == 120
+    got = read_recording(tmp_path / "imp").laser("cloud0").read()
+    ref = rec.laser().read()
+    np.testing.assert_allclose(got.angles_rad, -np.pi + np.arange(360) * np.pi / 180, atol=1e-12)
+    first = int(round((ref.angles_rad[0] + np.pi) / (np.pi / 180)))  # -135 deg: beam 45
+    n = len(ref.angles_rad)
+    want = np.where(np.isfinite(ref.ranges_m) & (ref.ranges_m <= 30.0), ref.ranges_m, np.inf)
+    np.testing.assert_allclose(got.ranges_m[:, first:first + n], want, rtol=1e-6)
+    assert np.isinf(np.delete(got.ranges_m, np.s_[first:first + n], axis=1)).all()  # the z = 1 m ring left out
+    np.testing.assert_array_equal(got.times_s, ref.times_s)
+    np.testing.assert_allclose(read_recording(tmp_path / "imp").laser("cloud0").T_world_laser, rec.laser().T_world_laser,
+                               atol=1e-12)
+
 def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):
     with pytest.raises(ValueError, match="bag .*nowhere does not exist"):
         import_bag(tmp_path / "nowhere", tmp_path / "o1")
@@ -337,3 +359,13 @@ def test_stamp_bookkeeping_counts_against_a_direct_count(sent):
     gaps = np.diff(uniq)
     if len(gaps) and np.median(gaps) == 1:  # a nominal period of 40 ms: every hole counts
         assert rep.n_missing == uniq[-1] - uniq[0] + 1 - len(uniq)
+
+
+def test_cloud_slice_keeps_the_nearest_point_per_beam_in_the_band():
+    from planefuse.io import scan_ranges_from_points
+
+    pts = [[2.0, 0.0, 0.0], [1.0, 0.01, 0.05], [0.5, 0.0, 0.3],  # beam 2 (azimuth 0): 1.0 m; z = 0.3 out of band
+           [-3.0, 0.0, 0.0],  # azimuth pi: wraps to beam 0 (-pi)
+           [0.0, 0.05, 0.0], [np.nan, 0.0, 0.0], [0.0, -50.0, 0.0]]  # below range_min, NaN, beyond range_max
+    r = scan_ranges_from_points(pts, z_band_m=(-0.1, 0.1), n_beams=4, range_min_m=0.1, range_max_m=10.0)
+    np.testing.assert_allclose(r, [3.0, np.inf, np.hypot(1.0, 0.01), np.inf])

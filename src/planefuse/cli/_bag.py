@@ -21,6 +21,12 @@ def import_bag_cmd(
     imu: list[str] = typer.Option([], "--imu", help="NAME=TOPIC[@CAMERA]: an Imu topic and the camera it is "
                                   "attached to (default: the nearest camera)."),
     laser: list[str] = typer.Option([], "--laser", help="NAME=TOPIC: a LaserScan topic."),
+    cloud: list[str] = typer.Option([], "--cloud", help="NAME=TOPIC: a PointCloud2 topic, imported as a laser whose "
+                                    "scans are a horizontal slice of the cloud (pointcloud_to_laserscan)."),
+    cloud_band: str = typer.Option("-0.1,0.1", "--cloud-band", help="Z_MIN,Z_MAX [m] of the slice, in the cloud's "
+                                   "(level) frame."),
+    cloud_beams: int = typer.Option(1440, "--cloud-beams", help="Beams of the sliced scan over 360 deg."),
+    cloud_range: str = typer.Option("0.1,100", "--cloud-range", help="RANGE_MIN,RANGE_MAX [m] of the sliced scan."),
     world_frame: str = typer.Option(None, "--world-frame", help="tf frame of planefuse's world (z up, floor at "
                                     "z = 0, metres); default: the root of the tf tree."),
     tf: list[str] = typer.Option([], "--tf", help="PARENT,CHILD,X,Y,Z,YAW,PITCH,ROLL (m, rad): a transform the bag "
@@ -31,7 +37,7 @@ def import_bag_cmd(
 ) -> None:
     """Import a ROS bag's sensors as a planefuse recording (header stamps; poses from /tf_static and /tf).
 
-    Without --camera, --imu or --laser every camera (image topic with a CameraInfo beside it), Imu and LaserScan
+    Without --camera, --imu, --laser or --cloud every camera (image topic with a CameraInfo beside it), Imu and LaserScan
     topic is imported; with any of them, only the topics named. Out-of-order, duplicated and missing messages are
     counted per topic and printed.
     """
@@ -47,7 +53,7 @@ def import_bag_cmd(
             return
         if out is None:
             raise ValueError("give the recording folder OUT to create (or --list)")
-        explicit = bool(camera or imu or laser)
+        explicit = bool(camera or imu or laser or cloud)
         cams = {n: tuple(v.split(",", 1)) if "," in v else (v, None) for n, v in _pairs(camera, "--camera").items()}
         imus, imu_cams = {}, {}
         for n, v in _pairs(imu, "--imu").items():
@@ -60,7 +66,9 @@ def import_bag_cmd(
             warnings.simplefilter("always")
             res = import_bag(
                 bag, out, cameras=cams if explicit else None, imus=imus if explicit else None, imu_cameras=imu_cams,
-                lasers=lasers if explicit else None, world_frame=world_frame,
+                lasers=lasers if explicit else None, clouds=_pairs(cloud, "--cloud"),
+                cloud_band_m=tuple(_floats(cloud_band, 2, "--cloud-band")), cloud_beams=cloud_beams,
+                cloud_range_m=tuple(_floats(cloud_range, 2, "--cloud-range")), world_frame=world_frame,
                 extra_transforms=[static_transform(t) for t in tf], planes_heights_m=_floats(planes, None, "--planes"),
                 room_xy_m=tuple(_floats(room, 4, "--room")) if room else None, overwrite=overwrite)
     except ValueError as err:

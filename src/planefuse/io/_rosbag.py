@@ -36,6 +36,7 @@ __all__ = [
     "BAG_SENSOR_TYPES",
     "bag_topics",
     "import_bag",
+    "scan_ranges_from_points",
     "select_bag_topics",
     "static_transform",
 ]
@@ -44,6 +45,7 @@ IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 INFO_TYPE = "sensor_msgs/msg/CameraInfo"
 IMU_TYPE = "sensor_msgs/msg/Imu"
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
+CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 #: Message types :func:`import_bag` turns into planefuse streams, and into what.
 BAG_SENSOR_TYPES = {
@@ -52,6 +54,7 @@ BAG_SENSOR_TYPES = {
     "sensor_msgs/msg/CameraInfo": "camera intrinsics (K, plumb_bob distortion), size",
     "sensor_msgs/msg/Imu": "IMU (gyroscope, accelerometer) attached to a camera",
     "sensor_msgs/msg/LaserScan": "2-D laser scans",
+    "sensor_msgs/msg/PointCloud2": "a 2-D scan sliced from the cloud (--cloud, --cloud-band)",
     "tf2_msgs/msg/TFMessage": "sensor poses (/tf_static, /tf)",
 }
 _LASER_CHUNK = 400
@@ -223,6 +226,33 @@ def static_transform(text: str) -> tuple[str, str, np.ndarray]:
     return parts[0].lstrip("/"), parts[1].lstrip("/"), transform_from_rotation_translation(R, [x, y, z])
 
 
+def scan_ranges_from_points(points, *, z_band_m: tuple[float, float], n_beams: int, range_min_m: float,
+                            range_max_m: float) -> np.ndarray:
+    """A 2-D scan (B,) [m] sliced from a point cloud, as ROS's ``pointcloud_to_laserscan`` does.
+
+    Beam ``i`` looks at azimuth ``-pi + i * 2 pi / n_beams`` (counter-clockwise from the sensor's x axis); its
+    range is that of the nearest point, in the x-y plane (``hypot(x, y)``), among the finite points whose z lies in
+    ``z_band_m`` and whose azimuth is nearest that beam's. A beam with no such point within
+    ``[range_min_m, range_max_m]`` has no return (``inf``).
+
+    Parameters
+    ----------
+    points : array_like (N, 3)
+        x, y, z [m] in the sensor frame (x forward, z up).
+    z_band_m : (z_min, z_max)
+        The slice's heights in the sensor frame [m].
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    z0, z1 = z_band_m
+    r = np.hypot(p[:, 0], p[:, 1])
+    keep = np.isfinite(p).all(axis=1) & (p[:, 2] >= z0) & (p[:, 2] <= z1) & (r >= range_min_m) & (r <= range_max_m)
+    inc = 2 * np.pi / n_beams
+    i = np.round((np.arctan2(p[keep, 1], p[keep, 0]) + np.pi) / inc).astype(np.int64) % n_beams
+    out = np.full(n_beams, np.inf)
+    np.minimum.at(out, i, r[keep])
+    return out
+
+
 # -- transforms -------------------------------------------------------------------------------------------------
 class _TfTree:
     """Parent -> child transforms; each child has one parent. ``/tf`` edges keep their first value and the
@@ -387,7 +417,9 @@ def _check_stamp(ns: int, topic: str, k: int) -> None:
 # -- the import ---------------------------------------------------------------------------------------------------
 def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tuple[str, str | None]] | None = None,
                imus: dict[str, str] | None = None, imu_cameras: dict[str, str] | None = None,
-               lasers: dict[str, str] | None = None, world_frame: str | None = None,
+               lasers: dict[str, str] | None = None, clouds: dict[str, str] | None = None,
+               cloud_band_m: tuple[float, float] = (-0.1, 0.1), cloud_beams: int = 1440,
+               cloud_range_m: tuple[float, float] = (0.1, 100.0), world_frame: str | None = None,
                extra_transforms: list[tuple[str, str, np.ndarray]] = (),
                planes_heights_m: list[float] = (0.0, 0.5, 1.0, 1.5),
                room_xy_m: tuple[float, float, float, float] | None = None, overwrite: bool = False) -> BagImport:
@@ -415,6 +447,11 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
         Scans in the header's frame (x forward, z up, beams counter-clockwise). Ranges: NaN, ``-inf`` and values
         below ``range_min`` (0.0 included) -> NaN (invalid); ``+inf`` and values above ``range_max`` -> ``inf``
         (no return). None: every LaserScan topic.
+    clouds : dict name -> PointCloud2 topic
+        Each cloud becomes a laser whose scans are sliced from it (:func:`scan_ranges_from_points`: the points with
+        z in ``cloud_band_m`` [m] of the cloud's frame, ``cloud_beams`` beams over 360 deg, ranges in
+        ``cloud_range_m`` [m]); the cloud's frame must be level (x forward, z up). None or ``{}``: none (a slice is
+        a choice, never made for the user).
     world_frame : str, optional
         The tf frame of planefuse's world (z up against gravity, floor at z = 0, metres). Default: the root of the
         tf tree (there must be one), or, without any transform, the frame of the single sensor.
@@ -460,7 +497,15 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
     for name, t in lasers.items():
         check_name(name, "laser name")
         _expect(by_topic, t, (SCAN_TYPE,), path)
-    names = list(cameras) + list(imus) + list(lasers)
+    clouds = dict(clouds or {})
+    for name, t in clouds.items():
+        check_name(name, "laser name")
+        _expect(by_topic, t, (CLOUD_TYPE,), path)
+    if clouds and not (cloud_band_m[0] < cloud_band_m[1] and 0 <= cloud_range_m[0] < cloud_range_m[1]
+                       and int(cloud_beams) >= 3):
+        raise ValueError(f"cloud slice: need z_min < z_max (got {cloud_band_m}), 0 <= range_min < range_max (got "
+                         f"{cloud_range_m}) and >= 3 beams (got {cloud_beams})")
+    names = list(cameras) + list(imus) + list(lasers) + list(clouds)
     if not names:
         raise ValueError(f"bag {path}: no camera (image + CameraInfo), Imu or LaserScan topic to import; topics: "
                          f"{ {t.topic: t.msgtype for t in listing} }")
@@ -478,11 +523,13 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
         sensor_of.setdefault(info, ("info", name))
     sensor_of.update({t: ("imu", n) for n, t in imus.items()})
     sensor_of.update({t: ("laser", n) for n, t in lasers.items()})
-    reports = {t: TopicReport(t, n, k) for t, (k, n) in sensor_of.items() if k != "info"}
+    sensor_of.update({t: ("cloud", n) for n, t in clouds.items()})
+    reports = {t: TopicReport(t, n, "laser" if k == "cloud" else k)
+               for t, (k, n) in sensor_of.items() if k != "info"}
     stamps = {t: _Stamps() for t in reports}
     info_of: dict[str, object] = {}
     imu_rows: dict[str, list] = {n: [] for n in imus}
-    scans: dict[str, list] = {n: [] for n in lasers}
+    scans: dict[str, list] = {n: [] for n in list(lasers) + list(clouds)}
     scan_model: dict[str, tuple] = {}
     image_files: dict[str, list[str]] = {n: [] for n in cameras}
     image_size: dict[str, tuple[int, int]] = {}
@@ -522,6 +569,18 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
                 w, a = msg.angular_velocity, msg.linear_acceleration
                 imu_rows[name].append((w.x, w.y, w.z, a.x, a.y, a.z, msg.angular_velocity_covariance[0],
                                        msg.linear_acceleration_covariance[0]))
+            elif kind == "cloud":
+                from ..laser._readers import points_from_pointcloud2  # ROS message parsing, kept with laser's reader
+
+                n = int(cloud_beams)
+                scan_model.setdefault(name, (-np.pi, 2 * np.pi / n, n, float(cloud_range_m[0]),
+                                             float(cloud_range_m[1]), 0.0))
+                try:
+                    pts = points_from_pointcloud2(msg)
+                except ValueError as err:
+                    raise ValueError(f"topic {conn.topic}: message {k}: {err}") from None
+                scans[name].append(scan_ranges_from_points(pts, z_band_m=cloud_band_m, n_beams=n,
+                                                           range_min_m=cloud_range_m[0], range_max_m=cloud_range_m[1]))
             else:
                 model = (float(msg.angle_min), float(msg.angle_increment), len(msg.ranges), float(msg.range_min),
                          float(msg.range_max), float(msg.time_increment))
@@ -603,7 +662,7 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
                                 gyro_noise_rad_s=float(np.sqrt(max(rows[0, 6], 0.0))),
                                 accel_noise_m_s2=float(np.sqrt(max(rows[0, 7], 0.0)))))
         ends.append(t[-1] + 1 / _rate(rep))
-    for name, topic in lasers.items():
+    for name, topic in {**lasers, **clouds}.items():
         rep = reports[topic]
         a0, inc, n, rmin, rmax, t_inc = scan_model[name]
         ranges = np.asarray(scans[name], dtype=float)[orders[topic]]

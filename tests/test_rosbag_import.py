@@ -167,6 +167,7 @@ def test_missing_transform_is_one_line_naming_the_frame(sim_dir, tmp_path):
                                          r"/cam2/image_raw\).*--tf world,cam2_optical") as err:
         import_bag(bag, tmp_path / "imp", imus={}, lasers={}, world_frame="world")
     assert "\n" not in str(err.value)
+    assert not (tmp_path / "imp").exists()  # the frames written before the refusal are removed
     # the frame given with --tf completes the tree
     T = rec.camera("cam2").camera.T_world_cam
     res = import_bag(bag, tmp_path / "imp2", imus={}, lasers={}, world_frame="world",
@@ -249,6 +250,12 @@ def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):
         import_bag(bag, tmp_path / "o5", cameras={}, lasers={}, world_frame="world")
     with pytest.raises(ValueError, match="PARENT,CHILD,X,Y,Z,YAW,PITCH,ROLL"):
         static_transform("world,laser,1,2,3")
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"#ROSBAG V2.0\n" + bytes(range(256)) * 4)  # a ROS 1 header, then garbage
+    with pytest.raises(ValueError, match=r"cannot read bag .*junk.bag"):
+        bag_topics(junk)
+    with pytest.raises(ValueError, match=r"output folder is not empty"):
+        import_bag(bag, bag)
 
 
 def test_static_transform_uses_ros_order_and_units():

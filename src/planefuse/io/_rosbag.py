@@ -13,6 +13,7 @@ counted and reported, never silently.
 
 from __future__ import annotations
 
+import shutil
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -470,8 +471,38 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
         One line: a missing or unreadable bag, a topic it does not hold or of another type, a camera without
         CameraInfo, an unsupported image encoding or distortion model, a header stamp of 0, a sensor frame with no
         transform to the world frame (the frame named), a tf frame that moves, no sensor topic at all, a non-empty
-        output folder.
+        output folder. A refused import leaves no folder behind (the output folder is removed if the import made
+        it, emptied if it was empty).
     """
+    root = Path(out_dir)
+    existed = root.exists()
+    if existed and any(root.iterdir()) and not overwrite:
+        raise ValueError(f"{root}: output folder is not empty (pass overwrite=True / --overwrite)")
+    fresh = not existed or not any(root.iterdir())
+    try:
+        return _import_bag(path, out_dir, cameras=cameras, imus=imus, imu_cameras=imu_cameras, lasers=lasers,
+                           clouds=clouds, cloud_band_m=cloud_band_m, cloud_beams=cloud_beams,
+                           cloud_range_m=cloud_range_m, world_frame=world_frame, extra_transforms=extra_transforms,
+                           planes_heights_m=planes_heights_m, room_xy_m=room_xy_m, overwrite=overwrite)
+    except BaseException:
+        if fresh and root.is_dir():  # what this import wrote, and nothing else
+            if existed:
+                for p in root.iterdir():
+                    shutil.rmtree(p) if p.is_dir() else p.unlink()
+            else:
+                shutil.rmtree(root)
+        raise
+
+
+def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tuple[str, str | None]] | None = None,
+               imus: dict[str, str] | None = None, imu_cameras: dict[str, str] | None = None,
+               lasers: dict[str, str] | None = None, clouds: dict[str, str] | None = None,
+               cloud_band_m: tuple[float, float] = (-0.1, 0.1), cloud_beams: int = 1440,
+               cloud_range_m: tuple[float, float] = (0.1, 100.0), world_frame: str | None = None,
+               extra_transforms: list[tuple[str, str, np.ndarray]] = (),
+               planes_heights_m: list[float] = (0.0, 0.5, 1.0, 1.5),
+               room_xy_m: tuple[float, float, float, float] | None = None, overwrite: bool = False) -> BagImport:
+    """The body of :func:`import_bag` (which removes what a refused import wrote)."""
     path, root = Path(path), Path(out_dir)
     if root.exists() and any(root.iterdir()) and not overwrite:
         raise ValueError(f"{root}: output folder is not empty (pass overwrite=True / --overwrite)")

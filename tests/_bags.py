@@ -18,7 +18,7 @@ def _ns(t_s: float) -> int:
 
 def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = None, skip_tf: tuple[str, ...] = (),
               storage: str = "sqlite3", compressed: tuple[str, ...] = (), ros1: bool = False,
-              clouds: bool = False) -> dict[str, str]:
+              clouds: bool = False, old_tf: bool = False, moving: str | None = None) -> dict[str, str]:
     """Write ``rec``'s cameras, IMUs and lasers (fixed, untilted) into the ROS 2 bag folder ``path``.
 
     ``image_order[name]`` lists the frame indices of camera ``name`` in the order they are written (repeats,
@@ -26,18 +26,20 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
     frames' transforms; cameras in ``compressed`` go out as PNG ``CompressedImage``; ``ros1`` writes a ROS 1
     ``.bag`` file (noetic messages: ``seq`` in headers, CameraInfo's upper-case ``D K R P``) instead; ``clouds``
     also writes each laser's scans as a PointCloud2 on ``/<name>/points`` (float32 x y z of the returns at z = 0,
-    plus a ring of points 0.5 m away at z = 1 m and a NaN row, which a slice at z = 0 must leave out). Returns the
-    topic of every sensor.
+    plus a ring of points 0.5 m away at z = 1 m and a NaN row, which a slice at z = 0 must leave out); ``old_tf``
+    (ROS 1) sends the poses on ``/tf`` as ``tf/tfMessage`` (before tf2), at the start and again 1 s later, with
+    frame ``moving`` 5 cm farther along x the second time. Returns the topic of every sensor.
     """
     import cv2
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    if ros1:  # noetic's store lacks tf2_msgs: its one-line definition
+    if ros1:  # noetic's store lacks tf2_msgs (and tf): their one-line definition
         from rosbags.typesys import get_types_from_msg
 
-        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+        for name in ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage"):
+            ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", name))
     T = ts.types
     Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
     serialize = ts.serialize_ros1 if ros1 else ts.serialize_cdr
@@ -75,7 +77,8 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
         def put(c, t_ns, msg):
             w.write(c, t_ns, serialize(msg, c.msgtype))
 
-        c_tf = conn("/tf_static", "tf2_msgs/msg/TFMessage")
+        tf_type = "tf/msg/tfMessage" if old_tf else "tf2_msgs/msg/TFMessage"
+        c_tf = conn("/tf" if old_tf else "/tf_static", tf_type)
         for cs in rec.camera_streams.values():
             frame = f"{cs.name}_optical"
             edges.append(("world", frame, cs.camera.T_world_cam))
@@ -83,8 +86,12 @@ def write_bag(rec, path: Path, *, image_order: dict[str, list[int]] | None = Non
             edges.append((f"{s.attached_to}_optical", f"{s.name}_link", s.T_cam_imu))
         for s in rec.lasers.values():
             edges.append(("world", f"{s.name}_link", s.T_world_laser))
-        put(c_tf, ORIGIN_NS, T["tf2_msgs/msg/TFMessage"](
-            transforms=[tf(p, c, M) for p, c, M in edges if c not in skip_tf]))
+        put(c_tf, ORIGIN_NS, T[tf_type](transforms=[tf(p, c, M) for p, c, M in edges if c not in skip_tf]))
+        if old_tf:
+            shift = np.eye(4)
+            shift[0, 3] = 0.05
+            put(c_tf, ORIGIN_NS + 1_000_000_000, T[tf_type](transforms=[
+                tf(p, c, (shift @ M) if c == moving else M) for p, c, M in edges if c not in skip_tf]))
         for cs in rec.camera_streams.values():
             frame = f"{cs.name}_optical"
             kind = "compressed" if cs.name in compressed else "image_raw"

@@ -236,6 +236,20 @@ def test_point_cloud_becomes_a_laser_by_slicing_it(sim_dir, tmp_path):
     np.testing.assert_allclose(read_recording(tmp_path / "imp").laser("cloud0").T_world_laser, rec.laser().T_world_laser,
                                atol=1e-12)
 
+
+def test_poses_on_tf_of_an_old_ros1_bag_and_a_moving_frame_refused(sim_dir, tmp_path):
+    rec = read_recording(sim_dir)
+    few = {c: range(3) for c in rec.camera_streams}
+    bag = tmp_path / "old.bag"
+    write_bag(rec, bag, ros1=True, old_tf=True, image_order=few)  # tf/tfMessage on /tf, the same pose twice
+    import_bag(bag, tmp_path / "imp", world_frame="world", imus={}, lasers={})
+    np.testing.assert_allclose(read_recording(tmp_path / "imp").camera("cam1").camera.T_world_cam,
+                               rec.camera("cam1").camera.T_world_cam, atol=1e-12)
+    moved = tmp_path / "moved.bag"
+    write_bag(rec, moved, ros1=True, old_tf=True, image_order=few, moving="cam1_optical")
+    with pytest.raises(ValueError, match=r"tf frame 'cam1_optical' .* moves in /tf by up to 0.050 m"):
+        import_bag(moved, tmp_path / "imp2", world_frame="world", imus={}, lasers={})
+
 def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):
     with pytest.raises(ValueError, match="bag .*nowhere does not exist"):
         import_bag(tmp_path / "nowhere", tmp_path / "o1")

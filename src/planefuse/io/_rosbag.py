@@ -48,6 +48,7 @@ IMU_TYPE = "sensor_msgs/msg/Imu"
 SCAN_TYPE = "sensor_msgs/msg/LaserScan"
 CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
+TF_TYPES = (TF_TYPE, "tf/msg/tfMessage")  # the second: older ROS 1 bags (tf before tf2)
 #: Message types :func:`import_bag` turns into planefuse streams, and into what.
 BAG_SENSOR_TYPES = {
     "sensor_msgs/msg/Image": "camera frames (with the CameraInfo topic beside it)",
@@ -57,6 +58,7 @@ BAG_SENSOR_TYPES = {
     "sensor_msgs/msg/LaserScan": "2-D laser scans",
     "sensor_msgs/msg/PointCloud2": "a 2-D scan sliced from the cloud (--cloud, --cloud-band)",
     "tf2_msgs/msg/TFMessage": "sensor poses (/tf_static, /tf)",
+    "tf/msg/tfMessage": "sensor poses (/tf of older ROS 1 bags)",
 }
 _LASER_CHUNK = 400
 # A /tf edge that moves more than this over the bag is refused: planefuse's sensors have fixed poses.
@@ -570,12 +572,12 @@ def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tup
 
     r = _open(path)
     try:
-        tf_conns = [c for c in r.connections if c.msgtype == TF_TYPE and c.topic in ("/tf_static", "/tf", "tf_static",
+        tf_conns = [c for c in r.connections if c.msgtype in TF_TYPES and c.topic in ("/tf_static", "/tf", "tf_static",
                                                                                      "tf")]
         want = [c for c in r.connections if c.topic in sensor_of] + tf_conns
         for conn, _, raw in r.messages(connections=want):
             msg = r.deserialize(raw, conn.msgtype)
-            if conn.msgtype == TF_TYPE:
+            if conn.msgtype in TF_TYPES:
                 dynamic = conn.topic.lstrip("/") == "tf"
                 for tr in msg.transforms:
                     tree.add(tr.header.frame_id, tr.child_frame_id, _T_from_msg(tr.transform), dynamic)

@@ -261,7 +261,9 @@ def test_bad_inputs_are_one_line_errors(sim_dir, bag, tmp_path):
     with pytest.raises(ValueError, match="cannot tell the world frame"):
         import_bag(bag, tmp_path / "o4", extra_transforms=[static_transform("other,x,0,0,0,0,0,0")])
     with pytest.raises(ValueError, match="need a camera"):
-        import_bag(bag, tmp_path / "o5", cameras={}, lasers={}, world_frame="world")
+        import_bag(bag, tmp_path / "o5", cameras={}, imus={"i0": "/cam0_imu/imu"}, lasers={}, world_frame="world")
+    res = import_bag(bag, tmp_path / "o6", cameras={}, world_frame="world")  # IMUs chosen for us: left out, said
+    assert [r.kind for r in res.topics] == ["laser"] and any("not imported: no camera" in n for n in res.notes)
     with pytest.raises(ValueError, match="PARENT,CHILD,X,Y,Z,YAW,PITCH,ROLL"):
         static_transform("world,laser,1,2,3")
     junk = tmp_path / "junk.bag"

@@ -512,7 +512,11 @@ def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tup
     by_topic = {t.topic: t for t in listing}
     auto = select_bag_topics(listing)
     cameras = auto[0] if cameras is None else dict(cameras)
-    imus = auto[1] if imus is None else dict(imus)
+    skipped = []
+    if imus is None:
+        imus = auto[1] if cameras else {}
+        skipped = [f"IMU topics {sorted(auto[1].values())} not imported: no camera to attach them to"] \
+            if auto[1] and not cameras else []
     lasers = auto[2] if lasers is None else dict(lasers)
     infos = [t.topic for t in listing if t.msgtype == INFO_TYPE]
     for name, (img, info) in list(cameras.items()):
@@ -547,7 +551,7 @@ def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tup
         raise ValueError(f"sensor names must be unique, repeated: {dup}")
     if imus and not cameras:
         raise ValueError(f"IMU topics {sorted(imus.values())} need a camera to be attached to (planefuse's IMUs "
-                         "are a camera's); import cameras too, or no IMU (--no-imu)")
+                         "are a camera's); import a camera too, or leave the IMUs out")
     root.mkdir(parents=True, exist_ok=True)
 
     sensor_of = {}
@@ -650,7 +654,7 @@ def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tup
         else:
             raise ValueError(f"bag {path}: cannot tell the world frame (tf roots: {roots}, sensor frames: "
                              f"{sorted(frames)}); give --world-frame")
-    notes = [f"world frame {world!r}; time 0 = header stamp {origin_ns} ns"]
+    notes = [f"world frame {world!r}; time 0 = header stamp {origin_ns} ns"] + skipped
     T_world = {n: tree.T_world_frame(world, reports[t].frame_id, f"{reports[t].kind} {n!r}, topic {t}")
                for t, (k, n) in sensor_of.items() if k != "info"}
     sensors: list = []

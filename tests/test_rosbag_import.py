@@ -338,7 +338,7 @@ def test_image_encodings_and_padded_rows_give_bgr(rng):
 
     import cv2
 
-    from planefuse.io._rosbag import image_from_msg
+    from planefuse.io._bag_messages import image_from_msg
 
     bgr = rng.integers(0, 255, (5, 7, 3), dtype=np.uint8)
     for enc, img in (("bgr8", bgr), ("rgb8", bgr[..., ::-1]), ("bgra8", cv2.cvtColor(bgr, cv2.COLOR_BGR2BGRA)),
@@ -358,7 +358,7 @@ def test_image_encodings_and_padded_rows_give_bgr(rng):
 def test_laser_ranges_follow_rep_117_into_planefuse_convention():
     from types import SimpleNamespace
 
-    from planefuse.io._rosbag import _laser_ranges
+    from planefuse.io._bag_messages import _laser_ranges
 
     r = np.array([0.0, 0.05, 1.0, 30.0, 31.0, np.inf, -np.inf, np.nan], dtype=np.float32)
     got = _laser_ranges(SimpleNamespace(ranges=r, range_min=0.1, range_max=30.0))

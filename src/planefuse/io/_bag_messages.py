@@ -10,7 +10,7 @@ import numpy as np
 from ..geometry._transforms import rotation_from_roll_pitch_yaw, transform_from_quaternion, \
     transform_from_rotation_translation
 
-__all__ = ["image_from_msg", "scan_ranges_from_points", "static_transform"]
+__all__ = ["image_from_msg", "points_from_pointcloud2", "scan_ranges_from_points", "static_transform"]
 
 # A /tf edge that moves more than this over the bag is refused: planefuse's sensors have fixed poses.
 _TF_MOVE_TOL_M = 1e-3
@@ -200,3 +200,39 @@ def _laser_ranges(msg) -> np.ndarray:
     out[invalid] = np.nan
     out[~invalid & (r > float(msg.range_max))] = np.inf
     return out
+
+
+_PC2_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
+
+
+def points_from_pointcloud2(msg) -> np.ndarray:
+    """x, y, z (N, 3) float64 [m] of a deserialised ``sensor_msgs/PointCloud2`` message.
+
+    Raises
+    ------
+    ValueError
+        When a field x, y or z is missing or has an unknown datatype, or the data are too short.
+    """
+    fields = {f.name: f for f in msg.fields}
+    missing = [k for k in "xyz" if k not in fields]
+    if missing:
+        raise ValueError(f"PointCloud2 lacks fields {missing} (has {sorted(fields)})")
+    endian = ">" if msg.is_bigendian else "<"
+    names, formats, offsets = [], [], []
+    for k in "xyz":
+        f = fields[k]
+        if f.datatype not in _PC2_DTYPES:
+            raise ValueError(f"PointCloud2 field {k!r} has unknown datatype {f.datatype}")
+        names.append(k)
+        formats.append(endian + _PC2_DTYPES[f.datatype])
+        offsets.append(f.offset)
+    dt = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": msg.point_step})
+    n = int(msg.width) * int(msg.height)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if msg.row_step * msg.height > data.size or n * msg.point_step > data.size:
+        raise ValueError(f"PointCloud2 data has {data.size} bytes, fewer than {n} points x {msg.point_step} bytes")
+    if msg.row_step != msg.width * msg.point_step:  # padded rows: take each row separately
+        rows = data[: msg.row_step * msg.height].reshape(msg.height, msg.row_step)[:, : msg.width * msg.point_step]
+        data = np.ascontiguousarray(rows).reshape(-1)
+    rec = np.frombuffer(data[: n * msg.point_step].tobytes(), dtype=dt, count=n)
+    return np.column_stack([rec["x"], rec["y"], rec["z"]]).astype(float)

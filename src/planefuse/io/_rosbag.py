@@ -25,7 +25,7 @@ import yaml
 
 from ..geometry import check_transform, invert_transform
 from ._bag_messages import _TfTree, _T_from_msg, _compressed_suffix, _intrinsics, _k_d, _laser_ranges, _stamp_ns, \
-    image_from_msg, scan_ranges_from_points, static_transform
+    image_from_msg, points_from_pointcloud2, scan_ranges_from_points, static_transform
 from ._manifest import MANIFEST_NAME, CameraEntry, ImuEntry, LaserEntry, RecordingManifest
 from ._paths import check_name
 from ._streams import IMU_COLUMNS, LaserScans, write_laser_npz
@@ -430,8 +430,6 @@ def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tup
                 imu_rows[name].append((w.x, w.y, w.z, a.x, a.y, a.z, msg.angular_velocity_covariance[0],
                                        msg.linear_acceleration_covariance[0]))
             elif kind == "cloud":
-                from ..laser._readers import points_from_pointcloud2  # ROS message parsing, kept with laser's reader
-
                 n = int(cloud_beams)
                 scan_model.setdefault(name, (-np.pi, 2 * np.pi / n, n, float(cloud_range_m[0]),
                                              float(cloud_range_m[1]), 0.0))

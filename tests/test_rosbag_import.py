@@ -311,10 +311,13 @@ def test_real_ros1_bag_imports_the_scans_the_laser_reader_gives(tmp_path):
     np.testing.assert_array_equal(read_recording(tmp_path / "r").laser("right").T_world_laser[:3, 3], [0, 0, 0.4])
 
 
-def test_cli_lists_topics_imports_chosen_ones_and_refuses_in_one_line(bag, tmp_path):
+def test_cli_lists_topics_imports_chosen_ones_and_refuses_in_one_line(bag, tmp_path, monkeypatch):
     from typer.testing import CliRunner
 
     from planefuse.cli import app
+    from planefuse.cli._app import console
+
+    monkeypatch.setattr(console, "_width", 200)  # the table's cells unwrapped, whatever the suite's terminal
 
     runner = CliRunner()
     res = runner.invoke(app, ["import-bag", str(bag), "--list"], env={"COLUMNS": "200"})

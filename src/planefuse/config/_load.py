@@ -260,7 +260,7 @@ def config_hash(cfg: RunConfig) -> str:
     """SHA-256 (hex) of everything in ``cfg`` that changes the computed results.
 
     Presentation-only outputs (``out_dir``, ``figures``, ``animation``, ``animation_max_frames``, ``camera_videos``,
-    ``report``, ``rerun``, ``figure_dpi``) are left out, so changing them does
+    ``report``, ``rerun``, ``figure_dpi``, ``mcap``, ``ros2_bag``) are left out, so changing them does
     not invalidate a run's finished chunks.
     """
     data = cfg.model_dump(mode="json")

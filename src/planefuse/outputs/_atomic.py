@@ -11,6 +11,7 @@ import contextlib
 import io
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -103,10 +104,14 @@ def atomic_write_json(path: Path | str, obj: Any) -> None:
 
 
 def remove_stale_temporaries(folder: Path | str) -> int:
-    """Delete temporary files left in ``folder`` (not recursive) by a killed writer; return how many."""
+    """Delete temporary files (and bag folders) left in ``folder`` (not recursive) by a killed writer; return how
+    many."""
     n = 0
     for p in Path(folder).glob(f".*{TMP_MARK}*"):
         with contextlib.suppress(FileNotFoundError):
-            p.unlink()
+            if p.is_dir():  # a ROS 2 bag folder being written (planefuse.outputs.write_run_ros2_bag)
+                shutil.rmtree(p)
+            else:
+                p.unlink()
             n += 1
     return n

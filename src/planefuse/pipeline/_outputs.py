@@ -162,7 +162,7 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
 
 
 def write_presentation(out: OutputWriter, settings: OutputSettings, figure_inputs: FigureInputs | None = None,
-                       progress=None) -> dict[str, Path]:
+                       progress=None, cameras=(), clock_origin_ns: int | None = None) -> dict[str, Path]:
     """Figures, animation and ``report.html`` of a finished run folder, as ``settings`` asks.
 
     Parameters
@@ -174,6 +174,10 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
     progress : ProgressReporter, optional
         Reports the figure step.
+    cameras : sequence of CameraStream
+        The recording's cameras, whose frames (with the tracks drawn over them) go into ``planefuse.mcap``.
+    clock_origin_ns : int, optional
+        The recording's time 0 on its source's clock [ns]: the robotics outputs' stamps start there.
 
     Returns
     -------
@@ -218,6 +222,18 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
                 camera_tracks_video(p, cam, figure_inputs.camera_streams[cam.name], out.times_s(),
                                     out.tracks_table(), fps=fps, max_frames=settings.animation_max_frames)
                 written[f"camera_{cam.name}_video"] = p
+    if (settings.mcap or settings.ros2_bag) and out.n_steps:
+        from ..outputs._mcap import MCAP_FILE, ROS2_BAG_DIR, write_run_mcap, write_run_ros2_bag
+
+        tables = (out.out_dir, out.stack, out.times_s(), out.occupancy_array(), out.detections_table(),
+                  out.tracks_table())
+        if settings.mcap:
+            written[MCAP_FILE] = write_run_mcap(tables[0] / MCAP_FILE, *tables[1:], person_radius_m=out.person_radius_m,
+                                                cameras=cameras, clock_origin_ns=clock_origin_ns)
+        if settings.ros2_bag:
+            written[ROS2_BAG_DIR] = write_run_ros2_bag(tables[0] / ROS2_BAG_DIR, *tables[1:],
+                                                       person_radius_m=out.person_radius_m,
+                                                       clock_origin_ns=clock_origin_ns)
     if settings.report:
         from ..report import write_report
 
@@ -353,7 +369,8 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
             # the figures' material (a frame per camera, laser points, saliency) only where figures are drawn
             inputs = _figure_inputs(rec, run.report, times) \
                 if settings.figures or settings.report or settings.camera_videos else None
-            write_presentation(out, settings, inputs, progress)
+            write_presentation(out, settings, inputs, progress, cameras=list(rec.camera_streams.values()),
+                               clock_origin_ns=rec.clock_origin_ns)
         except (KeyboardInterrupt, MemoryError):
             raise
         except Exception as exc:  # the tables are complete: say what failed, in one line, and keep them

@@ -147,7 +147,7 @@ def test_missing_required_file_level_and_yaml_errors(tmp_path):
     err = _error(_write(tmp_path, "planes:\n  cell_size_m: 0.1\n"))
     assert err.issues[0].field_path == "recording" and "missing" in err.issues[0].message
     err = _error(_write(tmp_path, "recording: a\nplanes: [unclosed\n"))
-    assert err.issues[0].field_path == "" and "not valid YAML" in err.issues[0].message and err.issues[0].line
+    assert err.issues[0].field_path == "" and "invalid YAML" in err.issues[0].message and err.issues[0].line
     err = _error(_write(tmp_path, "- just\n- a list\n"))
     assert "mapping" in err.issues[0].message
     err = _error(tmp_path / "absent.yaml")

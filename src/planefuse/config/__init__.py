@@ -7,6 +7,7 @@ naming the file, each field path and its expected unit and range;
 """
 
 from ._check import CheckIssue, CheckReport, check_recording
+from ._preflight import check_run_config
 from ._load import ConfigError, ConfigIssue, config_from_dict, config_hash, config_yaml, example_yaml, load_config
 from ._models import (
     CameraSensorConfig,
@@ -27,6 +28,7 @@ __all__ = [
     "CameraSensorConfig",
     "CheckIssue",
     "CheckReport",
+    "check_run_config",
     "ConfigError",
     "ConfigIssue",
     "DetectionModelConfig",

@@ -24,10 +24,12 @@ from ._system import (
     check_modalities_present,
     check_memory,
     filter_memory_bytes,
+    memory_limits_bytes,
     evaluate_system,
     run_system,
     stack_for_recording,
     system_laser_model,
+    writer_buffered_steps,
 )
 
 __all__ = [
@@ -43,6 +45,8 @@ __all__ = [
     "check_modalities_present",
     "check_memory",
     "filter_memory_bytes",
+    "memory_limits_bytes",
+    "writer_buffered_steps",
     "camera_evidence",
     "camera_source",
     "evaluate_system",

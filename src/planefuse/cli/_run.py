@@ -9,6 +9,7 @@ import typer
 from rich.markup import escape
 
 from ._app import app, console, exit_with_error
+from ._config import exit_on_config_error
 
 
 @app.command()
@@ -48,8 +49,7 @@ def run(
     try:
         cfg = load_config(config)
     except ConfigError as exc:
-        console.print(f"[red]{escape(str(exc))}[/red]")
-        raise typer.Exit(2) from None
+        exit_on_config_error(exc)
     plan = replace(cfg.plan(resume=not fresh), force=force)
     if rerun:
         plan = replace(plan, outputs=replace(plan.outputs, rerun=True))

@@ -653,6 +653,15 @@ class OutputWriter:
         if status == "finished":
             self._lock.release()
 
+    def close(self) -> None:
+        """Release the folder's lock (and close the rerun recording) without writing anything: a writer opened only
+        to look at a folder, or one whose run is given up. The writer must not be written to afterwards."""
+        if self.rerun is not None:
+            with contextlib.suppress(Exception):
+                self.rerun.close()
+            self.rerun = None
+        self._lock.release()
+
     def mark_finished(self) -> None:
         """Record the run as finished (after everything else is written) and release the folder's lock."""
         self._write_state("finished")

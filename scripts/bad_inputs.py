@@ -460,7 +460,7 @@ def run_cases(cases, rec_dir: Path, work: Path, with_run: bool = True, limit_s: 
                 rows.append((case.name, cmd[0], outcome, leaks, _last_line(result).replace(str(work), "<tmp>"),
                              wall_s))
         finally:
-            if undo is not None:
+            if callable(undo):
                 undo()
             sys.modules.clear()
             sys.modules.update(saved)

@@ -9,6 +9,8 @@ import tracemalloc
 
 import pytest
 import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from planefuse.cli import app
@@ -136,3 +138,19 @@ def test_excerpt_cuts_and_says_how_long():
     assert excerpt("abc") == "'abc'"
     assert excerpt("x" * 1000).endswith("... (1002 characters)") and len(excerpt("x" * 1000)) < 120
     assert "a list of 1000 items" in excerpt(list(range(1000)))
+
+
+@given(st.integers(0, 10_000), st.binary(min_size=1, max_size=40))
+@settings(max_examples=150, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_any_bytes_spliced_into_a_configuration_give_a_configuration_or_a_config_error(tmp_path, at, junk):
+    """Property: whatever bytes land anywhere in a configuration file, loading it gives a configuration or a
+    ``ConfigError`` (one issue line per problem, an excerpt of any value) -- never another exception."""
+    raw = example_yaml().encode()
+    at = at % len(raw)
+    p = tmp_path / "run.yaml"
+    p.write_bytes(raw[:at] + junk + raw[at:])
+    try:
+        load_config(p, resolve_paths=False)
+    except ConfigError as err:
+        assert all(len(line) < 1200 for line in str(err).splitlines())

@@ -209,6 +209,9 @@ MUTATIONS = [
     M("ASYNC-1", "tracker", "src/planefuse/tracking/_async.py",
       "heapq.heappush(self._heap, (t, self._next_seq, evidence))", "self._heap.append((t, self._next_seq, evidence))",
       "the buffer releases in arrival order, not time order", PINNED),
+    M("ASYNC-2", "tracker", "src/planefuse/tracking/_async.py",
+      "until = np.inf if final else self._newest_s - self.window_s", "until = np.inf",
+      "the buffer holds nothing back: each message fused on arrival (arrival order)", PINNED),
 ]
 
 

@@ -23,7 +23,7 @@ def exit_on_config_error(err: ConfigError) -> None:
     console.print(f"[bold red]invalid configuration[/] {escape(str(err.file))}", highlight=False, soft_wrap=True)
     for it in err.issues:
         where = f"{err.file}:{it.line}" if it.line else str(err.file)
-        exp = f"\n      expected: {it.expected}" if it.expected else ""
+        exp = f" (expected: {it.expected})" if it.expected else ""
         console.print(f"  [red]x[/] {escape(where)}: [bold]{escape(it.field_path or '<file>')}[/]: "
                       f"{escape(it.message + exp)}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)

@@ -7,8 +7,6 @@ the same words, so that the two never disagree on the same input.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ._check import CheckReport, check_recording

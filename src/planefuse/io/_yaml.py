@@ -6,7 +6,8 @@ Every YAML file planefuse reads from a user (run configuration, recording manife
 
 - its encoding: UTF-8 (with or without a byte-order mark), or UTF-16/UTF-32 with a byte-order mark, as the YAML
   specification allows; any other bytes are a one-line error naming the file and the line;
-- its size: at most :data:`MAX_YAML_BYTES`;
+- its size: at most :data:`MAX_YAML_BYTES`, nested at most :data:`MAX_YAML_DEPTH` levels deep (checked on the
+  parser's events, before libyaml's recursive composer could overflow the C stack);
 - its aliases: a document whose aliases (``*name``) would add more than :data:`MAX_ALIAS_EXPANSION` values once
   expanded ("billion laughs": 9 levels of 10 aliases are 10^9 values from a few hundred bytes) or refer to
   themselves is refused from the composed node graph, which holds every anchored value once, so the refusal
@@ -279,18 +280,6 @@ def _locate(node: yaml.Node | None, loc: tuple) -> tuple[int | None, list[str]]:
         else:
             node = None
     return line, parts
-
-
-def format_validation_error(err: ValidationError, source: str, root: yaml.Node | None = None) -> str:
-    """One line per problem: ``source:LINE: field a.b.0.c: message``."""
-    lines = []
-    for e in err.errors():
-        loc = tuple(x for x in e["loc"] if not (isinstance(x, str) and x.startswith("function-")))
-        line, parts = _locate(root, loc)
-        field = ".".join(parts) or "<root>"
-        where = f"{source}:{line}" if line is not None else source
-        lines.append(f"{where}: field {field}: {e['msg']}")
-    return "\n".join(lines)
 
 
 def format_validation_error(err: ValidationError, source: str, root: yaml.Node | None = None) -> str:

@@ -319,3 +319,15 @@ def test_the_memory_check_compares_with_the_process_address_space_limit():
     left = int(r.stdout.split()[1])
     assert 2 * 2**30 < left < 3.5 * 2**30  # what the limit leaves, not the machine's free memory
     assert "4 planes x 2000 x 2000 cells" in r.stdout and "RLIMIT_AS" in r.stdout
+
+
+def test_a_memory_error_beyond_the_estimate_is_one_line(recording_dir, tmp_path, monkeypatch):
+    import planefuse.pipeline
+
+    def boom(*a, **kw):
+        raise MemoryError("Unable to allocate 2.92 GiB for an array")
+
+    monkeypatch.setattr(planefuse.pipeline, "run_plan", boom)
+    r = CliRunner().invoke(app, ["run", str(_config(tmp_path, recording_dir)), "--quiet"])
+    assert r.exit_code == 1 and isinstance(r.exception, SystemExit)
+    assert "out of memory during the run (Unable to allocate 2.92 GiB" in " ".join(r.output.split())

@@ -86,6 +86,9 @@ def run(
         raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
     except (ValueError, ImportError, OSError) as exc:
         exit_with_error(str(exc), 1)
+    except MemoryError as exc:  # beyond the pre-run estimate (planefuse.pipeline.check_memory): said, not a traceback
+        exit_with_error(f"out of memory during the run ({exc or 'MemoryError'}; run_state.json says failed): coarsen "
+                        "planes.cell_size_m, shrink the grid or lower outputs.chunk_steps", 1)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)

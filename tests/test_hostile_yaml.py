@@ -154,3 +154,20 @@ def test_any_bytes_spliced_into_a_configuration_give_a_configuration_or_a_config
         load_config(p, resolve_paths=False)
     except ConfigError as err:
         assert all(len(line) < 1200 for line in str(err).splitlines())
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "folder"])
+def test_a_configuration_that_is_not_a_regular_file_is_refused_without_reading(tmp_path, kind):
+    import os
+
+    if kind == "fifo":
+        p = tmp_path / "run.yaml"
+        os.mkfifo(p)  # reading it would block forever
+    elif kind == "device":
+        p = tmp_path / "zero.yaml"
+        p.symlink_to("/dev/zero")  # reading it would never end
+    else:
+        p = tmp_path / "dir.yaml"
+        p.mkdir()
+    with pytest.raises(ConfigError, match="not a regular file|cannot read the file"):
+        load_config(p)

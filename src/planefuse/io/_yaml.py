@@ -21,6 +21,8 @@ Error messages quote at most :data:`EXCERPT_CHARS` characters of a value (:func:
 from __future__ import annotations
 
 import codecs
+import os
+import stat
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -171,6 +173,8 @@ def read_yaml(path: str | Path) -> tuple[Any, yaml.Node | None]:
     """
     path = Path(path)
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO would block the read forever, /dev/zero never end
+            raise YamlFileError(path, "not a regular file")
         with open(path, "rb") as f:
             raw = f.read(MAX_YAML_BYTES + 1)
     except OSError as err:

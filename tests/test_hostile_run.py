@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from typer.testing import CliRunner
@@ -331,3 +332,37 @@ def test_a_memory_error_beyond_the_estimate_is_one_line(recording_dir, tmp_path,
     r = CliRunner().invoke(app, ["run", str(_config(tmp_path, recording_dir)), "--quiet"])
     assert r.exit_code == 1 and isinstance(r.exception, SystemExit)
     assert "out of memory during the run (Unable to allocate 2.92 GiB" in " ".join(r.output.split())
+
+
+# -- calibration plausibility -------------------------------------------------------------------------------------
+@pytest.mark.parametrize("K, dist, match", [
+    ([[300, 0, 180], [0, 300, 144], [0, 0, 1]], [0, 0, 0, 0, 0], None),
+    ([[300, 0, 180], [0, 300, 144], [0, 0, 1]], [-0.3, 0.1, 0.001, -0.002, 0], None),  # a typical lens
+    ([[300, 0, 180], [0, 300, 144], [0, 0, 1]], [50, 0, 0, 0, 0], "moves the image's edges by 200% of their radius"),
+    ([[300, 0, 180], [0, 300, 144], [0, 0, 1]], [5, 0, 0, 0, 0], "by 66% of their radius"),
+    ([[300, 0, 180], [0, 300, 144], [0, 0, 1]], [-0.5, 0, 0, 0, 0], "folds back inside the image"),
+    ([[300, 0, 180], [0, 300, 144], [0, 0, 1]], [0, 0, 0.5, 0, 0], "by 90% of their radius"),
+    ([[300, 0, 500], [0, 300, 144], [0, 0, 1]], [0, 0, 0, 0, 0], r"principal point \(500, 144\) px lies outside"),
+    ([[300, 0, 180], [0, 1000, 144], [0, 0, 1]], [0, 0, 0, 0, 0], "fy / fx = 3.33"),
+    ([[4.2, 0, 180], [0, 4.2, 144], [0, 0, 1]], [0, 0, 0, 0, 0], "177 degree horizontal field of view"),
+    ([[60000, 0, 180], [0, 60000, 144], [0, 0, 1]], [0, 0, 0, 0, 0], "0.344 degree horizontal field of view"),
+])
+def test_implausible_intrinsics_are_named(K, dist, match):
+    from planefuse.geometry import CameraIntrinsics, intrinsics_problem
+
+    problem = intrinsics_problem(CameraIntrinsics(np.array(K, float), 360, 288, np.array(dist, float)))
+    assert (problem is None) if match is None else re.search(match, problem), problem
+
+
+def test_real_calibrations_are_plausible():
+    from planefuse.calib import EPFL_TERRACE_TSAI, pinhole_from_tsai
+    from planefuse.geometry import intrinsics_problem
+
+    cams = [pinhole_from_tsai(EPFL_TERRACE_TSAI[f"c{i}"], metres_per_unit=1e-3, width_px=360, height_px=288)[0]
+            for i in range(4)]
+    wildtrack = Path(__file__).resolve().parents[2] / "shared" / "data" / "wildtrack"
+    if wildtrack.is_dir():
+        from planefuse.calib._wildtrack import load_wildtrack_rig
+
+        cams += list(load_wildtrack_rig(wildtrack).values())  # C1 and C6 fold back beyond the edges, in the corners
+    assert [intrinsics_problem(c.intrinsics) for c in cams] == [None] * len(cams)

@@ -1,6 +1,7 @@
 """Geometry core: checks, rigid transforms, the pinhole camera and homographies."""
 
-from ._camera import MAX_DISTORTION_FRACTION, CameraIntrinsics, PinholeCamera, distort_normalized, distortion_problem
+from ._camera import MAX_DISTORTION_FRACTION, CameraIntrinsics, PinholeCamera, distort_normalized, distortion_problem, \
+    intrinsics_problem
 from ._checks import (
     check_finite,
     check_homography,
@@ -62,6 +63,7 @@ __all__ = [
     "PinholeCamera",
     "distort_normalized",
     "distortion_problem",
+    "intrinsics_problem",
     "MAX_DISTORTION_FRACTION",
     "check_finite",
     "check_homography",

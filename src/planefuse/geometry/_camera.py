@@ -15,7 +15,8 @@ import numpy as np
 from ._checks import check_finite, check_intrinsics_matrix, check_points, check_transform
 from ._transforms import invert_transform
 
-__all__ = ["CameraIntrinsics", "PinholeCamera", "distort_normalized", "distortion_problem", "MAX_DISTORTION_FRACTION"]
+__all__ = ["CameraIntrinsics", "PinholeCamera", "distort_normalized", "distortion_problem", "intrinsics_problem",
+           "MAX_DISTORTION_FRACTION"]
 
 #: Largest displacement of the lens distortion at the image's edges, as a fraction of the undistorted radius
 #: (``distortion_problem``): Wildtrack's seven calibrated cameras move their edge midpoints by 5-16 %, the EPFL
@@ -115,6 +116,24 @@ def distortion_problem(intrinsics: "CameraIntrinsics") -> str | None:
                 f"{MAX_DISTORTION_FRACTION:.0%} is plausible for this lens model): not a plausible calibration; "
                 "are the coefficients of another model or in other units?")
     return None
+
+
+def intrinsics_problem(intrinsics: "CameraIntrinsics") -> str | None:
+    """Why ``intrinsics`` is not a plausible calibration of its image (None where it is): the principal point
+    outside the image, pixels more than 3 times as tall as wide (or wide as tall), a horizontal field of view over
+    170 degrees (``fx < 0.044 W``, not a pinhole lens) or under 0.5 degree (``fx > 115 W``: a focal length in other
+    units than pixels), or an implausible lens distortion (:func:`distortion_problem`)."""
+    K, w, h = intrinsics.K, intrinsics.width_px, intrinsics.height_px
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    if not (-0.5 <= cx <= w - 0.5 and -0.5 <= cy <= h - 0.5):
+        return f"principal point ({cx:.4g}, {cy:.4g}) px lies outside the {w}x{h} px image: not a plausible calibration"
+    if not 1.0 / 3.0 <= fy / fx <= 3.0:
+        return f"fy / fx = {fy / fx:.3g} (fx {fx:.4g}, fy {fy:.4g} px): pixels 3 times taller or wider than square"
+    fov_deg = float(np.degrees(2.0 * np.arctan2(0.5 * w, fx)))
+    if not 0.5 <= fov_deg <= 170.0:
+        return (f"fx = {fx:.4g} px gives a {fov_deg:.3g} degree horizontal field of view over {w} px: not a pinhole "
+                "lens's (is the focal length in millimetres or metres instead of pixels?)")
+    return distortion_problem(intrinsics)
 
 
 @dataclass(frozen=True)

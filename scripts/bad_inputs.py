@@ -356,6 +356,10 @@ CASES = [
     Case("lens distortion k1 = 50", lambda r, c, t: _camera(r, 0, "dist", [50.0, 0.0, 0.0, 0.0, 0.0]), run=True),
     Case("lens distortion folding inside the image (k1 = -0.5)",
          lambda r, c, t: _camera(r, 1, "dist", [-0.5, 0.0, 0.0, 0.0, 0.0]), run=True),
+    Case("focal length in millimetres (fx = fy = 4.2)", lambda r, c, t: _camera(
+        r, 0, "K", lambda K: [[4.2, 0.0, K[0][2]], [0.0, 4.2, K[1][2]], [0.0, 0.0, 1.0]]), run=True),
+    Case("principal point outside the image", lambda r, c, t: _camera(
+        r, 0, "K", lambda K: [[K[0][0], 0.0, 3 * K[0][2]], [0.0, K[1][1], K[1][2]], [0.0, 0.0, 1.0]]), run=True),
     Case("audio stream starting at 100 s in a 1 s recording", lambda r, c, t: _audio_start(r, 100.0), run=True),
     Case("imu time stamp NaN", lambda r, c, t: _imu_row(r, "nan"), run=True),
     Case("imu time stamps backwards", lambda r, c, t: _imu_row(r, "0.0"), run=True),

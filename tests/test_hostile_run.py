@@ -366,3 +366,27 @@ def test_real_calibrations_are_plausible():
 
         cams += list(load_wildtrack_rig(wildtrack).values())  # C1 and C6 fold back beyond the edges, in the corners
     assert [intrinsics_problem(c.intrinsics) for c in cams] == [None] * len(cams)
+
+
+def test_the_cgroup_memory_limit_is_read_from_v2_and_v1(tmp_path):
+    from planefuse.pipeline._system import _cgroup_memory_left_bytes
+
+    root = tmp_path / "cgroup"
+    (root / "user" / "job").mkdir(parents=True)
+    (tmp_path / "self").write_text("0::/user/job\n")
+    for d, limit, used in ((root / "user" / "job", "max", 1), (root / "user", str(3 * 2**30), 2**30), (root, "max", 5)):
+        (d / "memory.max").write_text(limit + "\n")
+        (d / "memory.current").write_text(f"{used}\n")
+    assert _cgroup_memory_left_bytes(tmp_path / "self", root) == 2 * 2**30  # the parent's limit binds
+    (root / "user" / "job" / "memory.max").write_text(f"{2**30 + 100}\n")
+    assert _cgroup_memory_left_bytes(tmp_path / "self", root) == 2**30 + 99  # now the group's own
+    (tmp_path / "v1").write_text("4:memory:/docker/abc\n0::/\n")
+    (root / "memory" / "docker" / "abc").mkdir(parents=True)
+    (root / "memory" / "docker" / "abc" / "memory.limit_in_bytes").write_text(f"{4 * 2**30}\n")
+    (root / "memory" / "docker" / "abc" / "memory.usage_in_bytes").write_text(f"{2**30}\n")
+    for f in ("memory.max", "memory.current"):
+        (root / f).unlink()
+    assert _cgroup_memory_left_bytes(tmp_path / "v1", root) == 3 * 2**30
+    (root / "memory" / "docker" / "abc" / "memory.limit_in_bytes").write_text("9223372036854771712\n")
+    assert _cgroup_memory_left_bytes(tmp_path / "v1", root) is None  # v1's "no limit"
+    assert _cgroup_memory_left_bytes(tmp_path / "absent", root) is None

@@ -340,42 +340,46 @@ def _address_space_left_bytes() -> int | None:
         return None
 
 
-def _cgroup_memory_left_bytes() -> int | None:
-    """What the process's cgroup (v2 ``memory.max`` less ``memory.current``, the tightest along its path; v1
-    ``memory.limit_in_bytes`` less ``memory.usage_in_bytes``) leaves (None: no limit, or not known)."""
-    left = None
+def _cgroup_memory_left_bytes(proc_cgroup: Path = Path("/proc/self/cgroup"),
+                              root: Path = Path("/sys/fs/cgroup")) -> int | None:
+    """What the process's cgroup leaves [bytes]: v2 ``memory.max`` less ``memory.current``, the tightest along its
+    path from its own group up to ``root``; v1 ``memory/memory.limit_in_bytes`` less ``memory.usage_in_bytes``, its
+    group's or else the root's (None: no limit, or not known)."""
     try:
-        lines = Path("/proc/self/cgroup").read_text().splitlines()
+        lines = proc_cgroup.read_text().splitlines()
     except OSError:
         return None
+    left = None
+
+    def take(have: int) -> None:
+        nonlocal left
+        left = max(0, have) if left is None else min(left, max(0, have))
+
     for line in lines:
         parts = line.split(":", 2)
         if len(parts) != 3:
             continue
-        if parts[0] == "0" and parts[1] == "":  # v2: the cgroup and each of its parents
-            folder = Path("/sys/fs/cgroup") / parts[2].lstrip("/")
+        if parts[0] == "0" and parts[1] == "":  # v2: the group and each of its parents
+            folder = root / parts[2].lstrip("/")
             for d in (folder, *folder.parents):
-                if not str(d).startswith("/sys/fs/cgroup"):
-                    break
                 try:
                     limit = (d / "memory.max").read_text().strip()
                     used = int((d / "memory.current").read_text().strip())
                 except (OSError, ValueError):
-                    continue
-                if limit != "max":
-                    have = max(0, int(limit) - used)
-                    left = have if left is None else min(left, have)
+                    limit = None
+                if limit not in (None, "max"):
+                    take(int(limit) - used)
+                if d == root:
+                    break
         elif "memory" in parts[1].split(","):  # v1
-            d = Path("/sys/fs/cgroup/memory") / parts[2].lstrip("/")
-            for folder in (d, Path("/sys/fs/cgroup/memory")):
+            for d in (root / "memory" / parts[2].lstrip("/"), root / "memory"):
                 try:
-                    limit = int((folder / "memory.limit_in_bytes").read_text())
-                    used = int((folder / "memory.usage_in_bytes").read_text())
+                    limit_v1 = int((d / "memory.limit_in_bytes").read_text())
+                    used = int((d / "memory.usage_in_bytes").read_text())
                 except (OSError, ValueError):
                     continue
-                if limit < 2**60:  # "no limit" is a huge number in v1
-                    have = max(0, limit - used)
-                    left = have if left is None else min(left, have)
+                if limit_v1 < 2**60:  # "no limit" is a huge number in v1
+                    take(limit_v1 - used)
                 break
     return left
 

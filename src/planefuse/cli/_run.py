@@ -38,7 +38,9 @@ def run(
     An interrupted run (Ctrl-C, kill) re-run with the same configuration resumes after its last finished
     chunk and ends with the same files as an uninterrupted run; --fresh starts afresh. An out_dir holding
     another run's results or files planefuse did not write is refused unless --fresh/--force says so;
-    run_state.json says "finished" only once everything (figures, report included) is written."""
+    run_state.json says "finished" only once everything (figures, report included) is written, "failed" or
+    "interrupted" (Ctrl-C, SIGTERM) otherwise. The run first validates as `planefuse check` does and refuses any
+    input check reports an error for; one run writes into an out_dir at a time (a second is refused)."""
     from dataclasses import replace
 
     from ..config import ConfigError, check_run_config, load_config

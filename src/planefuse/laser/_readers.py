@@ -343,13 +343,15 @@ def read_transform_yaml(path) -> np.ndarray:
     ValueError
         Missing keys, wrong shapes, or ``R`` not a rotation.
     """
-    import yaml
+    from ..io._yaml import YamlFileError, read_yaml
 
     try:
-        with open(path) as f:
-            d = yaml.safe_load(f)
+        d, _ = read_yaml(path)  # safe YAML: no alias bomb, no duplicate key
+    except YamlFileError as err:
+        raise ValueError(f"cannot read R and t from {err}") from None
+    try:
         R, t = np.asarray(d["R"], dtype=float), np.asarray(d["t"], dtype=float)
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
+    except (KeyError, TypeError, ValueError) as err:
         raise ValueError(f"cannot read R and t from {path}: {type(err).__name__}: {err}") from err
     if R.shape != (3, 3) or t.shape != (3,):
         raise ValueError(f"{path}: R must be 3x3 and t 3 numbers, got {R.shape} and {t.shape}")

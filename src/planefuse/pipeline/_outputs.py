@@ -19,7 +19,7 @@ from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_writ
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
 from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
-    check_modalities_present, run_system, stack_for_recording
+    check_modalities_present, run_system, stack_for_recording, writer_buffered_steps
 
 if TYPE_CHECKING:  # matplotlib and rerun (~1 s of imports) only where figures or a rerun recording are asked for
     from ..viz import FigureInputs
@@ -316,13 +316,14 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     if plan.out_dir is None:
         raise ValueError("run_to_folder needs a plan with an out_dir (run_plan evaluates in memory)")
     params, settings = plan.params, plan.outputs
-    stack = stack_for_recording(rec, params)
-    if settings.zarr:
-        one_zarr_codec_thread()
-    text = plan.text()
     # output steps at the multiples of the period before the recording's end (its duration: the end of its last
     # sample period); an estimate for the progress bar, which is set to the steps done at the end
     n_steps = int(np.floor((rec.duration_s - 1e-9) / params.output_period_s)) + 1
+    stack = stack_for_recording(rec, params, buffered_steps=writer_buffered_steps(settings.chunk_steps, settings.zarr,
+                                                                                  n_steps))
+    if settings.zarr:
+        one_zarr_codec_thread()
+    text = plan.text()
     with progress_steps(progress_mode) as progress, OutputWriter(
         plan.out_dir, stack, config_hash=resume_key(plan, rec), chunk_steps=settings.chunk_steps,
         write_zarr=settings.zarr, config_text=text, person_radius_m=params.tracking.cluster.person_radius_m,

@@ -153,9 +153,9 @@ body{font-family:system-ui,sans-serif;margin:12px;background:#f6f6f4;color:#222}
 h1{font-size:18px;margin:0 0 8px}
 #top{display:flex;gap:16px;align-items:flex-start;flex-wrap:wrap}
 #plan{background:#fff;border:1px solid #ccc}
-#cams{display:flex;flex-wrap:wrap;gap:8px}
+#cams{display:flex;flex-wrap:wrap;gap:8px;max-width:680px}
 #cams figure{margin:0;background:#fff;border:1px solid #ccc;padding:4px}
-#cams img{display:block;max-width:320px}
+#cams img{display:block;width:320px}
 #cams figcaption{font-size:12px}
 table{border-collapse:collapse;font-size:13px;margin-top:8px}
 td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}

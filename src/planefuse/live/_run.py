@@ -117,23 +117,25 @@ class LiveSummary:
     outputs: int = 0
     instants: int = 0
     interrupted: bool = False
-    #: per output step: (emitted at [s, run clock], latency [s]: emitted less its newest instant's arrival)
-    latencies_s: list[tuple[float, float]] = field(default_factory=list)
+    #: per output step: (emitted at [s, run clock], latency [s]: emitted less its newest instant's arrival,
+    #: whether the run had warmed up)
+    latencies_s: list[tuple[float, float, bool]] = field(default_factory=list)
     #: (run clock [s], resident set size [MiB]) sampled every output second
     rss_mib: list[tuple[float, float]] = field(default_factory=list)
     health: list[dict] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
 
-    def latency_ms(self, q: float) -> float | None:
-        """The ``q``-th percentile [ms] of the outputs' latencies (None without outputs)."""
-        lat = [v for _, v in self.latencies_s]
+    def latency_ms(self, q: float, warm: bool = True) -> float | None:
+        """The ``q``-th percentile [ms] of the outputs' latencies once warmed up (``warm=False``: all of them, the
+        first instants' set-up included); None without such outputs."""
+        lat = [v for _, v, w in self.latencies_s if w or not warm]
         return float(np.percentile(lat, q) * 1e3) if lat else None
 
     def as_dict(self) -> dict:
         return {"outputs": self.outputs, "instants": self.instants, "interrupted": self.interrupted,
                 "latency_ms_p50": self.latency_ms(50), "latency_ms_p95": self.latency_ms(95),
-                "latency_ms_max": self.latency_ms(100), "cameras": self.health, "events": self.events,
-                "rss_mib": self.rss_mib}
+                "latency_ms_max": self.latency_ms(100), "latency_ms_max_with_start": self.latency_ms(100, False),
+                "cameras": self.health, "events": self.events, "rss_mib": self.rss_mib}
 
 
 def _rss_mib() -> float:
@@ -380,7 +382,7 @@ class LiveRun:
             newest = self._pending.popleft()
         latency = None if newest is None else now - newest.arrival_s
         if latency is not None:
-            self.summary.latencies_s.append((now, latency))
+            self.summary.latencies_s.append((now, latency, self._warm))
         s = self.summary
         s.outputs += 1
         if not s.rss_mib or now - s.rss_mib[-1][0] >= 1.0:
@@ -405,7 +407,7 @@ class LiveRun:
                 del self._trails[i]
 
     def _recent_latency_ms(self, q: float) -> float | None:
-        lat = [v for _, v in self.summary.latencies_s[-100:]]
+        lat = [v for _, v, _ in self.summary.latencies_s[-100:]]
         return float(np.percentile(lat, q) * 1e3) if lat else None
 
     def _state(self, out: TrackerOutput | None, inst: LiveInstant | None, now: float) -> dict:

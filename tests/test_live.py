@@ -225,11 +225,16 @@ def test_stalled_and_disconnected_streams_are_survived_and_reported(scene):
     assert h["cam2"]["reconnects"] >= 1 and srv.connections["cam2"] >= 2
     assert h["cam2"]["received"] > 30  # streamed again after the reconnection
     assert any("cam1" in e and "retrying" in e for e in events)
-    # instants went on without cam1: it is missing (unobserved) there, the others fused
+    # instants went on without cam1 while it was silent: it is missing (unobserved) there, the others fused; after
+    # its reconnection it is used again (the server streams on from where it stopped); cam0's stream ends first
+    # (cam2's, delayed by its reconnection, goes on a little): each camera is used or missing at every instant
     missing = live.system.report.camera.missing_frames
-    assert len(missing.get("cam1", [])) >= 3 and "cam0" not in missing
-    assert summary.outputs >= summary.instants - 1 >= 10
-    assert h["cam0"]["used"] == summary.instants
+    assert len(missing.get("cam1", [])) >= 2
+    assert min(missing.get("cam0", [np.inf])) > max(missing["cam1"])
+    assert h["cam1"]["used"] > 20 // 5
+    assert summary.outputs >= 10
+    for name in frames:
+        assert h[name]["used"] + len(missing.get(name, [])) == summary.instants
 
 
 def test_ctrl_c_ends_the_run_cleanly_with_outputs_flushed(scene, tmp_path):
@@ -276,7 +281,7 @@ def test_live_page_shows_the_tracks_in_headless_chromium(scene, tmp_path):
     assert re.search(r'<span id="track-count">(\d+)</span>', dom).group(1) == str(n)
     ids = sorted(int(i) for i in re.findall(r'<li class="track" data-id="(\d+)"', dom))
     assert ids == sorted(int(i) for i in outs[-1].tracks.ids)
-    assert dom.count('<td class="live">') + dom.count('<td class="retrying">') == 4  # a health row per camera
+    assert sorted(re.findall(r'<tr><td>(cam\d)</td><td class="stopped">', dom)) == sorted(frames)  # health rows
 
 
 # ---------------------------------------------------------------------------------------------- configuration, CLI

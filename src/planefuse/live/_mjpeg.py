@@ -119,7 +119,7 @@ class MjpegServer:
                     return  # the connection closes
                 if name in self.stall_after and self.sent[name] == self.stall_after[name]:
                     self.stall_after.pop(name)
-                    if self._stop.wait(self.stall_s):
+                    if self._stop.wait(None if np.isinf(self.stall_s) else self.stall_s):
                         return
                     start, t_first = time.monotonic(), times[i]
                 wait = start + (times[i] - t_first) / self.speed - time.monotonic()

@@ -57,16 +57,21 @@ class MjpegServer:
         Per camera, frames sent before it goes silent (connection open) / before the connection closes.
     stall_s : float
         How long a stalled camera stays silent before it resumes [s] (``inf``: never).
+    loop : bool
+        Start again from the first frame after the last, the times going on (one frame period after the last):
+        an endless stream (soak tests).
     """
 
     def __init__(self, frames: Mapping[str, tuple[Sequence[float], Sequence[bytes]]], host: str = "127.0.0.1",
                  port: int = 0, speed: float = 1.0, stall_after: Mapping[str, int] | None = None,
-                 close_after: Mapping[str, int] | None = None, stall_s: float = float("inf")) -> None:
+                 close_after: Mapping[str, int] | None = None, stall_s: float = float("inf"),
+                 loop: bool = False) -> None:
         self.frames = {k: (np.asarray(t, float), list(j)) for k, (t, j) in frames.items()}
         self.host, self.port, self.speed = host, int(port), float(speed)
         self.stall_after = dict(stall_after or {})
         self.close_after = dict(close_after or {})
         self.stall_s = float(stall_s)
+        self.loop = bool(loop)
         self.sent = {k: 0 for k in self.frames}   # frames sent per camera (over all its connections)
         self.connections = {k: 0 for k in self.frames}
         self._stop = threading.Event()
@@ -109,9 +114,16 @@ class MjpegServer:
         handler.send_header("Content-Type", f"multipart/x-mixed-replace; boundary={BOUNDARY}")
         handler.send_header("Cache-Control", "no-cache")
         handler.end_headers()
-        start, t_first = time.monotonic(), (times[first] if first < len(times) else 0.0)
+        n = len(jpgs)
+        span = (times[-1] - times[0] + (times[-1] - times[-2] if n > 1 else 1.0)) if n else 0.0
+
+        def time_of(k: int) -> float:  # the k-th frame sent over all loops
+            return float(times[k % n] + (k // n) * span)
+
+        start, t_first = time.monotonic(), (time_of(first) if first < n or self.loop else 0.0)
         try:
-            for i in range(first, len(jpgs)):
+            i = first
+            while i < n or (self.loop and n):
                 if self._stop.is_set():
                     return
                 if name in self.close_after and self.sent[name] == self.close_after[name]:
@@ -121,15 +133,18 @@ class MjpegServer:
                     self.stall_after.pop(name)
                     if self._stop.wait(None if np.isinf(self.stall_s) else self.stall_s):
                         return
-                    start, t_first = time.monotonic(), times[i]
-                wait = start + (times[i] - t_first) / self.speed - time.monotonic()
+                    start, t_first = time.monotonic(), time_of(i)
+                t = time_of(i)
+                wait = start + (t - t_first) / self.speed - time.monotonic()
                 if wait > 0 and self._stop.wait(wait):
                     return
-                head = (f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpgs[i])}\r\n"
-                        f"X-Timestamp: {float(times[i])!r}\r\n\r\n").encode()
-                handler.wfile.write(head + jpgs[i] + b"\r\n")
+                jpg = jpgs[i % n]
+                head = (f"--{BOUNDARY}\r\nContent-Type: image/jpeg\r\nContent-Length: {len(jpg)}\r\n"
+                        f"X-Timestamp: {t!r}\r\n\r\n").encode()
+                handler.wfile.write(head + jpg + b"\r\n")
                 handler.wfile.flush()
                 self.sent[name] += 1
+                i += 1
             # the end of the frames: the stream stays open and silent until the server stops
             self._stop.wait()
         except (BrokenPipeError, ConnectionResetError):

@@ -117,8 +117,8 @@ class LiveSummary:
     outputs: int = 0
     instants: int = 0
     interrupted: bool = False
-    #: per output step: (emitted at [s, run clock], latency [s]: emitted less its newest instant's arrival,
-    #: whether the run had warmed up)
+    #: per instant: (its first output's emission [s, run clock], latency [s]: that emission less the arrival of
+    #: the instant's last frame, whether the run had warmed up)
     latencies_s: list[tuple[float, float, bool]] = field(default_factory=list)
     #: (run clock [s], resident set size [MiB]) sampled every output second
     rss_mib: list[tuple[float, float]] = field(default_factory=list)
@@ -126,7 +126,7 @@ class LiveSummary:
     events: list[str] = field(default_factory=list)
 
     def latency_ms(self, q: float, warm: bool = True) -> float | None:
-        """The ``q``-th percentile [ms] of the outputs' latencies once warmed up (``warm=False``: all of them, the
+        """The ``q``-th percentile [ms] of the instants' latencies once warmed up (``warm=False``: all of them, the
         first instants' set-up included); None without such outputs."""
         lat = [v for _, v, w in self.latencies_s if w or not warm]
         return float(np.percentile(lat, q) * 1e3) if lat else None
@@ -203,7 +203,8 @@ class LiveRun:
         self.start_s = time.monotonic()
         frame_s = 1.0 / max(rec.camera(n).rate_hz for n in names)
         self.sync = FrameSynchroniser(names, frame_s, params.camera_params.max_rate_hz, settings.queue_frames,
-                                      settings.sync_wait_s, delivering=self._delivering, clock=self.clock)
+                                      settings.sync_wait_s, delivering=self._delivering, clock=self.clock,
+                                      stamp="earliest" if settings.clock == "presentation" else "slot")
         self.sources = []
         for c, name in enumerate(names):
             cam = rec.camera(name).camera
@@ -376,13 +377,13 @@ class LiveRun:
     def _emit(self, step: int, out: TrackerOutput) -> None:
         now = self.clock()
         self._last_output = out
-        # the output holds the evidence of every pushed instant stamped up to its time (and its merge tolerance)
+        # the output holds the evidence of every pushed instant stamped up to its time (and its merge tolerance):
+        # each instant's latency is from its last frame's arrival to the first output holding it
         newest = None
         while self._pending and self._pending[0].time_s <= out.time_s + self.tolerance_s + 1e-9:
             newest = self._pending.popleft()
+            self.summary.latencies_s.append((now, now - newest.arrival_s, self._warm))
         latency = None if newest is None else now - newest.arrival_s
-        if latency is not None:
-            self.summary.latencies_s.append((now, latency, self._warm))
         s = self.summary
         s.outputs += 1
         if not s.rss_mib or now - s.rss_mib[-1][0] >= 1.0:

@@ -7,7 +7,9 @@ at or after ``t0 + k period_s - early_s`` (``early_s`` a quarter of the cameras'
 frames before it in that slot are *skipped* (the rate is below the camera's). Without a rate, every frame is taken
 (``period_s`` the frame period, ``early_s`` half of it). Instant ``k`` holds each camera's frame of slot ``k``
 (None where a camera has none: unobserved) and is stamped at the earliest of them, so a live run on a recording's
-frames stamped with the recording's times forms exactly the offline run's instants.
+frames stamped with the recording's times forms exactly the offline run's instants where every camera delivers
+every frame (where a camera lost the frame at an instant, its next one in the slot is taken; the offline rule leaves
+it missing); or, for frames stamped on arrival, at the slot's due time (``stamp``).
 
 Each camera's taken frames wait in a queue of ``queue_frames``; when the system falls behind, the oldest is
 *dropped* (counted on the camera), so the delay between a frame's arrival and its use stays bounded. An instant
@@ -83,11 +85,21 @@ class FrameSynchroniser:
         ``delivering(camera_index)``: whether the camera is delivering now (worth waiting for); default always.
     clock : callable
         The run's clock [s].
+    stamp : {"earliest", "slot"}
+        An instant's time stamp: its earliest frame's (the offline rule: a live run on a recording's frames stamped
+        with their times forms the offline run's instants), or its slot's due time ``t0 + k period_s`` (frames
+        stamped on arrival: network delays jitter, the slots do not, so the filter's time steps stay regular and
+        each instant at the output rate is an output step; every frame of the instant arrived within
+        ``[-early_s, period_s - early_s)`` of it).
     """
 
     def __init__(self, names: Sequence[str], frame_s: float, max_rate_hz: float | None, queue_frames: int = 2,
                  sync_wait_s: float | None = None, health: Sequence[SourceHealth] | None = None,
-                 delivering: Callable[[int], bool] | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+                 delivering: Callable[[int], bool] | None = None, clock: Callable[[], float] = time.monotonic,
+                 stamp: str = "earliest") -> None:
+        if stamp not in ("earliest", "slot"):
+            raise ValueError(f"stamp must be 'earliest' or 'slot', got {stamp!r}")
+        self.stamp = stamp
         if not (frame_s > 0 and math.isfinite(frame_s)):
             raise ValueError(f"frame_s must be finite and > 0 [s], got {frame_s!r}")
         if max_rate_hz is not None and not (max_rate_hz > 0 and math.isfinite(max_rate_hz)):
@@ -194,7 +206,9 @@ class FrameSynchroniser:
                     h = self.health[f.camera]
                     h.used += 1
                     h.lag_s = now - f.arrival_s
-            return LiveInstant(min(f.stamp_s for f in frames if f is not None), k, frames, now)
+            stamp = (min(f.stamp_s for f in frames if f is not None) if self.stamp == "earliest"
+                     else self.slot_time_s(k))
+            return LiveInstant(stamp, k, frames, now)
 
     def instants(self) -> Iterator[LiveInstant]:
         """The instants in order, each as soon as it is complete (blocks; ends at :meth:`close` or when

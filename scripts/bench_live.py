@@ -43,10 +43,16 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float)
     params = SystemParams(laser=False, sound=False,
                           camera_params=replace(CameraParams(), max_rate_hz=5.0 if rate == "5" else None))
     live = LiveRun(rec, params, LiveSettings(cameras={n: srv.url(n) for n in names}, serve=False))
+    import resource
+    import time
+
+    cpu0, wall0 = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter()
     try:
         summary = live.run(duration_s=duration_s)
     finally:
         srv.stop()
+    cpu1, wall = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter() - wall0
+    cpu_s = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
     lat = summary.latencies_s
     t_start = lat[0][0] if lat else 0.0
     minutes = []
@@ -55,9 +61,11 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float)
         if w:
             minutes.append({"minute": m, "n": len(w), "p50_ms": float(np.percentile(w, 50) * 1e3),
                             "p95_ms": float(np.percentile(w, 95) * 1e3)})
-    return {"cameras": n_cameras, "rate": rate, "duration_s": duration_s, "outputs": summary.outputs,
+    return {"load_avg_1min_end": os.getloadavg()[0], "cpu_s": cpu_s, "wall_s": wall, "cpu_share": cpu_s / wall,
+            "cameras": n_cameras, "rate": rate, "duration_s": duration_s, "outputs": summary.outputs,
             "instants": summary.instants, "p50_ms": summary.latency_ms(50), "p95_ms": summary.latency_ms(95),
-            "max_ms": summary.latency_ms(100), "health": summary.health, "rss_mib": summary.rss_mib,
+            "max_ms": summary.latency_ms(100), "step_p50_ms": summary.step_latency_ms(50),
+            "step_p95_ms": summary.step_latency_ms(95), "health": summary.health, "rss_mib": summary.rss_mib,
             "latency_per_minute": minutes}
 
 

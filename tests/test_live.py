@@ -202,6 +202,9 @@ def test_live_tracks_equal_offline_on_the_same_frames(scene, tmp_path):
     lines = [json.loads(x) for x in (tmp_path / "tracks.jsonl").read_text().splitlines()]
     assert [len(x["tracks"]) for x in lines] == [len(o.tracks) for o in outs]
     assert lines[-1]["tracks"][0]["id"] == int(outs[-1].tracks.ids[0])
+    mot = np.loadtxt(tmp_path / "tracks_mot.txt", delimiter=",", ndmin=2)  # frame = step + 1, id, ..., x, y
+    expected = [(k + 1, i, x, y) for k, o in enumerate(offline.outputs) for i, (x, y) in zip(o.tracks.ids, o.tracks.xy_m)]
+    assert np.allclose(mot[:, [0, 1, 7, 8]], expected, atol=5e-5)  # written with 4 decimals
     report = json.loads((tmp_path / "live_report.json").read_text())
     assert [c["used"] for c in report["cameras"]] == [15] * 4
 

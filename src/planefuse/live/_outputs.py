@@ -1,8 +1,10 @@
-"""Live outputs for programs: tracks as JSON lines and ``tracks.csv``, written (and flushed) at every output step."""
+"""Live outputs for programs: tracks as JSON lines, ``tracks.csv`` and ``tracks_mot.txt``, written (and flushed) at
+every output step."""
 
 from __future__ import annotations
 
 import csv
+import inspect
 import json
 import sys
 from pathlib import Path
@@ -10,12 +12,15 @@ from typing import IO
 
 import numpy as np
 
+from ..outputs import OutputWriter, mot_rows
 from ..tracking import TrackerOutput
 
 __all__ = ["LiveOutputs", "TRACKS_CSV_COLUMNS", "track_records"]
 
 #: The columns of ``tracks.csv``, as the offline run writes it (docs/outputs.md).
 TRACKS_CSV_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
+#: The footprint radius of the MOTChallenge rows [m]: the offline writer's.
+PERSON_RADIUS_M = inspect.signature(OutputWriter).parameters["person_radius_m"].default
 
 
 def track_records(out: TrackerOutput) -> list[dict]:
@@ -32,8 +37,8 @@ class LiveOutputs:
     Parameters
     ----------
     out_dir : path or None
-        Folder of ``tracks.csv`` (created; an existing ``tracks.csv`` is replaced) and, at the end,
-        ``live_report.json``. None: no folder.
+        Folder of ``tracks.csv`` and ``tracks_mot.txt`` (the offline run's formats, docs/outputs.md; created, and
+        existing ones replaced) and, at the end, ``live_report.json``. None: no folder.
     jsonl : str, path or None
         ``"-"``: JSON lines on standard output; a path: JSON lines in that file; None: none. A line per output
         step: ``{"step", "time_s", "latency_s", "tracks": [track_records...]}``.
@@ -42,6 +47,7 @@ class LiveOutputs:
     def __init__(self, out_dir: str | Path | None = None, jsonl: str | Path | None = None) -> None:
         self.out_dir = None if out_dir is None else Path(out_dir)
         self._csv_file: IO | None = None
+        self._mot_file: IO | None = None
         self._jsonl: IO | None = None
         self._own_jsonl = False
         if self.out_dir is not None:
@@ -50,6 +56,7 @@ class LiveOutputs:
             self._csv = csv.writer(self._csv_file)
             self._csv.writerow(TRACKS_CSV_COLUMNS)
             self._csv_file.flush()
+            self._mot_file = open(self.out_dir / "tracks_mot.txt", "w")
         if jsonl == "-":
             self._jsonl = sys.stdout
         elif jsonl is not None:
@@ -64,6 +71,11 @@ class LiveOutputs:
                 self._csv.writerow((step, repr(float(out.time_s)), r["id"], repr(r["x_m"]), repr(r["y_m"]),
                                     repr(r["vx_m_s"]), repr(r["vy_m_s"])))
             self._csv_file.flush()
+            t = out.tracks
+            mot = mot_rows(np.full(len(t), step), t.ids, t.xy_m, np.ones(len(t)), PERSON_RADIUS_M)
+            np.savetxt(self._mot_file, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f",
+                                                 "%d"], delimiter=",")
+            self._mot_file.flush()
         if self._jsonl is not None:
             self._jsonl.write(json.dumps({"step": step, "time_s": float(out.time_s),
                                           "latency_s": None if latency_s is None else round(latency_s, 6),
@@ -72,9 +84,10 @@ class LiveOutputs:
 
     def close(self, report: dict | None = None) -> None:
         """Flush and close; write ``report`` as ``live_report.json`` in the folder."""
-        if self._csv_file is not None:
-            self._csv_file.close()
-            self._csv_file = None
+        for f in (self._csv_file, self._mot_file):
+            if f is not None:
+                f.close()
+        self._csv_file = self._mot_file = None
         if self._jsonl is not None:
             self._jsonl.flush()
             if self._own_jsonl:

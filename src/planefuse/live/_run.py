@@ -120,6 +120,8 @@ class LiveSummary:
     #: per instant: (its first output's emission [s, run clock], latency [s]: that emission less the arrival of
     #: the instant's last frame, whether the run had warmed up)
     latencies_s: list[tuple[float, float, bool]] = field(default_factory=list)
+    #: per output step: the latency [s] of its newest instant (what its JSON line says), whether warmed up
+    step_latencies_s: list[tuple[float, bool]] = field(default_factory=list)
     #: (run clock [s], resident set size [MiB]) sampled every output second
     rss_mib: list[tuple[float, float]] = field(default_factory=list)
     health: list[dict] = field(default_factory=list)
@@ -131,10 +133,16 @@ class LiveSummary:
         lat = [v for _, v, w in self.latencies_s if w or not warm]
         return float(np.percentile(lat, q) * 1e3) if lat else None
 
+    def step_latency_ms(self, q: float) -> float | None:
+        """The ``q``-th percentile [ms] of the output steps' latencies (each its newest instant's) once warmed up."""
+        lat = [v for v, w in self.step_latencies_s if w]
+        return float(np.percentile(lat, q) * 1e3) if lat else None
+
     def as_dict(self) -> dict:
         return {"outputs": self.outputs, "instants": self.instants, "interrupted": self.interrupted,
                 "latency_ms_p50": self.latency_ms(50), "latency_ms_p95": self.latency_ms(95),
                 "latency_ms_max": self.latency_ms(100), "latency_ms_max_with_start": self.latency_ms(100, False),
+                "step_latency_ms_p50": self.step_latency_ms(50), "step_latency_ms_p95": self.step_latency_ms(95),
                 "cameras": self.health, "events": self.events, "rss_mib": self.rss_mib}
 
 
@@ -384,6 +392,8 @@ class LiveRun:
             newest = self._pending.popleft()
             self.summary.latencies_s.append((now, now - newest.arrival_s, self._warm))
         latency = None if newest is None else now - newest.arrival_s
+        if latency is not None:
+            self.summary.step_latencies_s.append((latency, self._warm))
         s = self.summary
         s.outputs += 1
         if not s.rss_mib or now - s.rss_mib[-1][0] >= 1.0:

@@ -245,10 +245,14 @@ def test_ctrl_c_ends_the_run_cleanly_with_outputs_flushed(scene, tmp_path):
     srv = MjpegServer(frames).start()
     st = LiveSettings(cameras={n: srv.url(n) for n in frames}, serve=False)
     outs = []
-    live = LiveRun(rec, PARAMS, st, out_dir=tmp_path, on_output=lambda o, lat: outs.append(o))
-    timer = threading.Timer(2.0, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+
+    def on_output(out, latency):
+        outs.append(out)
+        if len(outs) == 3:  # Ctrl-C 0.3 s after the third output step
+            timer.start()
+    live = LiveRun(rec, PARAMS, st, out_dir=tmp_path, on_output=on_output)
     try:
-        timer.start()
         summary = live.run(duration_s=30.0)
     finally:
         timer.cancel()

@@ -14,6 +14,7 @@ of the offline run.
 from __future__ import annotations
 
 import base64
+import itertools
 import math
 import resource
 import threading
@@ -110,22 +111,32 @@ class LiveSettings:
             raise ValueError(f"LiveSettings.sync_wait_s must be finite and >= 0 [s] or None, got {self.sync_wait_s!r}")
 
 
+#: A live run keeps this many of the latest latencies, memory samples and events (a run of days stays bounded:
+#: 100 000 instants are 5.5 h at 5 Hz).
+KEPT = 100_000
+
+
+def _kept() -> deque:
+    return deque(maxlen=KEPT)
+
+
 @dataclass
 class LiveSummary:
-    """What a live run did: per camera its counters, the outputs given and the latency of each."""
+    """What a live run did: per camera its counters, the outputs given and the latency of each (the latest
+    :data:`KEPT` of each series)."""
 
     outputs: int = 0
     instants: int = 0
     interrupted: bool = False
     #: per instant: (its first output's emission [s, run clock], latency [s]: that emission less the arrival of
     #: the instant's last frame, whether the run had warmed up)
-    latencies_s: list[tuple[float, float, bool]] = field(default_factory=list)
+    latencies_s: deque = field(default_factory=_kept)
     #: per output step: the latency [s] of its newest instant (what its JSON line says), whether warmed up
-    step_latencies_s: list[tuple[float, bool]] = field(default_factory=list)
+    step_latencies_s: deque = field(default_factory=_kept)
     #: (run clock [s], resident set size [MiB]) sampled every output second
-    rss_mib: list[tuple[float, float]] = field(default_factory=list)
+    rss_mib: deque = field(default_factory=_kept)
     health: list[dict] = field(default_factory=list)
-    events: list[str] = field(default_factory=list)
+    events: deque = field(default_factory=_kept)
 
     def latency_ms(self, q: float, warm: bool = True) -> float | None:
         """The ``q``-th percentile [ms] of the instants' latencies once warmed up (``warm=False``: all of them, the
@@ -143,7 +154,7 @@ class LiveSummary:
                 "latency_ms_p50": self.latency_ms(50), "latency_ms_p95": self.latency_ms(95),
                 "latency_ms_max": self.latency_ms(100), "latency_ms_max_with_start": self.latency_ms(100, False),
                 "step_latency_ms_p50": self.step_latency_ms(50), "step_latency_ms_p95": self.step_latency_ms(95),
-                "cameras": self.health, "events": self.events, "rss_mib": self.rss_mib}
+                "cameras": self.health, "events": list(self.events), "rss_mib": list(self.rss_mib)}
 
 
 def _rss_mib() -> float:
@@ -199,7 +210,7 @@ class LiveRun:
                              + (f"streams given for unknown cameras {unknown}" if unknown else ""))
         if not params.cameras:
             raise ValueError("sensors.cameras.enabled is false: a live run fuses the cameras")
-        self.events: list[str] = []
+        self.events: deque[str] = _kept()
         self._on_event = on_event
         dropped = [m for m, on, have in (("laser", params.laser, rec.lasers), ("sound", params.sound, rec.audio))
                    if on and have]
@@ -418,7 +429,7 @@ class LiveRun:
                 del self._trails[i]
 
     def _recent_latency_ms(self, q: float) -> float | None:
-        lat = [v for _, v, _ in self.summary.latencies_s[-100:]]
+        lat = [v for _, v, _ in itertools.islice(reversed(self.summary.latencies_s), 100)]
         return float(np.percentile(lat, q) * 1e3) if lat else None
 
     def _state(self, out: TrackerOutput | None, inst: LiveInstant | None, now: float) -> dict:

@@ -353,3 +353,36 @@ def test_cli_live_writes_tracks_as_it_goes(scene, tmp_path):
     report = json.loads((tmp_path / "out" / "live_report.json").read_text())
     assert len(report["cameras"]) == 4 and report["outputs"] == len((tmp_path / "t.jsonl").read_text().splitlines())
     assert any("laser and sound: recording-only" in e for e in report["events"])
+
+
+def test_video_files_played_at_their_rate_end_the_run_with_the_offline_tracks(scene, tmp_path):
+    """Video files (MJPG in AVI, 25 fps) played at their own rate, stamped with their presentation times: the run
+    ends by itself when every file has ended, with the offline run's tracks on the decoded frames exactly."""
+    rec, frames = scene
+    paths, streams = {}, {}
+    for cam in rec.cameras:
+        s = rec.camera(cam.name)
+        paths[cam.name] = tmp_path / f"{cam.name}.avi"
+        w = cv2.VideoWriter(str(paths[cam.name]), cv2.VideoWriter_fourcc(*"MJPG"), 25.0,
+                            (cam.intrinsics.width_px, cam.intrinsics.height_px))
+        for i in range(len(s)):
+            w.write(s.frame(i))
+        w.release()
+        cap, imgs, times = cv2.VideoCapture(str(paths[cam.name])), [], []
+        while (ok_img := cap.read())[0]:
+            imgs.append(ok_img[1])
+            times.append(cap.get(cv2.CAP_PROP_POS_MSEC) / 1e3)
+        cap.release()
+        streams[cam.name] = CameraStream(cam, times, lambda i, imgs=imgs: (imgs[i], None), False, s.rate_hz,
+                                         get_background=s.background)
+    offline = run_system(Recording(rec.duration_s, camera_streams=streams, planes_heights_m=rec.planes_heights_m,
+                                   room_xy_m=rec.room_xy_m), PARAMS)
+    outs = []
+    live = LiveRun(rec, PARAMS, LiveSettings(cameras={n: str(p) for n, p in paths.items()}, clock="presentation",
+                                             serve=False, queue_frames=20), on_output=lambda o, lat: outs.append(o))
+    summary = live.run(duration_s=30.0)  # ends at the files' end, long before
+    assert all(h["state"] == "ended" and h["dropped"] == 0 for h in summary.health), summary.health
+    assert len(outs) == len(offline.outputs) > 10
+    for a, b in zip(offline.outputs, outs):
+        assert a.time_s == b.time_s and np.array_equal(a.tracks.ids, b.tracks.ids)
+        assert np.array_equal(a.tracks.xy_m, b.tracks.xy_m)

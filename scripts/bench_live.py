@@ -65,7 +65,7 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float)
             "cameras": n_cameras, "rate": rate, "duration_s": duration_s, "outputs": summary.outputs,
             "instants": summary.instants, "p50_ms": summary.latency_ms(50), "p95_ms": summary.latency_ms(95),
             "max_ms": summary.latency_ms(100), "step_p50_ms": summary.step_latency_ms(50),
-            "step_p95_ms": summary.step_latency_ms(95), "health": summary.health, "rss_mib": summary.rss_mib,
+            "step_p95_ms": summary.step_latency_ms(95), "health": summary.health, "rss_mib": list(summary.rss_mib),
             "latency_per_minute": minutes}
 
 

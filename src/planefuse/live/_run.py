@@ -96,10 +96,12 @@ class LiveSettings:
     def __post_init__(self) -> None:
         if self.clock not in CLOCKS:
             raise ValueError(f"LiveSettings.clock must be one of {CLOCKS}, got {self.clock!r}")
-        for name, v in (("queue_frames", self.queue_frames), ("port", self.port + 1),
-                        ("page_width_px", self.page_width_px)):
+        for name in ("queue_frames", "page_width_px"):
+            v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
-                raise ValueError(f"LiveSettings.{name} must be an integer >= {1 if name != 'port' else 0}, got {v!r}")
+                raise ValueError(f"LiveSettings.{name} must be an integer >= 1, got {v!r}")
+        if not (isinstance(self.port, int) and 0 <= self.port <= 65535):
+            raise ValueError(f"LiveSettings.port must be an integer in 0..65535 (0: any free port), got {self.port!r}")
         for name in ("stall_s", "retry_min_s", "retry_max_s", "page_rate_hz", "trail_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -111,9 +113,9 @@ class LiveSettings:
             raise ValueError(f"LiveSettings.sync_wait_s must be finite and >= 0 [s] or None, got {self.sync_wait_s!r}")
 
 
-#: A live run keeps this many of the latest latencies, memory samples and events (a run of days stays bounded:
-#: 100 000 instants are 5.5 h at 5 Hz).
-KEPT = 100_000
+#: A live run keeps this many of the latest latencies, memory samples and events, so that a run of days stays
+#: bounded (a few MiB; 20 000 instants are 67 min at 5 Hz).
+KEPT = 20_000
 
 
 def _kept() -> deque:
@@ -210,6 +212,7 @@ class LiveRun:
                              + (f"streams given for unknown cameras {unknown}" if unknown else ""))
         if not params.cameras:
             raise ValueError("sensors.cameras.enabled is false: a live run fuses the cameras")
+        self.start_s = time.monotonic()
         self.events: deque[str] = _kept()
         self._on_event = on_event
         dropped = [m for m, on, have in (("laser", params.laser, rec.lasers), ("sound", params.sound, rec.audio))
@@ -219,7 +222,6 @@ class LiveRun:
             self.announce(f"{' and '.join(dropped)}: recording-only in this version, not fused live")
         self.rec, self.params, self.settings, self.names = rec, params, settings, names
         self.stack = stack_for_recording(rec, params)
-        self.start_s = time.monotonic()
         frame_s = 1.0 / max(rec.camera(n).rate_hz for n in names)
         self.sync = FrameSynchroniser(names, frame_s, params.camera_params.max_rate_hz, settings.queue_frames,
                                       settings.sync_wait_s, delivering=self._delivering, clock=self.clock,
@@ -256,7 +258,7 @@ class LiveRun:
 
     def announce(self, message: str) -> None:
         """Record ``message`` and pass it to ``on_event``."""
-        self.events.append(f"{time.monotonic() - getattr(self, 'start_s', time.monotonic()):8.2f} s  {message}")
+        self.events.append(f"{self.clock():8.2f} s  {message}")
         if self._on_event is not None:
             self._on_event(message)
 

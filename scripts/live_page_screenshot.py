@@ -38,7 +38,7 @@ def main() -> None:
         live.run(duration_s=args.duration_s)
         with tempfile.TemporaryDirectory() as profile:
             subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-                            f"--user-data-dir={profile}", "--hide-scrollbars", "--window-size=1200,900",
+                            f"--user-data-dir={profile}", "--hide-scrollbars", "--window-size=1280,1000",
                             "--virtual-time-budget=3000", f"--screenshot={args.out.resolve()}", live.page.url],
                            check=True, capture_output=True, timeout=120)
     finally:

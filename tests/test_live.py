@@ -264,31 +264,56 @@ def test_ctrl_c_ends_the_run_cleanly_with_outputs_flushed(scene, tmp_path):
     assert json.loads((tmp_path / "live_report.json").read_text())["interrupted"] is True
 
 
-def test_live_page_shows_the_tracks_in_headless_chromium(scene, tmp_path):
-    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
-    if chromium is None:
-        pytest.skip("Debian's chromium is not installed (.ci/run installs it with apt-get)")
+@pytest.fixture(scope="module")
+def page_run(scene):
+    """A live run with its page on 127.0.0.1 (any free port), ended; the page keeps serving its last state."""
     rec, frames = scene
     srv = MjpegServer(frames).start()
-    st = LiveSettings(cameras={n: srv.url(n) for n in frames}, port=0)
     outs = []
-    live = LiveRun(rec, PARAMS, st, on_output=lambda o, lat: outs.append(o))
+    live = LiveRun(rec, PARAMS, LiveSettings(cameras={n: srv.url(n) for n in frames}, port=0),
+                   on_output=lambda o, lat: outs.append(o))
     try:
         live.run(duration_s=3.5)
-        assert live.page.host == "127.0.0.1"
-        cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-               "--disable-background-networking", f"--user-data-dir={tmp_path / 'profile'}",
-               "--virtual-time-budget=3000", "--dump-dom", live.page.url]
-        dom = subprocess.run(cmd, capture_output=True, text=True, timeout=90).stdout
+        yield live, outs
     finally:
         live.close()
         srv.stop()
+
+
+def test_live_page_websocket_sends_the_state(page_run):
+    import asyncio
+
+    import aiohttp
+
+    live, outs = page_run
+    assert live.page.host == "127.0.0.1"
+
+    async def first_message():
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(live.page.url + "ws") as ws:
+                return json.loads((await ws.receive(timeout=10)).data)
+
+    state = asyncio.run(first_message())
+    last = outs[-1]
+    assert [t["id"] for t in state["tracks"]] == [int(i) for i in last.tracks.ids]
+    assert state["time_s"] == last.time_s and len(state["health"]) == 4 and all(state["cameras"].values())
+
+
+def test_live_page_shows_the_tracks_in_headless_chromium(page_run, tmp_path):
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        pytest.skip("Debian's chromium is not installed (.ci/run installs it with apt-get)")
+    live, outs = page_run
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+           "--disable-background-networking", f"--user-data-dir={tmp_path / 'profile'}",
+           "--virtual-time-budget=3000", "--dump-dom", live.page.url]
+    dom = subprocess.run(cmd, capture_output=True, text=True, timeout=90).stdout
     n = len(outs[-1].tracks)
     assert n > 0
     assert re.search(r'<span id="track-count">(\d+)</span>', dom).group(1) == str(n)
     ids = sorted(int(i) for i in re.findall(r'<li class="track" data-id="(\d+)"', dom))
     assert ids == sorted(int(i) for i in outs[-1].tracks.ids)
-    assert sorted(re.findall(r'<tr><td>(cam\d)</td><td class="stopped">', dom)) == sorted(frames)  # health rows
+    assert sorted(re.findall(r'<tr><td>(cam\d)</td><td class="stopped">', dom)) == [f"cam{c}" for c in range(4)]
 
 
 # ---------------------------------------------------------------------------------------------- configuration, CLI

@@ -1,6 +1,6 @@
 """The live page: a local web server (aiohttp) pushing the run's state to one page over a WebSocket.
 
-``GET /`` the page, ``GET /ws`` the WebSocket (one JSON message per published state, the newest only: a slow
+``GET /`` the page (with the newest state in it, drawn at once), ``GET /ws`` the WebSocket (one JSON message per published state, the newest only: a slow
 browser skips states, it never slows the run), ``GET /state.json`` the newest state (for programs). The server
 runs its own event loop in a daemon thread; :meth:`LivePage.publish` is called from the run's thread. It binds to
 127.0.0.1 unless told otherwise (:class:`planefuse.live.LiveSettings` ``host``).
@@ -94,7 +94,9 @@ class LivePage:
         self._changed = asyncio.Condition()
 
         async def index(request):
-            return web.Response(text=PAGE_HTML, content_type="text/html")
+            # the newest state comes with the page (drawn at once), the WebSocket brings the next ones
+            initial = self._state.replace("</", "<\\/")
+            return web.Response(text=PAGE_HTML.replace("/*INITIAL_STATE*/null", initial), content_type="text/html")
 
         async def state(request):
             return web.Response(text=self._state, content_type="application/json")
@@ -153,9 +155,9 @@ body{font-family:system-ui,sans-serif;margin:12px;background:#f6f6f4;color:#222}
 h1{font-size:18px;margin:0 0 8px}
 #top{display:flex;gap:16px;align-items:flex-start;flex-wrap:wrap}
 #plan{background:#fff;border:1px solid #ccc}
-#cams{display:flex;flex-wrap:wrap;gap:8px;max-width:680px}
+#cams{display:flex;flex-wrap:wrap;gap:8px;max-width:620px}
 #cams figure{margin:0;background:#fff;border:1px solid #ccc;padding:4px}
-#cams img{display:block;width:320px}
+#cams img{display:block;width:290px}
 #cams figcaption{font-size:12px}
 table{border-collapse:collapse;font-size:13px;margin-top:8px}
 td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}
@@ -184,6 +186,9 @@ function draw(s){
   const X=x=>(x-x0)*sc,Y=y=>(y1-y)*sc;
   g.fillStyle="#fff";g.fillRect(0,0,c.width,c.height);
   if(occ.complete&&occ.naturalWidth){g.imageSmoothingEnabled=false;g.globalAlpha=0.85;g.drawImage(occ,0,0,c.width,c.height);g.globalAlpha=1}
+  g.strokeStyle="#e0a000";g.lineWidth=2;
+  for(const d of s.detections||[]){const u=X(d[0]),v=Y(d[1]);g.beginPath();g.moveTo(u-5,v);g.lineTo(u+5,v);
+    g.moveTo(u,v-5);g.lineTo(u,v+5);g.stroke()}
   for(const t of s.tracks){g.strokeStyle=col(t.id);g.lineWidth=2;g.beginPath();
     t.trail.forEach((p,i)=>{i?g.lineTo(X(p[0]),Y(p[1])):g.moveTo(X(p[0]),Y(p[1]))});g.stroke();
     g.fillStyle=col(t.id);g.beginPath();g.arc(X(t.x_m),Y(t.y_m),6,0,7);g.fill();
@@ -218,6 +223,8 @@ function connect(){
   ws.onmessage=e=>{const s=JSON.parse(e.data);if(s.tracks)show(s)};
   ws.onclose=()=>{document.getElementById("status").textContent="disconnected; retrying";setTimeout(connect,1000)};
 }
+const initial=/*INITIAL_STATE*/null;
+if(initial&&initial.tracks)show(initial);
 connect();
 </script></body></html>
 """

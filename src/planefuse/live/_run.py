@@ -457,16 +457,23 @@ class LiveRun:
                 "status": "interrupted" if self.summary.interrupted else ("running" if not self._stop.is_set()
                                                                            else "ended"),
                 "warm_up": "warmed up" if self._warm else "warming up",
-                "extent_m": [x0, x1, y0, y1], "tracks": tracks, "occupancy_png": occ_png, "cameras": cams,
+                "extent_m": [x0, x1, y0, y1], "tracks": tracks,
+                "detections": [] if out is None else [[round(float(x), 3), round(float(y), 3)]
+                                                      for x, y in np.asarray(out.detections.xy_m).reshape(-1, 2)], "occupancy_png": occ_png, "cameras": cams,
                 "health": [s.health.as_dict(now) for s in self.sources],
                 "latency_ms_p50": self._recent_latency_ms(50), "latency_ms_p95": self._recent_latency_ms(95),
                 "outputs": self.summary.outputs, "instants": self.summary.instants}
 
     def _camera_jpeg(self, c: int, image: np.ndarray, out: TrackerOutput | None) -> str | None:
-        """Camera ``c``'s frame with the tracks drawn (a line from the feet to 1.7 m, the identity), scaled to the
-        page's width, as base64 JPEG."""
+        """Camera ``c``'s frame with the step's detections (white crosses at the feet) and tracks drawn (a line from
+        the feet to 1.7 m, the identity), scaled to the page's width, as base64 JPEG."""
         cam = self.rec.cameras[c]
         img = image.copy()
+        if out is not None and len(out.detections):  # the step's detections (the filter's clusters): white crosses
+            xy = np.asarray(out.detections.xy_m, float).reshape(-1, 2)
+            for p in cam.project(np.column_stack([xy, np.zeros(len(xy))])):
+                if np.isfinite(p).all():
+                    cv2.drawMarker(img, tuple(int(round(v)) for v in p), (255, 255, 255), cv2.MARKER_CROSS, 12, 2)
         if out is not None and len(out.tracks):
             xy = np.asarray(out.tracks.xy_m, float)
             feet = cam.project(np.column_stack([xy, np.zeros(len(xy))]))

@@ -187,8 +187,8 @@ function draw(s){
   g.fillStyle="#fff";g.fillRect(0,0,c.width,c.height);
   if(occ.complete&&occ.naturalWidth){g.imageSmoothingEnabled=false;g.globalAlpha=0.85;g.drawImage(occ,0,0,c.width,c.height);g.globalAlpha=1}
   g.strokeStyle="#e0a000";g.lineWidth=2;
-  for(const d of s.detections||[]){const u=X(d[0]),v=Y(d[1]);g.beginPath();g.moveTo(u-5,v);g.lineTo(u+5,v);
-    g.moveTo(u,v-5);g.lineTo(u,v+5);g.stroke()}
+  for(const d of s.detections||[]){const u=X(d[0]),v=Y(d[1]);g.beginPath();g.moveTo(u-10,v);g.lineTo(u+10,v);
+    g.moveTo(u,v-10);g.lineTo(u,v+10);g.stroke()}
   for(const t of s.tracks){g.strokeStyle=col(t.id);g.lineWidth=2;g.beginPath();
     t.trail.forEach((p,i)=>{i?g.lineTo(X(p[0]),Y(p[1])):g.moveTo(X(p[0]),Y(p[1]))});g.stroke();
     g.fillStyle=col(t.id);g.beginPath();g.arc(X(t.x_m),Y(t.y_m),6,0,7);g.fill();

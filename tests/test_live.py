@@ -378,6 +378,7 @@ def test_cli_live_writes_tracks_as_it_goes(scene, tmp_path):
     report = json.loads((tmp_path / "out" / "live_report.json").read_text())
     assert len(report["cameras"]) == 4 and report["outputs"] == len((tmp_path / "t.jsonl").read_text().splitlines())
     assert any("laser and sound: recording-only" in e for e in report["events"])
+    assert any("system ready" in e for e in report["events"]) and any("warmed up" in e for e in report["events"])
 
 
 def test_video_files_played_at_their_rate_end_the_run_with_the_offline_tracks(scene, tmp_path):

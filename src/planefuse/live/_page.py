@@ -46,9 +46,16 @@ class LivePage:
 
         Raises
         ------
+        ImportError
+            aiohttp is not installed.
         OSError
             The port cannot be bound (in use, or the interface does not exist).
         """
+        try:
+            import aiohttp  # noqa: F401
+        except ImportError:
+            raise ImportError("the live page needs aiohttp: pip install 'planefuse[live]' (or run without the page: "
+                              "serve: false, --no-page)") from None
         self._thread = threading.Thread(target=self._serve, name="planefuse-live-page", daemon=True)
         self._thread.start()
         self._ready.wait(10.0)

@@ -373,9 +373,9 @@ def test_cli_live_writes_tracks_as_it_goes(scene, tmp_path):
     finally:
         srv.stop()
     assert res.exit_code == 0, res.output
-    rows = (tmp_path / "out" / "tracks.csv").read_text().splitlines()
+    rows = (tmp_path / "out" / "live" / "tracks.csv").read_text().splitlines()
     assert rows[0].startswith("step,time_s,track_id") and len(rows) > 1
-    report = json.loads((tmp_path / "out" / "live_report.json").read_text())
+    report = json.loads((tmp_path / "out" / "live" / "live_report.json").read_text())
     assert len(report["cameras"]) == 4 and report["outputs"] == len((tmp_path / "t.jsonl").read_text().splitlines())
     assert any("laser and sound: recording-only" in e for e in report["events"])
     assert any("system ready" in e for e in report["events"]) and any("warmed up" in e for e in report["events"])

@@ -59,7 +59,9 @@ def live(
         exit_with_error(f"recording {cfg.recording}: {exc}", 1)
     if threads is not None:
         set_threads(threads)
-    out_dir = lcfg.out_dir if lcfg.out_dir is not None else cfg.outputs.out_dir
+    # beside (not over) a recording run's results in the same folder
+    out_dir = lcfg.out_dir if lcfg.out_dir is not None else (
+        None if cfg.outputs.out_dir is None else cfg.outputs.out_dir / "live")
     jsonl = tracks_jsonl if tracks_jsonl is not None else lcfg.tracks_jsonl
     try:
         run = LiveRun(rec, cfg.system_params(), settings, out_dir=out_dir, jsonl=jsonl,

@@ -51,7 +51,8 @@ class LiveConfig(BaseModel):
     page_width_px: int = _DEFAULTS.page_width_px
     #: ``"-"``: tracks as JSON lines on standard output; a path: in that file; null: none
     tracks_jsonl: str | None = None
-    #: the output folder (tracks.csv, live_report.json); null: the run configuration's outputs.out_dir
+    #: the output folder (tracks.csv, tracks_mot.txt, live_report.json); null: ``live/`` in the run
+    #: configuration's outputs.out_dir (beside, not over, a recording run's results)
     out_dir: Path | None = None
 
     def settings(self) -> LiveSettings:

@@ -4,7 +4,6 @@ every output step."""
 from __future__ import annotations
 
 import csv
-import inspect
 import json
 import sys
 from pathlib import Path
@@ -12,15 +11,13 @@ from typing import IO
 
 import numpy as np
 
-from ..outputs import OutputWriter, mot_rows
-from ..tracking import TrackerOutput
+from ..outputs import mot_rows
+from ..tracking import ClusterParams, TrackerOutput
 
 __all__ = ["LiveOutputs", "TRACKS_CSV_COLUMNS", "track_records"]
 
 #: The columns of ``tracks.csv``, as the offline run writes it (docs/outputs.md).
 TRACKS_CSV_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
-#: The footprint radius of the MOTChallenge rows [m]: the offline writer's.
-PERSON_RADIUS_M = inspect.signature(OutputWriter).parameters["person_radius_m"].default
 
 
 def track_records(out: TrackerOutput) -> list[dict]:
@@ -42,9 +39,14 @@ class LiveOutputs:
     jsonl : str, path or None
         ``"-"``: JSON lines on standard output; a path: JSON lines in that file; None: none. A line per output
         step: ``{"step", "time_s", "latency_s", "tracks": [track_records...]}``.
+    person_radius_m : float
+        The footprint radius of the MOTChallenge rows [m] (the run's ``tracking.cluster.person_radius_m``, as the
+        recording run writes them; None: :class:`~planefuse.tracking.ClusterParams`' default).
     """
 
-    def __init__(self, out_dir: str | Path | None = None, jsonl: str | Path | None = None) -> None:
+    def __init__(self, out_dir: str | Path | None = None, jsonl: str | Path | None = None, *,
+                 person_radius_m: float | None = None) -> None:
+        self.person_radius_m = float(ClusterParams().person_radius_m if person_radius_m is None else person_radius_m)
         self.out_dir = None if out_dir is None else Path(out_dir)
         self._csv_file: IO | None = None
         self._mot_file: IO | None = None
@@ -72,7 +74,7 @@ class LiveOutputs:
                                     repr(r["vx_m_s"]), repr(r["vy_m_s"])))
             self._csv_file.flush()
             t = out.tracks
-            mot = mot_rows(np.full(len(t), step), t.ids, t.xy_m, np.ones(len(t)), PERSON_RADIUS_M)
+            mot = mot_rows(np.full(len(t), step), t.ids, t.xy_m, np.ones(len(t)), self.person_radius_m)
             np.savetxt(self._mot_file, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f",
                                                  "%d"], delimiter=",")
             self._mot_file.flush()

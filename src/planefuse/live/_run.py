@@ -238,7 +238,7 @@ class LiveRun:
         self._offsets: list[float | None] = [None] * len(names)
         self.system = SystemRun(rec, params, self.stack, camera_frames=self._frames())
         self.tolerance_s = self.system.tracker.params.merge_tolerance_s
-        self.outputs = LiveOutputs(out_dir, jsonl)
+        self.outputs = LiveOutputs(out_dir, jsonl, person_radius_m=params.tracking.cluster.person_radius_m)
         self.on_output = on_output
         self.page = LivePage(settings.host, settings.port) if settings.serve else None
         self.summary = LiveSummary(events=self.events)

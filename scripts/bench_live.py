@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 
-def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float) -> dict:
+def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float, page: bool = False) -> dict:
     from planefuse.cli._run import set_threads
     from planefuse.io import Recording
     from planefuse.live import LiveRun, LiveSettings, MjpegServer, recording_jpeg_frames
@@ -42,7 +42,7 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float)
     srv = MjpegServer(frames, loop=True).start()
     params = SystemParams(laser=False, sound=False,
                           camera_params=replace(CameraParams(), max_rate_hz=5.0 if rate == "5" else None))
-    live = LiveRun(rec, params, LiveSettings(cameras={n: srv.url(n) for n in names}, serve=False))
+    live = LiveRun(rec, params, LiveSettings(cameras={n: srv.url(n) for n in names}, serve=page, port=0))
     import resource
     import time
 
@@ -50,6 +50,7 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float)
     try:
         summary = live.run(duration_s=duration_s)
     finally:
+        live.close()
         srv.stop()
     cpu1, wall = resource.getrusage(resource.RUSAGE_SELF), time.perf_counter() - wall0
     cpu_s = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
@@ -78,11 +79,12 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=4)
     ap.add_argument("--scene-s", type=float, default=20.0)
     ap.add_argument("--json", type=Path, default=None, help="write the results here")
+    ap.add_argument("--page", action="store_true", help="serve the live page (no browser connected)")
     ap.add_argument("--figure", type=Path, default=None, help="soak: RSS and latency over time (PNG)")
     ap.add_argument("--_one", nargs=2, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._one is not None:  # a child process: one configuration
-        res = one(int(args._one[0]), args._one[1], args.soak_s or args.duration_s, args.seed, args.scene_s)
+        res = one(int(args._one[0]), args._one[1], args.soak_s or args.duration_s, args.seed, args.scene_s, args.page)
         print("RESULT " + json.dumps(res))
         return
     results = []
@@ -92,6 +94,8 @@ def main() -> None:
                    "--seed", str(args.seed), "--scene-s", str(args.scene_s)]
             if args.soak_s:
                 cmd += ["--soak-s", str(args.soak_s)]
+            if args.page:
+                cmd += ["--page"]
             out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
             res = json.loads(next(line for line in out.splitlines() if line.startswith("RESULT "))[7:])
             results.append(res)

@@ -412,3 +412,14 @@ def test_video_files_played_at_their_rate_end_the_run_with_the_offline_tracks(sc
     for a, b in zip(offline.outputs, outs):
         assert a.time_s == b.time_s and np.array_equal(a.tracks.ids, b.tracks.ids)
         assert np.array_equal(a.tracks.xy_m, b.tracks.xy_m)
+
+
+def test_a_missing_video_file_is_an_error_of_its_camera_and_the_run_ends(scene, tmp_path):
+    rec, _ = scene
+    events = []
+    live = LiveRun(rec, PARAMS, LiveSettings(cameras={c.name: str(tmp_path / f"{c.name}.mp4") for c in rec.cameras},
+                                             serve=False), on_event=events.append)
+    summary = live.run(duration_s=30.0)  # every source failed: the run ends at once
+    assert summary.instants == 0 and summary.outputs == 0
+    assert all(h["state"] == "error" and "video file not found" in h["last_error"] for h in summary.health)
+    assert sum("error" in e for e in events) == 4

@@ -235,7 +235,6 @@ class LiveRun:
             src.health = self.sync.health[c]
             self.sources.append(src)
         self.sync.finished = lambda: not any(s.running for s in self.sources)
-        self._offsets: list[float | None] = [None] * len(names)
         self.system = SystemRun(rec, params, self.stack, camera_frames=self._frames())
         self.tolerance_s = self.system.tracker.params.merge_tolerance_s
         self.outputs = LiveOutputs(out_dir, jsonl, person_radius_m=params.tracking.cluster.person_radius_m)
@@ -280,9 +279,6 @@ class LiveRun:
                 if presentation_s is None:
                     raise ValueError(f"camera {name!r}: its stream gives no presentation time (clock: presentation "
                                      "needs one; use clock: arrival)")
-                # the stream's clock mapped onto the run's by its least delayed frame (for the lag only)
-                off = arrival_s - presentation_s
-                self._offsets[c] = off if self._offsets[c] is None else min(self._offsets[c], off)
                 stamp = presentation_s
             else:
                 stamp = arrival_s
@@ -341,6 +337,8 @@ class LiveRun:
         finally:
             if timer is not None:
                 timer.cancel()
+            for s in self.sources:  # all asked at once, then each waited for
+                s.request_stop()
             for s in self.sources:
                 s.stop(0.5)
             self.sync.close()

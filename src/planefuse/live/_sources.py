@@ -153,6 +153,10 @@ class LiveSource:
         self._thread = threading.Thread(target=self._loop, name=f"planefuse-live-{self.name}", daemon=True)
         self._thread.start()
 
+    def request_stop(self) -> None:
+        """Ask the thread to stop, without waiting."""
+        self._stop.set()
+
     def stop(self, timeout_s: float = 2.0) -> None:
         """Ask the thread to stop and wait for it at most ``timeout_s`` [s] (a read blocked in a library call
         ends at its own time-out; the thread is a daemon)."""
@@ -228,6 +232,8 @@ def mjpeg_frames(url: str, timeout_s: float) -> Iterator[tuple[bytes, float | No
     ------
     ConnectionError
         An HTTP status other than 200, or a response that is not multipart.
+    ValueError
+        A part without ``Content-Length``.
     TimeoutError / OSError
         No byte for ``timeout_s`` [s] (a stalled stream), or the connection failed.
     """
@@ -261,8 +267,8 @@ def mjpeg_frames(url: str, timeout_s: float) -> Iterator[tuple[bytes, float | No
                 k, _, v = h.decode("latin-1").partition(":")
                 headers[k.strip().lower()] = v.strip()
             n = headers.get("content-length")
-            if n is None:
-                raise ConnectionError("MJPEG part without Content-Length")
+            if n is None:  # a stream this reader cannot split: not retried
+                raise ValueError(f"{url}: MJPEG part without a Content-Length header (not supported)")
             data = resp.read(int(n))
             if len(data) < int(n):
                 return

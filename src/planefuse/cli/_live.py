@@ -22,7 +22,7 @@ def live(
     no_page: bool = typer.Option(False, "--no-page", help="Do not serve the live page."),
     tracks_jsonl: str = typer.Option(None, "--tracks-jsonl", help="Tracks as JSON lines: '-' on standard output, "
                                      "or a file (overrides the configuration's tracks_jsonl)."),
-    duration_s: float = typer.Option(None, "--duration-s", min=0.0, help="Stop after this many seconds (default: "
+    duration_s: float = typer.Option(None, "--duration-s", min=0.0, help="Stop after this time [s] (default: "
                                      "until Ctrl-C or every source has ended)."),
     threads: int = typer.Option(None, "--threads", min=1, help="Threads of OpenCV and numba (--threads 1: one "
                                 "core)."),

@@ -181,11 +181,17 @@ def test_live_tracks_equal_offline_on_the_same_frames(scene, tmp_path):
     offline = run_system(_decoded_recording(rec, frames), PARAMS)
     srv = MjpegServer(frames).start()
     outs = []
-    st = LiveSettings(cameras={n: srv.url(n) for n in frames}, clock="presentation", serve=False, queue_frames=20)
-    live = LiveRun(rec, PARAMS, st, out_dir=tmp_path, jsonl=tmp_path / "tracks.jsonl",
-                   on_output=lambda o, lat: outs.append(o))
+
+    def on_output(out, latency):
+        outs.append(out)
+        if len(outs) == len(offline.outputs):  # every frame served was fused (keeping up, however slowly)
+            live.stop()
+    # a long wait for each instant's frames and long queues: keeping up, on a loaded machine too
+    st = LiveSettings(cameras={n: srv.url(n) for n in frames}, clock="presentation", serve=False, queue_frames=80,
+                      sync_wait_s=5.0)
+    live = LiveRun(rec, PARAMS, st, out_dir=tmp_path, jsonl=tmp_path / "tracks.jsonl", on_output=on_output)
     try:
-        summary = live.run(duration_s=4.0)
+        summary = live.run(duration_s=60.0)
     finally:
         srv.stop()
     assert all(h["dropped"] == 0 and h["late"] == 0 for h in summary.health), summary.health
@@ -405,7 +411,8 @@ def test_video_files_played_at_their_rate_end_the_run_with_the_offline_tracks(sc
                                    room_xy_m=rec.room_xy_m), PARAMS)
     outs = []
     live = LiveRun(rec, PARAMS, LiveSettings(cameras={n: str(p) for n, p in paths.items()}, clock="presentation",
-                                             serve=False, queue_frames=20), on_output=lambda o, lat: outs.append(o))
+                                             serve=False, queue_frames=80, sync_wait_s=5.0),
+                   on_output=lambda o, lat: outs.append(o))
     summary = live.run(duration_s=30.0)  # ends at the files' end, long before
     assert all(h["state"] == "ended" and h["dropped"] == 0 for h in summary.health), summary.health
     assert len(outs) == len(offline.outputs) > 10

@@ -242,6 +242,7 @@ class LiveRun:
         self.page = LivePage(settings.host, settings.port) if settings.serve else None
         self.summary = LiveSummary(events=self.events)
         self._instant: LiveInstant | None = None
+        self._latest: list = [None] * len(names)  # each camera's latest fused frame (the page's)
         self._last_output: TrackerOutput | None = None
         self._pending: deque[LiveInstant] = deque()  # instants pushed, not yet in an output
         self._trails: dict[int, deque] = {}
@@ -288,6 +289,9 @@ class LiveRun:
     def _frames(self):
         for inst in self.sync.instants():
             self._instant = inst
+            for c, f in enumerate(inst.frames):
+                if f is not None:
+                    self._latest[c] = f
             yield inst.time_s, inst.images
 
     def stop(self) -> None:
@@ -415,7 +419,7 @@ class LiveRun:
         self._update_trails(out)
         if self.page is not None and now - self._last_page_s >= 1.0 / self.settings.page_rate_hz:
             self._last_page_s = now
-            self.page.publish(self._state(out, newest or self._instant, now))
+            self.page.publish(self._state(out, now))
 
     def _update_trails(self, out: TrackerOutput) -> None:
         t = float(out.time_s)
@@ -432,7 +436,7 @@ class LiveRun:
         lat = [v for _, v, _ in itertools.islice(reversed(self.summary.latencies_s), 100)]
         return float(np.percentile(lat, q) * 1e3) if lat else None
 
-    def _state(self, out: TrackerOutput | None, inst: LiveInstant | None, now: float) -> dict:
+    def _state(self, out: TrackerOutput | None, now: float) -> dict:
         """The page's state (JSON-ready)."""
         tracks = []
         if out is not None:
@@ -445,11 +449,9 @@ class LiveRun:
             img = np.clip(255.0 * (1.0 - top), 0, 255).astype(np.uint8)
             ok, buf = cv2.imencode(".png", cv2.applyColorMap(img, cv2.COLORMAP_BONE))
             occ_png = base64.b64encode(buf).decode() if ok else None
-        cams = {n: None for n in self.names}
-        if inst is not None:
-            for c, f in enumerate(inst.frames):
-                if f is not None:
-                    cams[self.names[c]] = self._camera_jpeg(c, f.image, out)
+        # each camera's latest fused frame, with the step's detections and tracks
+        cams = {n: None if f is None else self._camera_jpeg(c, f.image, out)
+                for c, (n, f) in enumerate(zip(self.names, self._latest))}
         x0, x1, y0, y1 = self.stack.extent_m
         return {"time_s": 0.0 if out is None else float(out.time_s), "clock_s": round(now, 3),
                 "status": "interrupted" if self.summary.interrupted else ("running" if not self._stop.is_set()
@@ -493,7 +495,7 @@ class LiveRun:
 
     def _publish_idle(self, status: str) -> None:
         if self.page is not None:
-            st = self._state(None, None, self.clock())
+            st = self._state(None, self.clock())
             st["status"] = status
             self.page.publish(st)
 
@@ -501,7 +503,7 @@ class LiveRun:
         if self.page is None:
             return
         self._stop.set()
-        self.page.publish(self._state(self._last_output, self._instant, self.clock()))
+        self.page.publish(self._state(self._last_output, self.clock()))
 
 
 #: Track colours on the camera images (BGR), the page's palette.

@@ -495,6 +495,10 @@ class SystemRun:
         Run each camera's front end (decoding, background subtraction) as a stream on this dask cluster's
         workers (:func:`planefuse.batch.remote_foregrounds`; the recording must be a folder they can read).
         The outputs are identical to the run's in one process.
+    camera_frames : iterable of (time_s, images), optional
+        The cameras' synchronised instants as they arrive (a live run, :mod:`planefuse.live`), instead of the
+        recording's frames: ``rec`` then gives the calibrations only
+        (:func:`~planefuse.pipeline._arriving.arriving_camera_source`). Not with ``checkpoint`` or ``client``.
 
     Attributes
     ----------
@@ -505,9 +509,13 @@ class SystemRun:
     """
 
     def __init__(self, rec: Recording, params: SystemParams = SystemParams(), stack: PlaneStack | None = None,
-                 checkpoint: Mapping[str, np.ndarray] | None = None, client=None) -> None:
+                 checkpoint: Mapping[str, np.ndarray] | None = None, client=None, camera_frames=None) -> None:
         rec = recording_with_ignore_rects(rec, params.camera_ignore_rects_px)
+        if camera_frames is not None and (checkpoint is not None or client is not None):
+            raise ValueError("a run fed arriving camera frames is not resumed from a checkpoint nor spread on a "
+                             "dask cluster")
         self.rec, self.params, self.client = rec, params, client
+        self.camera_frames = camera_frames
         self.stack = stack if stack is not None else stack_for_recording(rec, params)
         self.report = ModalityReport()
         consumed: dict[str, int] = {}
@@ -567,7 +575,14 @@ class SystemRun:
     def _sources(self, consumed: Mapping[str, int]) -> list[EvidenceSource]:
         rec, params, stack, report = self.rec, self.params, self.stack, self.report
         out = []
-        if params.cameras and rec.camera_streams:
+        if params.cameras and rec.camera_streams and self.camera_frames is not None:
+            from ._arriving import arriving_camera_source
+
+            out.append(arriving_camera_source(rec, stack, params.camera_params, report, self.camera_frames,
+                                              occluder_boxes_m=params.occluder_boxes_m,
+                                              correlation_s=self._camera_correlation_s(),
+                                              tracked_xy=self._tracked_xy if self._track_prior() else None))
+        elif params.cameras and rec.camera_streams:
             out.append(camera_source(rec, stack, params.camera_params, report,
                                      start=consumed.get("cameras", 0), client=self.client,
                                      occluder_boxes_m=params.occluder_boxes_m,

@@ -34,7 +34,7 @@ def arriving_camera_source(rec: Recording, stack: PlaneStack, params, report: Mo
     the offline run); its frames are not read. Cameras that follow an IMU are refused (their attitude is read
     from the recording's IMU log). ``keep_detections``: append every instant's camera detections to
     ``report.camera_detections`` (the offline run does; a long live run would grow without bound, so off by
-    default).
+    default; without it ``report.camera.person_boxes`` keeps each camera's latest boxes only).
 
     Raises
     ------
@@ -67,6 +67,9 @@ def arriving_camera_source(rec: Recording, stack: PlaneStack, params, report: Mo
         ev, det = next(instants)
         if keep_detections:
             report.camera_detections.append(det)
+        else:  # each camera's person boxes of its latest instant only (bounded over a long run)
+            for items in report.camera.person_boxes.values():
+                del items[:-1]
         return ev
 
     def items() -> Iterator[tuple[float, Callable[[], Evidence]]]:

@@ -191,7 +191,8 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
 
         figure_inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         figs = run_figures(out.stack, out.occupancy_array(), out.times_s(), out.detections_table(), out.tracks_table(),
-                           out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
+                           out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress,
+                           camera_boxes=out.camera_boxes_table())
     videos = {}
     if settings.camera_videos and out.n_steps and figure_inputs is not None:
         videos = {cam.name: f"camera_{check_name(cam.name, 'camera name')}_tracks.mp4" for cam in figure_inputs.cameras

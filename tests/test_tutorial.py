@@ -1,7 +1,8 @@
 """docs/tutorial.md runs as written: its ``bash`` blocks, in order, on a short piece of the EPFL terrace (issue 38).
 
 The only changes to the page's text: the data folder is the absolute path of ``../shared/data``, the frame list is
-frames 1500-1545 (10 instants) instead of 1500-2995, and ``planefuse`` is this checkout's ``python -m planefuse``.
+frames 1500-1545 (10 instants) instead of 1500-2995, the person model the user downloads is the shared YOLOX-Nano
+(``../shared/models``), and ``planefuse`` is this checkout's ``python -m planefuse``.
 """
 
 from __future__ import annotations
@@ -16,12 +17,14 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import shared_data
+from conftest import shared_data, shared_model
 
 REPO = Path(__file__).resolve().parents[1]
 TUTORIAL = REPO / "docs" / "tutorial.md"
 #: The page's frame list and the test's shorter one.
 FRAMES_TEXT, SHORT_FRAMES_TEXT = "range(1500, 3000, 5)", "range(1500, 1550, 5)"
+#: The person model the page has the user download.
+MODEL_TEXT = "--person-model models/yolox_nano.onnx"
 
 
 def tutorial_commands() -> str:
@@ -32,7 +35,7 @@ def tutorial_commands() -> str:
 
 def test_the_tutorial_names_what_the_test_changes():
     text = tutorial_commands()
-    assert text.count("DATA=../shared/data\n") == 1 and text.count(FRAMES_TEXT) == 1
+    assert text.count("DATA=../shared/data\n") == 1 and text.count(FRAMES_TEXT) == 1 and text.count(MODEL_TEXT) == 1
     for command in ("planefuse import", "planefuse check", "planefuse config init", "planefuse run"):
         assert command in text, command
 
@@ -41,8 +44,9 @@ def test_the_tutorial_names_what_the_test_changes():
 def test_tutorial_commands_run_as_written_on_a_piece_of_the_terrace(tmp_path):
     data = shared_data("epfl_video").parent
     shared_data("epfl_pom")
+    model = shared_model("yolox_nano") / "yolox_nano.onnx"
     script = (tutorial_commands().replace("DATA=../shared/data\n", f"DATA={data}\n")
-              .replace(FRAMES_TEXT, SHORT_FRAMES_TEXT))
+              .replace(FRAMES_TEXT, SHORT_FRAMES_TEXT).replace(MODEL_TEXT, f"--person-model {model}"))
     prelude = f'set -euo pipefail\nplanefuse() {{ "{sys.executable}" -m planefuse "$@"; }}\n'
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO / "src"), os.environ.get("PYTHONPATH", "")]),
                COLUMNS="200")
@@ -63,3 +67,6 @@ def test_tutorial_commands_run_as_written_on_a_piece_of_the_terrace(tmp_path):
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["n_steps"] == 10 and metrics["n_camera_frames"] == 10
     assert (run / "tracks.csv").read_text().startswith("step,time_s,track_id")
+    # the person detector the page adds: configured, and its boxes written per camera
+    assert cfg["sensors"]["cameras"]["person_detector"] == "yolox"
+    assert sorted(p.name for p in run.glob("boxes_*_mot.txt")) == ["boxes_c0_mot.txt", "boxes_c1_mot.txt"]

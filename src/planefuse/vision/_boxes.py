@@ -167,7 +167,8 @@ def box_evidence(cameras: Sequence[PinholeCamera], boxes: Sequence[PersonBoxes |
 
     Parameters
     ----------
-    cameras : sequence of PinholeCamera
+    cameras : sequence of PinholeCamera, or None
+        The calibrated cameras; needed by ``params.log_odds`` > 0 (the foot points), else may be None.
     boxes : sequence of (PersonBoxes or None)
         One entry per camera (None: no frame, or no detector).
     stack : PlaneStack
@@ -178,13 +179,16 @@ def box_evidence(cameras: Sequence[PinholeCamera], boxes: Sequence[PersonBoxes |
         Per camera, the stack's cells -> pixels (ignore regions already left out); needed by
         ``params.free_log_odds``.
     """
-    if len(boxes) != len(cameras):
-        raise ValueError(f"boxes: expected {len(cameras)} entries (None where absent), got {len(boxes)}")
+    if cameras is None and params.log_odds > 0:
+        raise ValueError("box_evidence: log_odds > 0 places the boxes' foot points: it needs the cameras")
+    n = len(cameras) if cameras is not None else len(lookups or ())
+    if len(boxes) != n:
+        raise ValueError(f"boxes: expected {n} entries (None where absent), got {len(boxes)}")
     out = np.zeros(stack.shape, np.float32)
     if params.free_log_odds is None:
         raise ValueError("box_evidence: resolve free_log_odds first (BoxEvidenceParams.for_detector)")
     if params.free_log_odds < 0:
-        if lookups is None or len(lookups) != len(cameras):
+        if lookups is None or len(lookups) != n:
             raise ValueError("box_evidence: free_log_odds needs one lookup per camera")
         for lk, found in zip(lookups, boxes):
             if found is not None:

@@ -438,6 +438,12 @@ class BackgroundSubtractor:
         return img
 
     @property
+    def person_boxes(self) -> PersonBoxes | None:
+        """The person detector's boxes in the last frame :meth:`apply` saw (frame pixels; None without a
+        detector)."""
+        return None if self._people is None else self._people.last_boxes
+
+    @property
     def protects_itself(self) -> bool:
         """True where the selective update keeps the person detector's boxes out of the model
         (:attr:`ForegroundParams.selective_source` ``"detector"``): nobody else calls :meth:`protect`."""

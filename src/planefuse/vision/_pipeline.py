@@ -105,9 +105,10 @@ class CameraParams:
     generative : GenerativeSensorParams
         The generative model's parameters (used when ``sensor_model == "generative"``).
     boxes : BoxEvidenceParams
-        The person detector's boxes (``foreground.person_detector``) registered on every plane: each box's foot point
-        on the ground and its body up to the head (:func:`planefuse.vision.box_evidence`), added to the sensor
-        model's evidence; ``boxes.log_odds`` 0 = not registered.
+        The person detector's boxes (``foreground.person_detector``) as evidence on every plane, added to the sensor
+        model's (:func:`planefuse.vision.box_evidence`): free space where a camera sees the ground outside every box
+        (``free_log_odds``; YOLOX's default -3), and optionally each box's foot point with its body up to the head
+        (``log_odds`` > 0). docs/detector.md.
     frame_stride : int
         Process every ``frame_stride``-th synchronised camera instant of a recording, from the first
         (:func:`planefuse.vision.camera_instants`); the others are not read. 1 = every frame. The background
@@ -260,8 +261,7 @@ class CameraFrontEnd:
     def last_boxes(self):
         """The person detector's boxes in the last frame given to :meth:`foreground` (frame pixels), or None
         without a detector (:attr:`ForegroundParams.person_detector`)."""
-        people = None if self.subtractor is None else self.subtractor._people
-        return None if people is None else people.last_boxes
+        return None if self.subtractor is None else self.subtractor.person_boxes
 
     def protect(self, people: np.ndarray) -> None:
         """Keep the pixels ``people`` (height_px, width_px) bool out of the background model at the next frame
@@ -507,9 +507,9 @@ def camera_detections(
         raise ValueError(f"last_live_s: expected {fusion.n_cameras} times (None where none), got {len(last)}")
     detector = None if params.foreground is None else params.foreground.person_detector
     box_params = params.boxes.for_detector(detector)
-    if detector is not None and box_params.active and cameras is None:
-        raise ValueError("CameraParams.boxes registers person boxes: it needs the calibrated cameras (cameras= or "
-                         "registration=)")
+    if detector is not None and box_params.log_odds > 0 and cameras is None:
+        raise ValueError("CameraParams.boxes.log_odds registers the boxes' foot points: it needs the calibrated "
+                         "cameras (cameras= or registration=)")
     for i, (time_s, fgs, status, boxes) in enumerate(foregrounds):
         replayed = selective and i < replay
         for c, what in enumerate(status if not replayed else ()):

@@ -39,7 +39,6 @@ def main() -> None:
     args = ap.parse_args()
     imgs = frames(args.data / "epfl_video" / "terrace1-c0.mp4", 10)
     default_threads = cv2.getNumThreads()
-    rows = []
     try:
         import onnxruntime as ort
     except ImportError:

@@ -15,7 +15,7 @@ from ..eval import EVAL_WARMUP_S, system_metrics
 from ..grid import PlaneStack, cells_filled_by_occluders, check_occluder_boxes
 from ..io import Recording
 from ..laser import LaserSensorModel
-from ..tracking import EvidenceTracker, TrackerOutput, TrackingParams
+from ..tracking import AppearanceObserver, AppearanceParams, EvidenceTracker, TrackerOutput, TrackingParams
 from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
@@ -95,6 +95,9 @@ class SystemParams:
         Time between output steps [s].
     match_distance_m : float
         Evaluation: largest distance [m] of a detection or track from the person it is matched to.
+    appearance : planefuse.tracking.AppearanceParams
+        How the tracks' appearance is read from the camera frames (used where the tracker uses appearance,
+        ``tracking.tracker.appearance_weight`` or ``reid_max_s``; docs/identities.md).
     """
 
     heights_m: tuple[float, ...] | None = (0.1, 0.5, 1.0, 1.5)
@@ -117,6 +120,7 @@ class SystemParams:
     sound_model_path: Path | None = None
     output_period_s: float = 0.2
     match_distance_m: float = 0.5
+    appearance: AppearanceParams = field(default_factory=AppearanceParams)
 
     def __post_init__(self) -> None:
         check_fields(self, cell_size_m=">0", wall_margin_m=">=0", sound_block_s=">0", output_period_s=">0",
@@ -365,6 +369,11 @@ class SystemRun:
         self.rec, self.params, self.client = rec, params, client
         self.stack = stack if stack is not None else stack_for_recording(rec, params)
         self.report = ModalityReport()
+        #: the tracks' appearance from the camera frames (None: the tracker does not use appearance)
+        self.appearance: AppearanceObserver | None = None
+        if params.tracking.tracker.uses_appearance and params.cameras and rec.camera_streams:
+            self.appearance = AppearanceObserver(rec.cameras, params.appearance,
+                                                 [rec.camera(c.name).ignore_mask for c in rec.cameras])
         consumed: dict[str, int] = {}
         if checkpoint is not None:
             version = int(get(checkpoint, "format", "run"))
@@ -389,6 +398,7 @@ class SystemRun:
         static = (cells_filled_by_occluders(self.stack, params.occluder_boxes_m) if params.occluder_boxes_m
                   else None)
         self.tracker = EvidenceTracker(self.stack, tp, static_cells=static)
+        self.tracker.tracker.observer = self.appearance
         if checkpoint is not None:
             self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
         self.resumed_at_step = self.tracker.n_outputs
@@ -427,7 +437,8 @@ class SystemRun:
                                      start=consumed.get("cameras", 0), client=self.client,
                                      occluder_boxes_m=params.occluder_boxes_m,
                                      correlation_s=self._camera_correlation_s(),
-                                     tracked_xy=self._tracked_xy if self._track_prior() else None))
+                                     tracked_xy=self._tracked_xy if self._track_prior() else None,
+                                     frame_tap=self.appearance.add_frames if self.appearance is not None else None))
         if params.laser and rec.lasers:
             out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:

@@ -6,6 +6,8 @@
 (:class:`MultiPersonTracker`). See docs/filter.md.
 """
 
+from ._appearance import (AppearanceObserver, AppearanceParams, TrackAppearance, ViewDescriptors, describe_boxes,
+                          describe_positions, descriptor_distance)
 from ._async import AsyncEvidenceBuffer, EvidenceBatch, LateEvidenceWarning
 from ._bof import (
     BayesianOccupancyFilter,
@@ -27,6 +29,13 @@ from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, cluster_measur
                        velocity_prior_variance_m2_s2)
 
 __all__ = [
+    "AppearanceObserver",
+    "AppearanceParams",
+    "TrackAppearance",
+    "ViewDescriptors",
+    "describe_boxes",
+    "describe_positions",
+    "descriptor_distance",
     "AsyncEvidenceBuffer",
     "BOFParams",
     "BOFState",

@@ -380,10 +380,12 @@ class MultiPersonTracker:
         self._views: ViewDescriptors | None = None  # the current step's cluster appearance
 
     def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
-                   cap_m: np.ndarray | float | None = None, miss_cost: float = 0.0):
+                   cap_m: np.ndarray | float | None = None, miss_cost: float = 0.0,
+                   max_appearance_distance: float | None = None):
         """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs;
         ``cap_m`` (per track, or one value) [m]: the distance cap of the gate (default ``gate_m``); ``miss_cost``:
-        the cost of leaving a track unassigned (0: a pair only where more likely than a miss and a ghost)."""
+        the cost of leaving a track unassigned (0: a pair only where more likely than a miss and a ghost);
+        ``max_appearance_distance``: pairs whose appearance distance is known and larger are forbidden."""
         det = np.flatnonzero(free)
         if not group or det.size == 0:
             return []
@@ -404,6 +406,11 @@ class MultiPersonTracker:
                 - 2 * np.log(p.detection_probability / ((1 - p.detection_probability) * p.clutter_density_per_m2)))
         if p.appearance_weight is not None and self._views is not None:
             cost = cost + self._appearance_cost(group, det)
+        if max_appearance_distance is not None and self._views is not None:
+            views = ViewDescriptors(self._views.hist[det], self._views.valid[det])
+            for i, tr in enumerate(group):
+                if tr.app is not None:
+                    gated[i] &= ~(tr.app.distance(views) > max_appearance_distance)  # NaN (unknown) stays
         n_trk, n_det = cost.shape
         cost = np.concatenate([np.where(gated, cost, np.inf), np.full((n_trk, n_trk), np.inf)], axis=1)
         cost[np.arange(n_trk), n_det + np.arange(n_trk)] = miss_cost  # each track's own "no cluster this step"
@@ -513,7 +520,9 @@ class MultiPersonTracker:
         cap = np.array([p.gate_m + p.reacquire_speed_m_s * (tr.misses + 1) * dt for tr in lost])
         # every gated pair is taken (the cost of a miss above any pair's): the alternative to the lost person is a
         # new one, born on the same cluster, not a ghost
-        for ti, ci in self._associate(lost, z, R, has_v, free, cap, miss_cost=1e9):
+        # with re-identification, a lost track takes back no cluster whose appearance is not its person's
+        max_d = p.reid_max_appearance_distance if p.reid_max_s is not None else None
+        for ti, ci in self._associate(lost, z, R, has_v, free, cap, miss_cost=1e9, max_appearance_distance=max_d):
             tr = lost[ti]
             free[ci] = False
             matched.add(tr.id)

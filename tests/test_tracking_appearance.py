@@ -14,8 +14,9 @@ from hypothesis.extra.numpy import arrays
 from planefuse.eval import tracking_metrics
 from planefuse.geometry import default_camera_ring
 from planefuse.occupancy import silhouettes_from_cameras
-from planefuse.tracking import (AppearanceObserver, AppearanceParams, Clusters, MultiPersonTracker, TrackerParams,
-                                describe_positions, descriptor_distance)
+from planefuse.tracking import (AppearanceObserver, AppearanceParams, Clusters, MultiPersonTracker, StitchParams,
+                                TrackAppearance, TrackerParams, describe_positions, descriptor_distance, relabel_tracks,
+                                stitch_identities)
 
 CAMERAS = default_camera_ring(2, room_size_m=8.0)[:2]  # at (0.3, 0.3) and (7.7, 0.3), 3 m and 2.8 m up
 PARAMS = AppearanceParams()
@@ -222,7 +223,11 @@ def test_tracker_state_with_appearance_round_trips():
         a.observer.add_frames(t, render(xy, list(ids), rng))
         ra, rb = a.step(clusters_at(t, cl)), b.step(clusters_at(t, cl))
         assert np.array_equal(ra.ids, rb.ids) and np.allclose(ra.xy_m, rb.xy_m)
-    assert a.appearance_summary() == b.appearance_summary()
+    assert a.appearance_summary(PARAMS) == b.appearance_summary(PARAMS)
+    words = a.appearance_summary(PARAMS, ["c0", "c1"])
+    # person 1 (red shirt, blue trousers) and person 2 (green shirt, black trousers) in words
+    assert any("upper red" in w and "lower blue" in w for w in words.values()), words
+    assert any("upper green" in w and "lower black" in w for w in words.values()), words
 
 
 @pytest.mark.parametrize("field, value", [("appearance_weight", -1.0), ("appearance_update_rate", 0.0),
@@ -237,3 +242,62 @@ def test_bad_appearance_extraction_parameters_are_refused():
         AppearanceParams(upper_rows=(0.6, 0.4))
     with pytest.raises(ValueError, match="expected 2 images"):
         AppearanceObserver(CAMERAS).add_frames(0.0, [None])
+
+
+# -- offline stitching ------------------------------------------------------------------------------------------------
+def _app(colour: int) -> TrackAppearance:
+    h = np.zeros((1, 2, 4))
+    h[0, :, colour] = 1.0
+    return TrackAppearance(h, np.ones(1))
+
+
+def test_stitching_joins_a_tracklet_to_its_continuation_by_time_space_and_appearance():
+    # 1 ends at (2, 2) at t = 1 s; 3 starts at (2.5, 2) at t = 2 s in 1's colours; 4 starts there too, other colours;
+    # 2 is alive all along (never joined: it overlaps everyone)
+    frames = [(0.0, [1, 2], [[1.0, 2.0], [5.0, 5.0]]), (1.0, [1, 2], [[2.0, 2.0], [5.0, 5.0]]),
+              (2.0, [2, 3, 4], [[5.0, 5.0], [2.5, 2.0], [2.6, 2.4]]), (3.0, [2, 3, 4], [[5.0, 5.0], [3.0, 2.0],
+                                                                                [3.0, 2.4]])]
+    app = {1: _app(0), 2: _app(0), 3: _app(0), 4: _app(1)}
+    assert stitch_identities(frames, app) == {3: 1}
+    assert [list(ids) for _, ids, _ in relabel_tracks(frames, {3: 1})] == [[1, 2], [1, 2], [2, 1, 4], [2, 1, 4]]
+    # a gap longer than max_gap_s, a jump farther than slack + speed x gap, no appearance: not joined
+    assert stitch_identities(frames, app, StitchParams(max_gap_s=0.5)) == {}
+    assert stitch_identities(frames, app, StitchParams(slack_m=0.1, max_speed_m_s=0.2)) == {}
+    assert stitch_identities(frames, {}) == {}
+    assert stitch_identities(frames, {}, StitchParams(require_appearance=False)) in ({3: 1}, {4: 1})
+
+
+def test_stitching_a_run_without_re_identification_joins_the_hidden_person_s_tracklets():
+    frames = _hidden_frames()
+    tracker = MultiPersonTracker(TrackerParams(appearance_weight=8.0), extent_m=(0.0, 8.0, 0.0, 8.0))
+    tracker.observer = AppearanceObserver(CAMERAS, PARAMS)
+    rng = np.random.default_rng(0)
+    outs = []
+    for t, ids, xy, cl in frames:
+        tracker.observer.add_frames(t, render(xy, list(ids), rng))
+        outs.append(tracker.step(clusters_at(t, cl)))
+    assert len(_ids_of(frames, outs, 1)) == 2
+    stitched = relabel_tracks(outs, stitch_identities(outs, tracker.appearance_by_id))
+    got = [type(o)(t, ids, xy, o.velocity_m_s, o.height_m, o.confidence, o.misses)
+           for o, (t, ids, xy) in zip(outs, stitched)]
+    assert len(_ids_of(frames, got, 1)) == 1
+
+
+def test_a_run_with_appearance_and_stitching_explains_its_identities(tmp_path):
+    import json
+
+    from planefuse.outputs import OutputSettings
+    from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
+    from planefuse.sim import default_scene_config, simulate
+
+    rec = simulate(default_scene_config(duration_s=3.0, seed=2))
+    base = SystemParams(laser=False, sound=False)
+    params = replace(base, tracking=replace(base.tracking, tracker=replace(base.tracking.tracker, **ON)),
+                     stitch=replace(base.stitch, enabled=True))
+    settings = OutputSettings(zarr=False, figures=False, animation="none", report=False)
+    _, metrics = run_to_folder(rec, RunPlan(params, tmp_path / "run", settings), progress_mode="quiet")
+    saved = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert saved["track_appearance"] and all("views" in v for v in saved["track_appearance"].values())
+    assert isinstance(saved["id_switch_events"], dict) and len(saved["id_switch_events"]) == saved["id_switches"]
+    assert set(saved["stitched"]) == {"mota", "idf1", "id_switches"}
+    assert (tmp_path / "run" / "tracks_stitched.csv").read_text().startswith("step,time_s,track_id,x_m,y_m")

@@ -551,6 +551,16 @@ class DetectionModelConfig(_Model):
         description="Largest appearance distance between a lost track and a new track for re-identification",
         expected="0..1", library="system.tracking.tracker.reid_max_appearance_distance",
     )
+    stitch: bool = _field(
+        description="After the run, join tracklets across gaps by time, space and appearance (offline; a run into a "
+        "folder writes the live tracks as they were, the stitched ones to tracks_stitched.csv, scored under "
+        "'stitched'; a run in memory gives the stitched identities)",
+        library="system.stitch.enabled",
+    )
+    stitch_max_gap_s: float = _field(
+        description="Longest gap between a tracklet's end and the start of the one that continues it (stitching)",
+        unit="s", expected="> 0", library="system.stitch.max_gap_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

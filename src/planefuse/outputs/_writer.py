@@ -54,7 +54,7 @@ CHECKPOINT_FILE = "checkpoint.npz"
 PREVIOUS_CHECKPOINT_FILE = "checkpoint.prev.npz"
 _OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
           CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE, "metrics.json", "figures", "report.html", "animation.gif",
-          "animation.mp4", "planefuse.rrd", "config.yaml", STATE_FILE)
+          "animation.mp4", "planefuse.rrd", "config.yaml", STATE_FILE, "tracks_stitched.csv")
 #: In ``figures/``: the names of the figures planefuse wrote there (the only files of it a new run deletes).
 FIGURES_WRITTEN = ".planefuse-figures"
 

@@ -15,7 +15,8 @@ from ..eval import EVAL_WARMUP_S, system_metrics
 from ..grid import PlaneStack, cells_filled_by_occluders, check_occluder_boxes
 from ..io import Recording
 from ..laser import LaserSensorModel
-from ..tracking import AppearanceObserver, AppearanceParams, EvidenceTracker, TrackerOutput, TrackingParams
+from ..tracking import (AppearanceObserver, AppearanceParams, EvidenceTracker, StitchParams, TrackerOutput,
+                        TrackingParams, relabel_tracks, stitch_identities)
 from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
@@ -98,6 +99,9 @@ class SystemParams:
     appearance : planefuse.tracking.AppearanceParams
         How the tracks' appearance is read from the camera frames (used where the tracker uses appearance,
         ``tracking.tracker.appearance_weight`` or ``reid_max_s``; docs/identities.md).
+    stitch : planefuse.tracking.StitchParams
+        The offline pass over a finished run's tracks (``stitch.enabled``): tracklets joined across gaps by time,
+        space and appearance (:func:`planefuse.tracking.stitch_identities`; docs/identities.md).
     """
 
     heights_m: tuple[float, ...] | None = (0.1, 0.5, 1.0, 1.5)
@@ -121,6 +125,7 @@ class SystemParams:
     output_period_s: float = 0.2
     match_distance_m: float = 0.5
     appearance: AppearanceParams = field(default_factory=AppearanceParams)
+    stitch: StitchParams = field(default_factory=StitchParams)
 
     def __post_init__(self) -> None:
         check_fields(self, cell_size_m=">0", wall_margin_m=">=0", sound_block_s=">0", output_period_s=">0",
@@ -162,6 +167,10 @@ class SystemResult:
     report: ModalityReport
     elapsed_s: float
     metrics: dict = field(default_factory=dict)
+    #: per track identity, its appearance model in words (:meth:`SystemRun.track_appearance`; empty without)
+    track_appearance: dict = field(default_factory=dict)
+    #: identity -> the identity it continues after the offline stitching (``SystemParams.stitch``; empty without)
+    stitched: dict = field(default_factory=dict)
 
 
 def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: bool = True) -> PlaneStack:
@@ -462,6 +471,20 @@ class SystemRun:
             yield from self.tracker.push(ev)
         yield from self.tracker.flush()
 
+    def track_appearance(self) -> dict[str, str]:
+        """Per track identity ever confirmed, its appearance model in words, e.g. ``{"3": "c0 (31 views): upper
+        blue 62 %, lower black 71 %; c1 ..."}`` (the identity decisions explained); empty without appearance."""
+        if self.appearance is None:
+            return {}
+        names = [c.name for c in self.rec.cameras]
+        return {str(i): v for i, v in self.tracker.tracker.appearance_summary(self.params.appearance, names).items()}
+
+    def stitch(self, frames) -> dict[int, int]:
+        """The offline stitching of this run's reported tracks ``frames`` ((time_s, ids, xy_m) per step, in time
+        order) with its tracks' appearance models: identity -> the identity it continues
+        (:func:`planefuse.tracking.stitch_identities`, ``params.stitch``)."""
+        return stitch_identities(frames, self.tracker.tracker.appearance_by_id, self.params.stitch)
+
     def state_dict(self) -> StateDict:
         """The run's state as arrays (:mod:`planefuse._state`); complete while an output is handled."""
         return {"format": np.asarray(CHECKPOINT_FORMAT),
@@ -502,7 +525,13 @@ def run_system(
         outputs.append(out)
         if on_output is not None:
             on_output(out)
-    return SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0)
+    result = SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0,
+                          track_appearance=run.track_appearance())
+    if params.stitch.enabled:  # the offline pass: the outputs' track identities joined across gaps
+        result.stitched = run.stitch([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs])
+        frames = relabel_tracks([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs], result.stitched)
+        result.outputs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outputs, frames)]
+    return result
 
 
 def evaluate_system(rec: Recording, result: SystemResult, match_distance_m: float = 0.5) -> dict:

@@ -54,7 +54,7 @@ from ..geometry import PinholeCamera
 from ..occupancy import PersonVolume, silhouettes_from_cameras
 
 __all__ = ["AppearanceParams", "ViewDescriptors", "TrackAppearance", "AppearanceObserver", "describe_boxes",
-           "describe_positions", "descriptor_distance", "n_bins"]
+           "colour_shares", "describe_positions", "descriptor_distance", "n_bins"]
 
 
 @dataclass(frozen=True)
@@ -328,11 +328,40 @@ class TrackAppearance:
         w = np.divide(self.count, n, out=np.zeros_like(n), where=n > 0)[:, None, None]
         return TrackAppearance(w * self.hist + (1 - w) * other.hist * (n > 0)[:, None, None], n)
 
-    def summary(self) -> dict:
-        """``{"views": per camera count, "upper_top_bins"/"lower_top_bins": per camera the 3 heaviest bins}``."""
-        top = [[[int(b) for b in np.argsort(self.hist[c, k])[::-1][:3]] if self.count[c] else []
-                for c in range(len(self.count))] for k in range(2)]
-        return {"views": [int(v) for v in self.count], "upper_top_bins": top[0], "lower_top_bins": top[1]}
+    def summary(self, params: AppearanceParams, camera_names: Sequence[str] | None = None) -> str:
+        """What the model holds, in words: per camera with views, their number and the main colour of the upper and
+        lower body with its share, e.g. ``"c0 (31 views): upper blue 62 %, lower black 71 %"``."""
+        names = list(camera_names) if camera_names is not None else [f"camera {c}" for c in range(len(self.count))]
+        parts = []
+        for c in np.flatnonzero(self.count > 0):
+            body = []
+            for k, what in enumerate(("upper", "lower")):
+                shares = colour_shares(self.hist[c, k], params)
+                name = max(shares, key=shares.get)
+                body.append(f"{what} {name} {100 * shares[name]:.0f} %")
+            parts.append(f"{names[c]} ({int(self.count[c])} views): " + ", ".join(body))
+        return "; ".join(parts) or "no view"
+
+
+#: Hue names by upper bound of OpenCV's 8-bit hue (0..180), in order.
+_HUES = ((10, "red"), (22, "orange"), (35, "yellow"), (85, "green"), (100, "cyan"), (130, "blue"), (150, "purple"),
+         (170, "pink"), (180, "red"))
+_GREYS = ("black", "dark grey", "light grey", "white")
+
+
+def colour_shares(hist: np.ndarray, params: AppearanceParams) -> dict[str, float]:
+    """Share of a body part's histogram (B,) per colour name (hues of the chromatic bins, greys of the value bins)."""
+    out: dict[str, float] = {}
+    n_chroma = params.hue_bins * params.saturation_bins
+    for b, w in enumerate(np.asarray(hist, float)):
+        if b < n_chroma:
+            hue = (b // params.saturation_bins + 0.5) * 180.0 / params.hue_bins
+            name = next(n for hi, n in _HUES if hue < hi)
+        else:
+            v = b - n_chroma
+            name = _GREYS[min(int(v * len(_GREYS) / params.value_bins), len(_GREYS) - 1)]
+        out[name] = out.get(name, 0.0) + float(w)
+    return out
 
 
 class AppearanceObserver:

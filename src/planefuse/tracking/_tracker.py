@@ -751,9 +751,10 @@ class MultiPersonTracker:
         self.appearance_by_id = {int(i): TrackAppearance(np.array(h), np.array(c)) for i, h, c in zip(
             get(state, "by_id", "tracker"), get(state, "by_id_hist", "tracker"), get(state, "by_id_count", "tracker"))}
 
-    def appearance_summary(self) -> dict[int, dict]:
-        """Per identity, its latest appearance model's summary (:meth:`TrackAppearance.summary`)."""
-        return {i: a.summary() for i, a in sorted(self.appearance_by_id.items())}
+    def appearance_summary(self, params, camera_names=None) -> dict[int, str]:
+        """Per identity ever confirmed, its latest appearance model in words (:meth:`TrackAppearance.summary` with
+        the :class:`AppearanceParams` ``params``)."""
+        return {i: a.summary(params, camera_names) for i, a in sorted(self.appearance_by_id.items())}
 
     def load_state_dict(self, state) -> None:
         """Restore what :meth:`state_dict` saved."""

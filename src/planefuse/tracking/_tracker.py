@@ -93,6 +93,29 @@ Each step (``dt`` since the last one):
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
 
+9. re-identification (with ``reid_max_s``): a track confirmed for the first time at this step takes the identity of
+   a *lost* track (a confirmed track ended less than ``reid_max_s`` ago, or one still kept but without a cluster
+   now) last seen within ``reid_max_distance_m`` of it whose appearance model is the nearest to its own, within
+   ``reid_max_appearance_distance``; the lost track ends. The new track's first ``confirm_hits`` views make its
+   model (a cluster that is a ghost seldom lives that long). With re-identification, step 7 refuses a lost track a
+   cluster whose appearance is known and farther than ``reid_max_appearance_distance`` from its model.
+
+Appearance
+----------
+With ``appearance_weight`` (or ``reid_max_s``) and an ``observer`` (:class:`planefuse.tracking.AppearanceObserver`,
+which :class:`planefuse.pipeline.SystemRun` attaches), each step's clusters have a colour descriptor from every
+camera that sees them, views hidden by a nearer person or by ignore regions left out
+(:mod:`planefuse.tracking._appearance`). Every track keeps a model per camera, updated from the cluster it took
+(not from a merged blob, step 5, nor from support, step 6) at ``appearance_update_rate``. The association cost of
+step 3 (and 7) gets the appearance term, an approximate ``-2 ln`` likelihood ratio of "same person" against
+"another person or a ghost" for the appearance distance ``d`` in [0, 1]::
+
+    c_td += w (d_td - d0)          (w = appearance_weight, d0 = appearance_reference_distance)
+
+0 where the distance is unknown (no camera where both the track's model and the cluster's view exist). Without
+``appearance_weight`` and ``reid_max_s`` (the default) nothing of this runs: the tracker's decisions and state are
+those without appearance.
+
 Track management (states of a track)
 ------------------------------------
 * **tentative**: born from an unexplained cluster; becomes *confirmed* after ``confirm_hits``

@@ -86,9 +86,11 @@ def _tracker_variants(sweep: str | None) -> dict:
     base = SystemParams().tracking.tracker
     out = {"kalman": base}
     if sweep == "appearance":  # appearance in association (weight) and re-identification
-        for w in (2.0, 4.0, 8.0, 16.0):
+        for w in (8.0, 16.0):
             out[f"kalman+app w{w:g}"] = replace(base, appearance_weight=w)
-            out[f"kalman+app w{w:g} reid"] = replace(base, appearance_weight=w, reid_max_s=5.0)
+            for d in (0.2, 0.3):
+                out[f"kalman+app w{w:g} reid{d:g}"] = replace(base, appearance_weight=w, reid_max_s=5.0,
+                                                             reid_max_appearance_distance=d)
         return out
     if sweep == "with-appearance":
         out["kalman+appearance"] = replace(base, **APPEARANCE)
@@ -142,7 +144,12 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
         from planefuse.vision import recording_frames
 
         cp = params.camera_params
-        frames = list(recording_frames(rec, stride=cp.frame_stride, max_rate_hz=cp.max_rate_hz))
+        from planefuse.pipeline._streams import _tapped
+
+        frames = []  # as the run's camera source hands them (a black or frozen frame: None)
+        for _ in _tapped(recording_frames(rec, stride=cp.frame_stride, max_rate_hz=cp.max_rate_hz),
+                         lambda t, imgs: frames.append((t, imgs))):
+            pass
     for name, make in makers.items():
         tracker = make()
         observer = None
@@ -150,7 +157,8 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
             from planefuse.tracking import AppearanceObserver
 
             observer = AppearanceObserver(rec.cameras, params.appearance,
-                                          [rec.camera(c.name).ignore_mask for c in rec.cameras])
+                                          [rec.camera(c.name).ignore_mask for c in rec.cameras],
+                                          occluder_boxes_m=params.occluder_boxes_m)
             tracker.observer = observer
         t0 = time.perf_counter()
         tracks, k = [], 0

@@ -66,7 +66,12 @@ def capture(rec, config: dict):
     finally:
         GenerativeCameraSensor.marginals = solve
     cp = params.camera_params
-    frames = [imgs for _, imgs in recording_frames(rec, stride=cp.frame_stride, max_rate_hz=cp.max_rate_hz)]
+    from planefuse.pipeline._streams import _tapped
+
+    frames = []  # as the run's camera source hands them to the tracks' appearance (a black or frozen frame: None)
+    for _ in _tapped(recording_frames(rec, stride=cp.frame_stride, max_rate_hz=cp.max_rate_hz),
+                     lambda t, imgs: frames.append(imgs)):
+        pass
     return times, kept["fg"], kept["sensor"], params, run.stack, frames
 
 
@@ -90,6 +95,14 @@ def replay(rec, stack, times, foregrounds, sensor, params, frames=None) -> tuple
         detections.append(sensor.detections(q, t, cp.person.nms_radius_m))
         outs.extend(tracker.push(Evidence(t, "cameras", sensor.log_odds_from_marginals(q, prior))))
     outs.extend(tracker.flush())
+    if params.stitch.enabled:  # the offline pass over the run's tracks, as run_system does
+        from dataclasses import replace
+
+        from planefuse.tracking import relabel_tracks
+
+        frames = [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outs]
+        frames = relabel_tracks(frames, run.stitch(frames))
+        outs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outs, frames)]
     return outs, detections
 
 

@@ -109,6 +109,21 @@ def test_a_person_hidden_behind_a_nearer_one_in_one_view_is_described_from_the_o
     assert not describe_positions(imgs, CAMERAS, xy, PARAMS, [None, mask]).valid[1].any()
 
 
+def test_a_person_behind_a_declared_pillar_is_not_described_from_that_camera():
+    c0 = CAMERAS[0].center_world[:2]
+    direction = (np.array([4.0, 4.0]) - c0) / np.linalg.norm(np.array([4.0, 4.0]) - c0)
+    person, pillar = c0 + 6.0 * direction, c0 + 3.5 * direction
+    box = (pillar[0] - 0.3, pillar[0] + 0.3, pillar[1] - 0.3, pillar[1] + 0.3, 0.0, 2.5)
+    imgs = render(person[None], [1], np.random.default_rng(2))  # the pillar is not drawn: only declared
+    free = AppearanceObserver(CAMERAS)
+    hidden = AppearanceObserver(CAMERAS, occluder_boxes_m=[box])
+    for obs in (free, hidden):
+        obs.add_frames(0.0, imgs)
+    assert free(0.0, person[None]).valid[0].all()
+    assert hidden(0.0, person[None]).valid[0].tolist() == [False, True]
+    assert not free(1.0, person[None]).valid.any()  # no frame near t = 1 s: no view
+
+
 def test_a_track_takes_no_appearance_from_the_view_where_it_is_hidden():
     c0 = CAMERAS[0].center_world[:2]
     direction = (np.array([4.0, 4.0]) - c0) / np.linalg.norm(np.array([4.0, 4.0]) - c0)
@@ -301,3 +316,15 @@ def test_a_run_with_appearance_and_stitching_explains_its_identities(tmp_path):
     assert isinstance(saved["id_switch_events"], dict) and len(saved["id_switch_events"]) == saved["id_switches"]
     assert set(saved["stitched"]) == {"mota", "idf1", "id_switches"}
     assert (tmp_path / "run" / "tracks_stitched.csv").read_text().startswith("step,time_s,track_id,x_m,y_m")
+
+
+def test_the_camera_source_hands_no_black_or_frozen_frame_to_the_appearance():
+    from planefuse.pipeline._streams import _tapped
+
+    live = np.random.default_rng(3).integers(0, 255, (288, 360, 3), dtype=np.uint8)
+    black = np.zeros_like(live)
+    frames = [(0.0, [live, live.copy()]), (0.2, [black, live.copy()]), (0.4, [live, None])]
+    got = []
+    assert [t for t, _ in _tapped(iter(frames), lambda t, imgs: got.append(imgs))] == [0.0, 0.2, 0.4]
+    # camera 1 frozen at 0.2 s (bit-identical to its previous frame), camera 0 black; then camera 1 missing
+    assert [[img is not None for img in imgs] for imgs in got] == [[True, True], [False, False], [True, False]]

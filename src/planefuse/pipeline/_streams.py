@@ -389,9 +389,19 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
 
 
 def _tapped(frames, tap: Callable[[float, list], None]):
-    """``frames`` (time_s, images) as they are, each handed to ``tap`` first."""
+    """``frames`` (time_s, images) as they are, each handed to ``tap`` first, with None for a camera's black or
+    frozen frame (:func:`planefuse.vision.frame_is_dead`: a failed camera shows no one's colours)."""
+    from ..vision import frame_is_dead
+
+    previous: dict[int, np.ndarray] = {}
     for time_s, images in frames:
-        tap(float(time_s), list(images))
+        live = []
+        for c, img in enumerate(images):
+            dead = img is not None and frame_is_dead(img, previous.get(c))
+            if img is not None:
+                previous[c] = img
+            live.append(None if dead else img)
+        tap(float(time_s), live)
         yield time_s, images
 
 

@@ -382,7 +382,8 @@ class SystemRun:
         self.appearance: AppearanceObserver | None = None
         if params.tracking.tracker.uses_appearance and params.cameras and rec.camera_streams:
             self.appearance = AppearanceObserver(rec.cameras, params.appearance,
-                                                 [rec.camera(c.name).ignore_mask for c in rec.cameras])
+                                                 [rec.camera(c.name).ignore_mask for c in rec.cameras],
+                                                 occluder_boxes_m=params.occluder_boxes_m)
         consumed: dict[str, int] = {}
         if checkpoint is not None:
             version = int(get(checkpoint, "format", "run"))

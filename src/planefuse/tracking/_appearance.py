@@ -54,7 +54,7 @@ from ..geometry import PinholeCamera
 from ..occupancy import PersonVolume, silhouettes_from_cameras
 
 __all__ = ["AppearanceParams", "ViewDescriptors", "TrackAppearance", "AppearanceObserver", "describe_boxes",
-           "colour_shares", "describe_positions", "descriptor_distance", "n_bins"]
+           "colour_shares", "describe_positions", "descriptor_distance", "n_bins", "occluder_boxes_px"]
 
 
 @dataclass(frozen=True)
@@ -259,12 +259,40 @@ def describe_boxes(images: Sequence[np.ndarray | None], boxes_px: np.ndarray, de
     return out
 
 
+def occluder_boxes_px(cameras: Sequence[PinholeCamera], boxes_m) -> tuple[np.ndarray, np.ndarray]:
+    """Static occluders ``boxes_m`` (B, 6) ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m, world] as seen by each
+    camera: the pixel bounding box of each box's projected corners (C, B, 4) (-1 where a corner is behind the camera
+    or the box is outside the image) and its depth (C, B) [m], the horizontal distance from the camera's centre to
+    the nearest point of its footprint (what stands farther is hidden behind it)."""
+    boxes = np.asarray(boxes_m, dtype=float).reshape(-1, 6)
+    out = np.full((len(cameras), len(boxes), 4), -1, dtype=np.int32)
+    depth = np.full((len(cameras), len(boxes)), np.inf)
+    for c, cam in enumerate(cameras):
+        w, h = cam.intrinsics.width_px, cam.intrinsics.height_px
+        cx, cy = np.asarray(cam.center_world, float)[:2]
+        for b, (x0, x1, y0, y1, z0, z1) in enumerate(boxes):
+            corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
+            uv = cam.project(corners)
+            if not np.isfinite(uv).all():
+                continue
+            u0, v0 = np.floor(uv.min(axis=0)).astype(int)
+            u1, v1 = np.ceil(uv.max(axis=0)).astype(int)
+            if u1 < 0 or v1 < 0 or u0 > w - 1 or v0 > h - 1:
+                continue
+            out[c, b] = (max(u0, 0), max(v0, 0), min(u1, w - 1), min(v1, h - 1))
+            depth[c, b] = np.hypot(cx - np.clip(cx, x0, x1), cy - np.clip(cy, y0, y1))
+    return out, depth
+
+
 def describe_positions(images: Sequence[np.ndarray | None], cameras: Sequence[PinholeCamera], xy_m: np.ndarray,
                        params: AppearanceParams, ignore_masks: Sequence[np.ndarray | None] | None = None,
-                       occluders_xy_m: np.ndarray | None = None) -> ViewDescriptors:
+                       occluders_xy_m: np.ndarray | None = None,
+                       static: tuple[np.ndarray, np.ndarray] | None = None) -> ViewDescriptors:
     """Descriptors of people standing at ``xy_m`` (N, 2) [m, world] in every camera's frame (module docstring):
     their views are the boxes of the projected person cylinder (``params``); ``occluders_xy_m`` (M, 2) [m]: other
-    people who may stand in front (not described). ``images``: one uint8 BGR frame per camera, None where absent."""
+    people who may stand in front (not described); ``static``: static occluders' boxes (C, B, 4) and depths (C, B)
+    (:func:`occluder_boxes_px`), which hide what stands behind them too. ``images``: one uint8 BGR frame per camera,
+    None where absent."""
     xy = np.asarray(xy_m, dtype=float).reshape(-1, 2)
     occ = np.zeros((0, 2)) if occluders_xy_m is None else np.asarray(occluders_xy_m, dtype=float).reshape(-1, 2)
     everyone = np.concatenate([xy, occ])
@@ -272,6 +300,8 @@ def describe_positions(images: Sequence[np.ndarray | None], cameras: Sequence[Pi
         return ViewDescriptors.empty(len(xy), len(cameras), params)
     boxes = silhouettes_from_cameras(cameras, everyone, params.person()).boxes_px
     depth = np.stack([np.hypot(*(everyone - np.asarray(cam.center_world, float)[:2]).T) for cam in cameras])
+    if static is not None and static[0].shape[1]:
+        boxes, depth = np.concatenate([boxes, static[0]], axis=1), np.concatenate([depth, static[1]], axis=1)
     return describe_boxes(images, boxes, depth, params, ignore_masks, n_described=len(xy))
 
 
@@ -376,18 +406,24 @@ class AppearanceObserver:
     cameras : sequence of C PinholeCamera
     params : AppearanceParams
     ignore_masks : sequence of C (bool ndarray or None), optional
+    occluder_boxes_m : array_like, shape (B, 6), optional
+        Known static occluders ``[x_min, x_max, y_min, y_max, z_min, z_max]`` [m] (``SystemParams.occluder_boxes_m``):
+        they hide the people behind them as nearer people do (:func:`occluder_boxes_px`).
     keep : int
         Camera instants kept.
     """
 
     def __init__(self, cameras: Sequence[PinholeCamera], params: AppearanceParams | None = None,
-                 ignore_masks: Sequence[np.ndarray | None] | None = None, keep: int = 8) -> None:
+                 ignore_masks: Sequence[np.ndarray | None] | None = None, keep: int = 8,
+                 occluder_boxes_m=None) -> None:
         self.cameras = list(cameras)
         self.params = params if params is not None else AppearanceParams()
         if ignore_masks is not None and len(ignore_masks) != len(self.cameras):
             raise ValueError(f"ignore_masks: expected {len(self.cameras)} entries (None where absent), "
                              f"got {len(ignore_masks)}")
         self.ignore_masks = ignore_masks
+        self.static = (occluder_boxes_px(self.cameras, occluder_boxes_m)
+                       if occluder_boxes_m is not None and len(occluder_boxes_m) else None)
         self.frames: deque[tuple[float, list]] = deque(maxlen=int(keep))
 
     @property
@@ -415,4 +451,5 @@ class AppearanceObserver:
         imgs = self.frames_at(time_s)
         if imgs is None:
             return ViewDescriptors.empty(len(xy_m), self.n_cameras, self.params)
-        return describe_positions(imgs, self.cameras, xy_m, self.params, self.ignore_masks, occluders_xy_m)
+        return describe_positions(imgs, self.cameras, xy_m, self.params, self.ignore_masks, occluders_xy_m,
+                                  self.static)

@@ -163,7 +163,7 @@ def _hsv_codes(image_bgr: np.ndarray, params: AppearanceParams) -> np.ndarray:
                                                                      params.value_bins - 1)
     if img.dtype != np.uint8:
         raise ValueError(f"appearance frames must be uint8 BGR images, got dtype {img.dtype}")
-    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV).astype(np.int32)
+    hsv = cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_BGR2HSV).astype(np.int32)
     h, s, v = hsv[..., 0], hsv[..., 1], hsv[..., 2]
     chroma = (s >= params.min_saturation) & (v >= params.min_value)
     hb = np.minimum(h * params.hue_bins // 180, params.hue_bins - 1)
@@ -209,7 +209,6 @@ def describe_boxes(images: Sequence[np.ndarray | None], boxes_px: np.ndarray, de
         if img is None or n == 0:
             continue
         H, W = img.shape[:2]
-        codes = None
         ign = None if ignore_masks is None else ignore_masks[c]
         for i in range(n):
             x0, y0, x1, y1 = (int(v) for v in boxes_px[c, i])
@@ -239,12 +238,10 @@ def describe_boxes(images: Sequence[np.ndarray | None], boxes_px: np.ndarray, de
                 if ignored.mean() > params.max_ignored_fraction:
                     continue
                 keep &= ~ignored
-            if codes is None:
-                codes = _hsv_codes(img, params)
             rows = np.arange(sy0, sy1)[:, None] - y0
             split = y0 + int(params.upper_rows[1] * (y1 - y0 + 1)) - y0
             lower_start = int(params.lower_rows[0] * (y1 - y0 + 1))
-            patch = codes[sy0:sy1, sx0:sx1]
+            patch = _hsv_codes(img[sy0:sy1, sx0:sx1], params)  # the strip's pixels only
             ok = True
             for k, part in enumerate((keep & (rows < split), keep & (rows >= lower_start))):
                 h = np.bincount(patch[part], minlength=B).astype(float)

@@ -72,7 +72,9 @@ Each step (``dt`` since the last one):
    (the blob's centre lies between the two people), so each keeps its own velocity through the merge. A merge
    begins only for a track that had evidence of its own (a cluster, support or a share) at the previous step: a
    track already lost, its covariance grown, would be dragged onto whoever walks by (a person standing unseen,
-   pulled onto a passer-by, then switched with them);
+   pulled onto a passer-by, then switched with them). With appearance in association, a track does not share a
+   blob whose colours are farther than ``appearance_update_max_distance`` from its model: its person has left the
+   blob (the track is lost, and step 7 may find the person again);
 6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the
    column evidence ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its prediction, away (more than
    ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
@@ -440,6 +442,14 @@ class MultiPersonTracker:
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if c < n_det]
 
+    def _not_its_person(self, tr: _Track, ci: int) -> bool:
+        """Whether cluster ``ci``'s views are farther than ``appearance_update_max_distance`` from ``tr``'s model
+        (known to be someone else; False where unknown or without appearance in association)."""
+        if self.params.appearance_weight is None or self._views is None or tr.app is None:
+            return False
+        d = tr.app.distance(ViewDescriptors(self._views.hist[ci:ci + 1], self._views.valid[ci:ci + 1]))[0]
+        return bool(d > self.params.appearance_update_max_distance)
+
     def _appearance_cost(self, group: list[_Track], det: np.ndarray) -> np.ndarray:
         """``w (d - d0)`` (T, D) per track and free cluster, ``d`` their appearance distance; 0 where unknown."""
         p = self.params
@@ -658,6 +668,8 @@ class MultiPersonTracker:
             k = int(np.argmin(np.where(ok, d2, np.inf)))
             if np.linalg.norm(tr.x[2:] - owner[int(cis[k])].x[2:]) < p.share_min_relative_speed_m_s:
                 continue  # moving with the owner: a duplicate of the same person, not a crossing
+            if self._not_its_person(tr, int(cis[k])):
+                continue  # the blob's colours are someone else's: the person has left it (lost, step 7 may find it)
             out.setdefault(int(cis[k]), []).append(tr)
         return out
 

@@ -77,7 +77,7 @@ def with_sets(params: SystemParams, sets: tuple) -> SystemParams:
 
 
 #: The tracks' appearance as docs/identities.md recommends it (chosen on seeds 1-3 and terrace frames 0-1499).
-APPEARANCE = {"appearance_weight": 8.0, "reid_max_s": 5.0}
+APPEARANCE = {"appearance_weight": 16.0, "reid_max_s": 5.0}
 
 
 def _tracker_variants(sweep: str | None) -> dict:

@@ -113,7 +113,7 @@ def _changes(*parts: dict) -> dict:
 _CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
 #: The tracks' appearance (docs/identities.md; chosen on frames 0-1499 and simulated seeds 1-3): in association and
 #: re-identification (online), then also the offline stitching of the tracklets.
-_APPEARANCE = {"models": {"detection": {"appearance_weight": 8.0, "reid_max_s": 5.0}}}
+_APPEARANCE = {"models": {"detection": {"appearance_weight": 16.0, "reid_max_s": 5.0}}}
 _STITCH = {"models": {"detection": {"stitch": True}}}
 ROWS = {
     "gen": ("tuned", {}),

@@ -86,10 +86,11 @@ def _tracker_variants(sweep: str | None) -> dict:
     base = SystemParams().tracking.tracker
     out = {"kalman": base}
     if sweep == "appearance":  # appearance in association (weight) and re-identification
-        rec = replace(base, appearance_weight=16.0, reid_max_s=5.0)
-        out["kalman+app w16 reid"] = rec
-        for m in (0.1, 0.2, 0.4):
-            out[f"kalman+app w16 reid swap{m:g}"] = replace(rec, appearance_swap_margin=m)
+        for w in (8.0, 16.0):
+            out[f"kalman+app w{w:g}"] = replace(base, appearance_weight=w)
+            for d in (0.2, 0.3):
+                out[f"kalman+app w{w:g} reid{d:g}"] = replace(base, appearance_weight=w, reid_max_s=5.0,
+                                                             reid_max_appearance_distance=d)
         return out
     if sweep == "with-appearance":
         out["kalman+appearance"] = replace(base, **APPEARANCE)

@@ -63,10 +63,6 @@ Each step (``dt`` since the last one):
    identity switch; the ``ln det`` term makes a wide (coasting) track a worse explanation than a tight one
    at the same Mahalanobis distance. Confirmed tracks are served first, tentative ones get the remaining
    clusters;
-3b. swap correction (with appearance and ``appearance_swap_margin``): two confirmed tracks that took clusters at most
-   ``appearance_swap_max_distance_m`` apart, where each track's colours match the other's cluster better than its own
-   and the two pairings' distances sum lower by ``appearance_swap_margin``, exchange identities and appearance
-   models, their motion staying with the clusters (people who met while hiding each other, paired by position);
 4. update every matched track (filterpy ``update``, Joseph form) with its cluster (velocity block of ``R``
    scaled by ``max(1, tau_v / dt)``, above); height and confidence are copied from it;
 5. merged people: a confirmed track left without a cluster whose position gate holds a cluster taken by
@@ -226,11 +222,6 @@ class TrackerParams:
         ``1 / rate`` views, averaged): a passer-by seen once moves it by at most this much.
     appearance_update_max_distance : float
         A view farther than this appearance distance from a track's model is not taken into it.
-    appearance_swap_margin : float or None
-        Swap correction (step 3b): two tracks whose colours match each other's clusters better than their own by
-        this much (sum of appearance distances) exchange identities; None: never.
-    appearance_swap_max_distance_m : float
-        Swap correction only between clusters at most this far apart [m] (people who just met).
     reid_max_s : float or None
         Re-identification (step 9): a track lost for at most this long [s] is a candidate for a new track's
         identity; None: no re-identification.
@@ -265,8 +256,6 @@ class TrackerParams:
     appearance_reference_distance: float = 0.3
     appearance_update_rate: float = 0.1
     appearance_update_max_distance: float = 0.6
-    appearance_swap_margin: float | None = None
-    appearance_swap_max_distance_m: float = 2.0
     reid_max_s: float | None = None
     reid_max_distance_m: float = 5.0
     reid_max_appearance_distance: float = 0.3
@@ -287,8 +276,7 @@ class TrackerParams:
                      reacquire_speed_m_s="?>=0", appearance_weight="?>=0",
                      appearance_reference_distance="[0,1]", appearance_update_rate="(0,1]",
                      appearance_update_max_distance="[0,1]", reid_max_s="?>=0", reid_max_distance_m=">=0",
-                     reid_max_appearance_distance="[0,1]", appearance_swap_margin="?>=0",
-                     appearance_swap_max_distance_m=">=0")
+                     reid_max_appearance_distance="[0,1]")
 
 
 @dataclass(frozen=True)
@@ -454,36 +442,6 @@ class MultiPersonTracker:
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if c < n_det]
 
-    def _correct_swaps(self, owner: dict[int, _Track], z: np.ndarray) -> None:
-        """Step 3b: two confirmed tracks that took clusters at most ``appearance_swap_max_distance_m`` apart, each of
-        whose colours match the other's cluster better (by ``appearance_swap_margin`` in sum) than its own, exchange
-        identities and appearance models (their motion stays with the clusters): people who met while hidden from
-        each other's views and were paired by position alone."""
-        p = self.params
-        cis = list(owner)
-        if len(cis) < 2:
-            return
-        views = ViewDescriptors(self._views.hist[cis], self._views.valid[cis])
-        D = np.array([owner[ci].app.distance(views) if owner[ci].app is not None else np.full(len(cis), np.nan)
-                      for ci in cis])  # track (by its cluster) x cluster
-        pairs = []
-        for a in range(len(cis)):
-            for b in range(a + 1, len(cis)):
-                if np.linalg.norm(z[cis[a], :2] - z[cis[b], :2]) > p.appearance_swap_max_distance_m:
-                    continue
-                keep, swap = D[a, a] + D[b, b], D[a, b] + D[b, a]
-                if (np.isfinite(keep) and np.isfinite(swap) and swap + p.appearance_swap_margin < keep
-                        and D[a, b] < D[a, a] and D[b, a] < D[b, b]):
-                    pairs.append((keep - swap, a, b))
-        done: set[int] = set()
-        for _, a, b in sorted(pairs, reverse=True):
-            if a in done or b in done:
-                continue
-            ta, tb = owner[cis[a]], owner[cis[b]]
-            ta.id, tb.id = tb.id, ta.id
-            ta.app, tb.app = tb.app, ta.app
-            done |= {a, b}
-
     def _not_its_person(self, tr: _Track, ci: int) -> bool:
         """Whether cluster ``ci``'s views are farther than ``appearance_update_max_distance`` from ``tr``'s model
         (known to be someone else; False where unknown or without appearance in association)."""
@@ -546,8 +504,6 @@ class MultiPersonTracker:
                 tr.supported_s = 0.0
             elif tr.confirmed and self._support(tr, clusters, taken, dt):
                 matched.add(tr.id)
-        if p.appearance_swap_margin is not None and self._views is not None:
-            self._correct_swaps(owner, z)
         sharers = self._sharers(owner, matched, z, R, dt)
         for ci, tr in owner.items():
             # a merged blob: its position only, for the owner and its sharers alike

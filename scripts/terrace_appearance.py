@@ -71,8 +71,9 @@ def main(argv=None) -> int:
             if both.any():
                 (same if p == q else other).append(float(np.mean(descriptor_distance(hf[both], hg[both]))))
     same, other = np.array(same), np.array(other)
-    print(f"frames {args.first}-{args.last - 1} every {args.step}: views taken {np.mean([v.mean() for _, v in desc.values()]):.2f} "
-          f"of the people's views in c0 and c1")
+    taken = np.mean([v.mean() for _, v in desc.values()])
+    print(f"frames {args.first}-{args.last - 1} every {args.step}: views taken {taken:.2f} of the people's views in "
+          "c0 and c1")
     q = (10, 25, 50, 75, 90)
     print(f"same person   ({len(same)} pairs): distance quantiles {q}: {np.percentile(same, q).round(3).tolist()}")
     print(f"other person  ({len(other)} pairs): distance quantiles {q}: {np.percentile(other, q).round(3).tolist()}")

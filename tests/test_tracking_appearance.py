@@ -174,7 +174,8 @@ def test_two_people_of_different_colours_meeting_and_turning_back_keep_their_ide
 
 def _hidden_frames(hidden_s: float = 3.0, newcomer: bool = False) -> list:
     """Person 1 walks +y at 0.5 m/s on x = 3 for 7 s, hidden (no cluster, no box) from 2 s for ``hidden_s``; person
-    2 stands at (6, 5). ``newcomer``: person 3, other colours, appears at person 1's last position while it is hidden."""
+    2 stands at (6, 5). ``newcomer``: person 3, other colours, appears at person 1's last position while it is
+    hidden."""
     frames = []
     for k in range(int(7.0 / DT)):
         t = k * DT

@@ -145,7 +145,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .._params import check_fields
 from .._state import StateDict, float_or_none, get, optional_float
-from ._appearance import TrackAppearance, ViewDescriptors, descriptor_distance
+from ._appearance import TrackAppearance, ViewDescriptors
 from ._bof import BOFParams, velocity_grid_m_s
 from ._clustering import Clusters
 

@@ -115,6 +115,15 @@ _CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
 #: re-identification (online), then also the offline stitching of the tracklets.
 _APPEARANCE = {"models": {"detection": {"appearance_weight": 16.0, "reid_max_s": 5.0}}}
 _STITCH = {"models": {"detection": {"stitch": True}}}
+#: The person detector's rows: ``--person-model`` fills the model's path (``detector_rows``). "det": the tuned system
+#: with the detector at the library's settings (its boxes as evidence of free space, docs/cameras.md); "detonly": the
+#: detector alone, its boxes the generative model's silhouettes (no background subtraction; the person's cylinder
+#: 0.3 m wide, chosen on frames 1000-1499 against 0.2 m: filtered MODA 0.650 / 0.844 against 0.638 / 0.808).
+_DET = {"sensors": {"cameras": {"person_detector": "yolox", "person_model": None}}}
+_DET_ONLY = {"sensors": {"cameras": {"foreground_method": "none", "person_likelihood": 0.9,
+                                     "box_free_log_odds": 0.0, "generative_radius_m": 0.3}}}
+DET_NAME = "tuned + YOLOX-Nano boxes"
+DET_ONLY_NAME = "YOLOX-Nano boxes alone"
 ROWS = {
     "gen": ("tuned", {}),
     "gen-nofilter": ("tuned", _NOFILTER),
@@ -127,9 +136,24 @@ ROWS = {
     "knn": ("KNN defaults", _changes(_CELL_ROW, {"sensors": {"cameras": _KNN_DEFAULTS}})),
     "gen-gain": ("KNN + gain compensation", {"sensors": {"cameras": _GAIN_ONLY}}),
     "gen-knn": ("KNN defaults", {"sensors": {"cameras": _KNN_DEFAULTS}}),
+    "det": (DET_NAME, _DET),
+    "det-nofilter": (DET_NAME, _changes(_DET, _NOFILTER)),
+    "det-ground": (DET_NAME, _changes(_DET, _GROUND)),
+    "detonly": (DET_ONLY_NAME, _changes(_DET, _DET_ONLY)),
+    "detonly-nofilter": (DET_ONLY_NAME, _changes(_DET, _DET_ONLY, _NOFILTER)),
 }
-TABLE_ROWS = ("generative", "pom")
+TABLE_ROWS = ("generative", "pom", "pom-det")
 TUNED_NAME = "tuned (terrace.yaml)"
+
+
+def with_person_model(changes: dict, model: Path | None) -> dict:
+    """A row's configuration changes with the person model's path filled in (None: the row needs none)."""
+    cams = changes.get("sensors", {}).get("cameras", {})
+    if "person_model" not in cams:
+        return changes
+    if model is None:
+        raise SystemExit("the detector rows need --person-model (a YOLOX ONNX file)")
+    return merged(changes, {"sensors": {"cameras": {"person_model": str(model.resolve())}}})
 
 
 def load_base_config(path: Path = CONFIG) -> dict:
@@ -361,6 +385,8 @@ def main(argv=None) -> int:
                     help="change a configuration field for every row, e.g. models.detection.column_threshold=2 "
                          "(tuning; repeatable)")
     ap.add_argument("--pom", action="store_true", help="also run POM on the same masks (needs g++, make, libpng)")
+    ap.add_argument("--person-model", type=Path, default=_shared_person_model(),
+                    help="YOLOX ONNX file of the detector rows (default ../shared/models/yolox_nano where present)")
     ap.add_argument("--run-dir", type=Path, default=None,
                     help="also run the main row into this folder exactly as `planefuse run` does")
     args = ap.parse_args(argv)
@@ -397,7 +423,7 @@ def main(argv=None) -> int:
         for key, (front, changes) in ROWS.items():
             if key not in rows:
                 continue
-            cfg = merged(base, changes)
+            cfg = merged(base, with_person_model(changes, args.person_model))
             filt, raw = run_row(rec, cfg, truth, frames)
             if filt["n_frames"] != len(frames) or raw["n_frames"] != len(frames):
                 raise RuntimeError(f"row {key}: scored {filt['n_frames']} / {raw['n_frames']} instants, "
@@ -413,6 +439,9 @@ def main(argv=None) -> int:
                 model += " + stitching"
             use_filter = cfg.get("models", {}).get("filter", {}).get("enabled", True)
             front_name = TUNED_NAME if front == "tuned" else front
+            if cams.get("person_detector"):
+                filt["detector_min_score"] = config_from_dict(merged(cfg, {"recording": "."})).system_params() \
+                    .camera_params.foreground.min_person_score
             results.append(dict(row=key, front_end=front_name, planes=planes,
                                 filter="BOF" if use_filter else "off", sensor_model=model, scores=filt))
             # the per-frame detector's own row comes from a run that does not feed its tracks back into the
@@ -453,6 +482,19 @@ def main(argv=None) -> int:
                                         planes="ground locations (25 cm)", filter="none (per frame)",
                                         sensor_model="POM (reference program)", scores=pom))
                     print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
+        if "pom-det" in rows:
+            # POM fed the detector's masks: its boxes filled, no background subtraction (the detector-alone front end)
+            det_cfg = merged(base, with_person_model(_changes(_DET, _DET_ONLY), args.person_model))
+            det_masks, _ = foreground_masks(rec, tuned_front_end(det_cfg))
+            det_masks = [m[len(run_frames) - len(frames):] for m in det_masks]
+            sys.path.insert(0, str(REPO / "benchmarks"))
+            from bench_terrace_pom import pom_row
+
+            pom = pom_row(rec, det_masks, frames, lambda d: score(truth, frames, d), out / "pom-det")
+            if pom is not None:
+                results.append(dict(row="pom-det", front_end=DET_ONLY_NAME, planes="ground locations (25 cm)",
+                                    filter="none (per frame)", sensor_model="POM (reference program)", scores=pom))
+                print(markdown(results[-1:]).split("\n", 2)[-1], flush=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     meta = dict(first=args.first, last=args.last, step=args.step, process_step=process_step,
@@ -465,6 +507,12 @@ def main(argv=None) -> int:
     print(markdown(results))
     print(f"written {out / 'terrace.json'}")
     return 0
+
+
+def _shared_person_model() -> Path | None:
+    """The shared YOLOX-Nano test model beside the checkout, where it is."""
+    p = REPO.parent / "shared" / "models" / "yolox_nano" / "yolox_nano.onnx"
+    return p if p.is_file() else None
 
 
 def warm_frames(warmup_from: int | None, first: int, last: int, step: int) -> np.ndarray:

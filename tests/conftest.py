@@ -47,6 +47,12 @@ def shared_data(name: str) -> Path:
     return p
 
 
+def shared_model(name: str) -> Path:
+    """Path of ``../shared/models/<name>`` (a pretrained model for tests only), as :func:`shared_data` finds
+    ``../shared/data``: the test must be marked ``realdata``; skip with a reason where absent."""
+    return shared_data(f"../models/{name}")
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(0)

@@ -92,7 +92,7 @@ def test_even_velocity_count_is_rejected(tmp_path):
         ("cell_size_m: 0.1", "cell_size_m: fine", "planes.cell_size_m", "[m]"),
         ("velocity_max_m_s: 1.5", "velocity_max_m_s: 34.3", "models.filter.velocity_max_m_s", "[m/s]"),
         ("history_frames: 500", "history_frames: 0", "sensors.cameras.history_frames", "[frames]"),
-        ("foreground_method: knn", "foreground_method: GMG", "sensors.cameras.foreground_method", "knn, mog2, cnt or mean"),
+        ("foreground_method: knn", "foreground_method: GMG", "sensors.cameras.foreground_method", "knn, mog2, cnt, mean or none"),
         ("prior_occupancy: 0.05", "prior_occupancy: 1.0", "models.filter.prior_occupancy", "(0, 1)"),
         ("animation: gif", "animation: avi", "outputs.animation", "gif"),
         ("chunk_steps: 50", "chunk_steps: 0", "outputs.chunk_steps", "[steps]"),

@@ -634,7 +634,14 @@ def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor
                         .replace(f"recording: {d / 'no-such-recording'}", f"recording: {out}"))
     r = _cli("check", fitted, "--log-json")
     assert r.exit_code == 0 and json.loads(r.output)["ok"], r.output
-    # two cameras with the per-cell model (the default): a warning pointing at the generative model
+    # real video: the real-video profile (the generative model), so no warning about the per-cell model's ghosts
+    assert cfg.sensors.cameras.sensor_model == "generative" and cfg.models.detection.column_threshold == 2.0
+    assert not [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.sensor_model"]
+    # two cameras with the per-cell model (the simulated profile): a warning pointing at the generative model
+    cell = d / "cell.yaml"
+    assert _cli("config", "init", cell, "--recording", out, "--profile", "simulated").exit_code == 0
+    cell.write_text(cell.read_text().replace("out_dir: planefuse-out", f"out_dir: {d / 'cell'}-out"))
+    r = _cli("check", cell, "--log-json")
     (ghosts,) = [i for i in json.loads(r.output)["issues"] if i["subject"] == "sensors.cameras.sensor_model"]
     assert ghosts["level"] == "warning" and "sensor_model: generative" in ghosts["message"]
     # 25 Hz cameras at the default 5 Hz: said; an output rate above it: a warning
@@ -669,3 +676,52 @@ def test_config_init_fits_an_imported_recording_and_run_refuses_a_missing_sensor
     assert "moda" not in m and m["n_steps"] >= 1 and m["n_camera_frames"] == 2
     assert m["missing_camera_frames"] == {"c0": 0, "c1": 0} and m["n_missing_camera_frames"] == 0
     assert re.search(r"n_steps\W+\d+", r.output) and "n_missing_camera_frames" in r.output
+
+
+def test_a_recording_imported_without_an_area_gets_one_proposed_no_error_loop(installation):
+    """Issue 38: without --room (and no ground truth) `check` and `config init` used to refuse with the same line;
+    now both use the ground at least two cameras see, and say so."""
+    d, *_ = installation
+    out = d / "rec"
+    r = _cli("import", out, "--camera", f"c0={d / 'c0.mkv'}", "--camera", f"c1={d / 'c1'}", "--rate", "c1=25",
+             "--calib-format", "opencv", "--units", "mm", "--calib", f"c0={d / 'c0.yaml'}",
+             "--calib", f"c1={d / 'c1.yaml'}")
+    assert r.exit_code == 0, r.output
+    assert "room_xy_m" not in (out / "scene.yaml").read_text()
+    r = _cli("check", out, "--log-json", "--figures", d / "pictures")
+    found = json.loads(r.output)
+    assert any("monitored area proposed" in i["message"] for i in found["issues"]), r.output
+    assert r.exit_code == 0 and found["ok"], r.output
+    assert sorted(p.name for p in (d / "pictures").iterdir()) == ["camera_c0.png", "camera_c1.png", "coverage.png"]
+    r = _cli("config", "init", d / "run.yaml", "--recording", out)
+    assert r.exit_code == 0 and "monitored area proposed" in " ".join(r.output.split()), r.output
+    cfg = load_config(d / "run.yaml")
+    assert cfg.planes.x_range_m is not None and cfg.planes.y_range_m is not None
+    assert cfg.planes.heights_m == [0.1, 0.5, 1.0, 1.5]  # import's default planes are the library's
+
+
+def test_ignore_rects_in_the_run_configuration_equal_the_imports(installation):
+    """Issue 38: an ignore region can be set in the run configuration (sensors.cameras.ignore_rects_px) as well as at
+    import (--ignore-rect): the same pixels are unobserved; a wrong camera or a rectangle past the image is refused."""
+    from planefuse.io import read_recording
+    from planefuse.pipeline import recording_with_ignore_rects
+
+    d, *_ = installation
+    base = ["--camera", f"c0={d / 'c0.mkv'}", "--camera", f"c1={d / 'c1'}", "--rate", "c1=25", "--calib-format",
+            "opencv", "--units", "mm", "--calib", f"c0={d / 'c0.yaml'}", "--calib", f"c1={d / 'c1.yaml'}"]
+    assert _cli("import", d / "with", *base, "--ignore-rect", "c0=10,5,40,30").exit_code == 0
+    assert _cli("import", d / "without", *base).exit_code == 0
+    imported = read_recording(d / "with").camera("c0").ignore_mask
+    plain = read_recording(d / "without")
+    configured = recording_with_ignore_rects(plain, (("c0", 10, 5, 40, 30),))
+    np.testing.assert_array_equal(configured.camera("c0").ignore_mask, imported)
+    assert plain.camera("c0").ignore_mask is None  # the recording itself is not changed
+    with pytest.raises(ValueError, match="names camera 'c9', which the recording does not have"):
+        recording_with_ignore_rects(plain, (("c9", 0, 0, 5, 5),))
+    with pytest.raises(ValueError, match=r"reaches past its 96x72 px image"):
+        recording_with_ignore_rects(plain, (("c1", 50, 50, 97, 60),))
+    r = _cli("config", "init", d / "run.yaml", "--recording", d / "without")
+    assert r.exit_code == 0
+    text = (d / "run.yaml").read_text().replace("ignore_rects_px: []", "ignore_rects_px: [[c0, 10, 5, 40, 30]]")
+    (d / "run.yaml").write_text(text)
+    assert load_config(d / "run.yaml").system_params().camera_ignore_rects_px == (("c0", 10, 5, 40, 30),)

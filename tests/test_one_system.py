@@ -28,7 +28,9 @@ def _metrics(folder: Path) -> dict:
     return {k: v for k, v in m.items() if k not in TIMING}
 
 
-def test_demo_and_run_of_its_recording_write_the_same_tracks_detections_and_metrics(tmp_path):
+def test_demo_equals_simulate_config_init_and_run_byte_for_byte(tmp_path):
+    """``planefuse demo`` = ``planefuse simulate`` + ``planefuse config init --recording`` + ``planefuse run``: the
+    same tracks, detections and metrics (issue 38: config init wrote planes from 0.0 m and the whole room)."""
     demo, run = tmp_path / "demo", tmp_path / "run"
     r = runner.invoke(app, ["demo", "--out", str(demo), "--duration-s", "3", "--seed", "1", "--quiet"])
     assert r.exit_code == 0, r.output
@@ -40,8 +42,12 @@ def test_demo_and_run_of_its_recording_write_the_same_tracks_detections_and_metr
     assert cfg == yaml.safe_load(RunConfig(recording=Path(cfg["recording"]),
                                            outputs={"out_dir": Path(cfg["outputs"]["out_dir"])}
                                            ).plan().config_text)  # the default configuration
-    cfg["recording"], cfg["outputs"]["out_dir"] = str(tmp_path / "rec"), str(run)
-    (tmp_path / "run.yaml").write_text(yaml.safe_dump(cfg))
+    # the user's way: `config init` on the simulated recording writes the simulated profile, the library's defaults
+    r = runner.invoke(app, ["config", "init", str(tmp_path / "run.yaml"), "--recording", str(tmp_path / "rec")],
+                      terminal_width=200)
+    assert r.exit_code == 0 and "profile simulated" in r.output, r.output
+    text = (tmp_path / "run.yaml").read_text()
+    (tmp_path / "run.yaml").write_text(text.replace("out_dir: planefuse-out", f"out_dir: {run}"))
     r = runner.invoke(app, ["run", str(tmp_path / "run.yaml")], terminal_width=200)
     assert r.exit_code == 0, r.output
     flat = " ".join(r.output.split())
@@ -73,6 +79,7 @@ CHANGED = {
     "sensors.cameras.attitude_tolerance_px": 2.0,
     "sensors.cameras.imu_filter": "mahony",
     "sensors.cameras.sensor_model": "generative",
+    "sensors.cameras.ignore_rects_px": [("cam0", 0, 0, 360, 200)],
     "sensors.cameras.learning_rate": 0.01,
     "sensors.cameras.shadow_likelihood": 0.5,
     "sensors.cameras.gain_compensation": True,
@@ -100,6 +107,16 @@ CHANGED = {
     "sensors.cameras.person_upscale": 1.5,
     "sensors.cameras.person_min_score": 1.0,
     "sensors.cameras.person_likelihood": 0.7,
+    "sensors.cameras.person_model": "person.onnx",
+    "sensors.cameras.person_input_px": [384, 288],
+    "sensors.cameras.person_nms_iou": 0.6,
+    "sensors.cameras.person_outside_weight": 0.5,
+    "sensors.cameras.box_log_odds": 2.0,
+    "sensors.cameras.box_foot_std_frac": 0.1,
+    "sensors.cameras.box_min_std_m": 0.2,
+    "sensors.cameras.box_override": True,
+    "sensors.cameras.box_free_log_odds": -1.0,
+    "sensors.cameras.selective_source": "detector",
     "sensors.cameras.generative_people_per_m2": 0.1,
     "sensors.cameras.generative_sigma": 0.01,
     "sensors.cameras.generative_radius_m": 0.3,
@@ -164,6 +181,8 @@ CHANGED = {
     "outputs.report": False,
     "outputs.rerun": True,
     "outputs.figure_dpi": 60,
+    "outputs.animation_max_frames": 40,
+    "outputs.camera_videos": True,
 }
 
 
@@ -227,7 +246,7 @@ RUN_FIELDS = ["planes.heights_m", "sensors.cameras.history_frames", "sensors.cam
               "sensors.cameras.sensor_model", "sensors.laser.p_occupied_hit", "sensors.sound.block_length_s",
               "models.filter.enabled",
               "models.filter.decay_rate_hz", "models.detection.column_threshold", "models.filter.output_period_s",
-              "models.filter.camera_correlation_s", "scene.occluder_boxes_m"]
+              "models.filter.camera_correlation_s", "scene.occluder_boxes_m", "sensors.cameras.ignore_rects_px"]
 
 
 @pytest.mark.parametrize("field", RUN_FIELDS)
@@ -259,7 +278,8 @@ def test_resume_key_ignores_output_options_and_follows_models(short_recording, t
     cfg = RunConfig(recording=Path("r"))
     key = resume_key(cfg.plan(), short_recording)
     for path, value in (("outputs.figures", False), ("outputs.out_dir", "elsewhere"), ("outputs.report", False),
-                        ("outputs.animation", "none"), ("outputs.figure_dpi", 50), ("outputs.rerun", True)):
+                        ("outputs.animation", "none"), ("outputs.figure_dpi", 50), ("outputs.rerun", True),
+                        ("outputs.animation_max_frames", None), ("outputs.camera_videos", True)):
         assert resume_key(config_from_dict(_nested(path, value)).plan(), short_recording) == key, path
     for path, value in (("models.filter.decay_rate_hz", 1.0), ("outputs.chunk_steps", 10), ("planes.heights_m", [1.0])):
         assert resume_key(config_from_dict(_nested(path, value)).plan(), short_recording) != key, path

@@ -320,7 +320,7 @@ def test_unseen_strip_of_a_turned_camera_gives_no_evidence():
     fe = [CameraFrontEnd(W, H, ForegroundParams(), c.name) for c in rec.cameras]
     images = [frame.copy() for _ in rec.cameras]
     reg._moved = lambda time_s: []  # keep the map set above
-    (_, fgs, status), = camera_foregrounds([(0.5, images)], fe, registration=reg)
+    (_, fgs, status, _), = camera_foregrounds([(0.5, images)], fe, registration=reg)
     assert status[1] == "ok"
     assert np.all(fgs[1][unseen] == NEUTRAL_FOREGROUND)
     assert not np.any(fgs[1][~unseen] == NEUTRAL_FOREGROUND)

@@ -12,6 +12,7 @@ from planefuse.config import config_from_dict
 from planefuse.vision import ForegroundParams
 from planefuse.vision._foreground import BackgroundSubtractor, PersonDetector
 from planefuse.vision._fusion import quantise_foreground
+from planefuse.vision._yolox import PersonBoxes
 
 from conftest import shared_data
 
@@ -30,8 +31,8 @@ def test_detected_bodies_are_raised_to_the_person_likelihood_and_nothing_else_ch
     with_people = BackgroundSubtractor(W, H, ForegroundParams(close_px=0, person_detector="hog",
                                                               person_likelihood=0.8))
     # one box 20 px wide, 40 px tall at (10, 8): its body is columns 15-24, rows 13-42
-    monkeypatch.setattr(PersonDetector, "boxes", lambda self, frame: (np.array([[10.0, 8.0, 20.0, 40.0]]),
-                                                                        np.array([1.0])))
+    monkeypatch.setattr(PersonDetector, "detect", lambda self, frame: PersonBoxes(np.array([[10.0, 8.0, 20.0, 40.0]]),
+                                                                                  np.array([1.0])))
     for frame in _frames(5):
         a, b = plain.apply(frame, quantised=quantised), with_people.apply(frame, quantised=quantised)
     body = np.zeros((H, W), bool)
@@ -46,9 +47,9 @@ def test_boxes_at_the_border_are_clipped_to_the_frame(monkeypatch):
     sub = BackgroundSubtractor(W, H, ForegroundParams(close_px=0, person_detector="hog", person_likelihood=1.0,
                                                       floor=0.0, ceiling=1.0))
     # bodies: columns -10..10, rows -20..40 (clipped to 0..10, 0..40); columns 70..90, rows 40..100 (70..80, 40..60)
-    monkeypatch.setattr(PersonDetector, "boxes", lambda self, frame: (np.array([[-20.0, -30.0, 40.0, 80.0],
-                                                                                [60.0, 30.0, 40.0, 80.0]]),
-                                                                        np.ones(2)))
+    monkeypatch.setattr(PersonDetector, "detect", lambda self, frame: PersonBoxes(np.array([[-20.0, -30.0, 40.0, 80.0],
+                                                                                          [60.0, 30.0, 40.0, 80.0]]),
+                                                                                  np.ones(2)))
     plain = BackgroundSubtractor(W, H, ForegroundParams(close_px=0, floor=0.0, ceiling=1.0))
     for frame in _frames(5):
         like, before = sub.apply(frame), plain.apply(frame)
@@ -60,6 +61,7 @@ def test_boxes_at_the_border_are_clipped_to_the_frame(monkeypatch):
 
 
 @pytest.mark.parametrize("change, field", [(dict(person_detector="yolo"), "person_detector"),
+                                           (dict(person_detector="hog", person_outside_weight=-0.1), "person_outside_weight"),
                                            (dict(person_likelihood=1.5), "person_likelihood"),
                                            (dict(person_upscale=0.0), "person_upscale"),
                                            (dict(person_min_score=float("nan")), "person_min_score")])

@@ -169,3 +169,37 @@ def test_selective_update_needs_the_cameras(sim):
     params = CameraParams(foreground=ForegroundParams(selective_update=True))
     with pytest.raises(ValueError, match="selective_update needs the calibrated cameras"):
         next(camera_detections(recording_frames(sim), lookups_from_cameras(sim.cameras, STACK), STACK, params))
+
+
+def test_the_detectors_boxes_keep_a_person_standing_still_in_the_foreground(monkeypatch, tmp_path):
+    """selective_source 'detector': the subtractor protects its own detector's boxes of the previous frame (no
+    protect() call from outside); a detector that finds nobody protects nothing (OpenCV's blind update)."""
+    from planefuse.vision._foreground import PersonDetector
+    from planefuse.vision._yolox import PersonBoxes
+
+    box = np.array([[30.0, 20.0, 15.0, 30.0]])  # the person's block: cols 30-44, rows 20-49
+    seen = {"person": False}
+
+    def detect(self, frame):
+        return PersonBoxes(box, np.ones(1)) if seen["person"] else PersonBoxes.empty()
+
+    pytest.importorskip("onnx", reason="the onnx package (dev extra) builds the test model")
+    from test_vision_yolox import SIDE, constant_model, raw_rows
+
+    monkeypatch.setattr(PersonDetector, "detect", detect)  # a model that loads; its answers are set here
+    params = ForegroundParams(**RAW, selective_update=True, selective_max_frames=150, person_detector="yolox",
+                              person_model=constant_model(tmp_path / "m.onnx", raw_rows()),
+                              person_input_px=(SIDE, SIDE), person_likelihood=None, selective_source="detector")
+    rng = np.random.default_rng(1)
+    sub = BackgroundSubtractor(W, H, params)
+    assert sub.protects_itself
+    kept = []
+    for i in range(290):
+        seen["person"] = i >= 150
+        kept.append(sub.apply(_scene(rng, i >= 150)))
+    blind = _run(ForegroundParams(**RAW), 150, 140, protect=False)
+    inside = lambda fg: float(fg[PERSON].mean())  # noqa: E731
+    assert inside(blind[-1]) < 0.2
+    assert min(inside(fg) for fg in kept[151:]) > 0.95
+    with pytest.raises(ValueError, match="selective_source"):
+        ForegroundParams(selective_update=True, selective_source="detector")

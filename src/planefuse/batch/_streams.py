@@ -77,8 +77,8 @@ class CameraStream:
         j = frame_at(self.stream, time_s)
         return None if j is None else self.stream.frame(j)
 
-    def chunk(self, k: int) -> list[tuple[np.ndarray | None, str]]:
-        """``(foreground, status)`` per camera instant of chunk ``k`` (:meth:`CameraFrontEnd.process`); chunks are
+    def chunk(self, k: int) -> list[tuple[np.ndarray | None, str, object]]:
+        """``(foreground, status, boxes)`` per camera instant of chunk ``k`` (:meth:`CameraFrontEnd.process`); chunks are
         computed in order whatever order the calls arrive in."""
         with self._lock:
             while self._next <= k:
@@ -95,7 +95,7 @@ class CameraStream:
 def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: np.ndarray, start: int = 0,
                        quantise: bool = True, chunk: int = 10, ahead: int = 3, stride: int = 1,
                        max_rate_hz: float | None = None, windows: Sequence | None = None,
-                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
+                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str], list]]:
     """Every camera's front end on the cluster, in time order: what :func:`planefuse.vision.camera_foregrounds`
     gives in this process.
 
@@ -126,7 +126,7 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
 
     Yields
     ------
-    (time_s, foregrounds, statuses)
+    (time_s, foregrounds, statuses, boxes)
         Per camera instant, each camera's :meth:`~planefuse.vision.CameraFrontEnd.process`.
     """
     if root is None:
@@ -150,7 +150,7 @@ def remote_foregrounds(client, root, names: Sequence[str], foreground, times_s: 
                 for a, p in zip(actors, pending):
                     p.append(a.chunk(k + ahead))
             for i, t in enumerate(times_s[k * chunk:(k + 1) * chunk]):
-                yield float(t), [r[i][0] for r in results], [r[i][1] for r in results]
+                yield float(t), [r[i][0] for r in results], [r[i][1] for r in results], [r[i][2] for r in results]
     finally:
         del actors, pending
         client.cancel(futures)

@@ -51,10 +51,17 @@ def check(
     config: Path = typer.Argument(..., help="Run configuration (YAML), or a recording folder (checked with its "
                                   "own plane stack and monitored area, 10 cm cells)."),
     log_json: bool = typer.Option(False, "--log-json", help="Print the findings as one JSON object."),
+    figures: Path = typer.Option(None, "--figures", help="Also write pictures to this folder: each camera's image "
+                                 "with the monitored area, a 1 m ground grid and each plane's border drawn "
+                                 "(camera_NAME.png), and a top view of how many cameras see each cell "
+                                 "(coverage.png)."),
+    frame: int = typer.Option(0, "--frame", help="With --figures: the recording's frame to draw on (negative: from "
+                              "the end)."),
 ) -> None:
-    """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running."""
+    """Validate CONFIG and its recording (calibrations, streams, time stamps, camera coverage) without running;
+    with --figures, draw the ground, the monitored area and the planes on every camera."""
     try:
-        cfg = load_config(config) if not config.is_dir() else recording_check_config(config)
+        cfg, chosen = (load_config(config), ()) if not config.is_dir() else recording_check_config(config)
     except ConfigError as err:
         if log_json:
             print(json.dumps({"ok": False, "file": str(err.file), "issues": [
@@ -63,12 +70,15 @@ def check(
             raise typer.Exit(2) from None
         exit_on_config_error(err)
     report = CheckReport()
+    _check_person_model(cfg, report)
+    for message in chosen:
+        report.add("info", "configuration", message)
     if not cfg.recording.is_dir():
         report.add("error", "recording", f"folder {cfg.recording} does not exist")
     elif not (cfg.recording / SCENE_FILE).is_file():
         report.add("error", "recording", f"{cfg.recording} has no {SCENE_FILE} manifest")
     else:
-        _check_with_recording(cfg, report)
+        _check_with_recording(cfg, report, figures, frame)
     if log_json:
         print(_report_json(report))
     else:
@@ -82,6 +92,31 @@ def check(
         console.print("[bold green]OK[/]: ready to run" if report.ok
                       else f"[bold red]{len(report.errors)} error(s)[/]")
     raise typer.Exit(0 if report.ok else 1)
+
+
+def _check_person_model(cfg: RunConfig, report: CheckReport) -> None:
+    """The person detector's model (loaded and checked by :func:`load_config` already): its checksum and its cost
+    per frame on one core, measured here."""
+    cams = cfg.sensors.cameras
+    if not cams.enabled or cams.person_detector != "yolox":
+        return
+    import cv2
+
+    from ..vision import YoloxDetector
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        wh = tuple(cams.person_input_px or (416, 416))
+        det = YoloxDetector(cams.person_model, wh)
+        ms = det.cost_ms(wh)
+    finally:
+        cv2.setNumThreads(threads)
+    info = det.info
+    report.add("info", "sensors.cameras.person_model",
+               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, {ms:.1f} ms per frame on one core at "
+               f"{wh[0]} x {wh[1]} px (measured now; person_input_px null fits each camera's frames: their own size, "
+               "or a longer side of 416 px)")
 
 
 def _check_camera_rate(cfg: RunConfig, rec, report: CheckReport) -> None:
@@ -104,8 +139,8 @@ def _check_camera_rate(cfg: RunConfig, rec, report: CheckReport) -> None:
                    "every frame; docs/results.md); max_rate_hz: null gives it every frame")
 
 
-def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
-    """The recording's own checks, and the plane stack the run would use on it."""
+def _check_with_recording(cfg: RunConfig, report: CheckReport, figures: Path | None = None, frame: int = 0) -> None:
+    """The recording's own checks, and the plane stack the run would use on it (drawn into ``figures``)."""
     from ..pipeline import stack_for_recording
 
     try:
@@ -137,9 +172,19 @@ def _check_with_recording(cfg: RunConfig, report: CheckReport) -> None:
                    f"{len(rec.cameras)} camera(s) with the per-cell model: it reports people where the views' lines of "
                    "sight cross (ghosts); the generative model explains them away (two cameras: EPFL terrace real "
                    "video, filtered MODA 0.58 generative against -3.0 per cell; simulated, 0.65-0.67 against -0.45 to "
-                   "-0.80; docs/results.md). Consider sensor_model: generative with scripts/terrace.yaml's settings")
+                   "-0.80; docs/results.md). Use the real-video profile's sensor_model: generative and its companions: "
+                   "planefuse config init --profile real-video")
     if cams:
+        from ..registration import camera_view_findings
+
         _check_camera_rate(cfg, rec, report)
+        for level, subject, message in camera_view_findings(rec.cameras, stack):
+            report.add(level, subject, message)
+        if figures is not None:
+            _write_figures(rec, stack, figures, frame, report)
+        else:
+            report.add("info", "figures", "see where the monitored area, the ground and the planes lie on each "
+                       "camera's image: planefuse check ... --figures DIR")
     sub = check_recording(rec.cameras if cams else [], stack, times, recording=rec,
                           frame_files={n: cs.frame_files for n, cs in rec.camera_streams.items()} if cams else None)
     report.issues += sub.issues
@@ -169,3 +214,19 @@ def _check_outputs(cfg: RunConfig, rec, report: CheckReport) -> None:
             import rerun as _  # noqa: F401
         except ImportError:
             report.add("error", "outputs.rerun", "needs rerun-sdk: pip install 'planefuse[viz]'")
+
+
+def _write_figures(rec, stack, folder: Path, frame: int, report: CheckReport) -> None:
+    """The pictures of :func:`planefuse.viz.installation_preview` written into ``folder``."""
+    from ..outputs import atomic_write_bytes
+    from ..viz import installation_preview
+
+    try:
+        pictures = installation_preview(rec, stack, frame_index=frame)
+        folder.mkdir(parents=True, exist_ok=True)
+        for stem, png in pictures.items():
+            atomic_write_bytes(folder / f"{stem}.png", png)
+    except (ValueError, OSError) as err:
+        report.add("error", "figures", f"cannot draw the pictures into {folder}: {err}")
+        return
+    report.add("info", "figures", f"wrote {', '.join(f'{s}.png' for s in pictures)} to {folder}")

@@ -14,13 +14,13 @@ from ..io import (
     CameraInput,
     geometry_findings,
     import_recording,
-    load_manifest,
     frame_times_of,
     people_from_boxes,
     probe_camera_input,
     read_control_points,
     read_ground_positions,
 )
+from ..pipeline import SystemParams
 from rich.markup import escape
 
 from ._app import app, console, exit_with_error
@@ -75,26 +75,17 @@ def _size(text: str, option: str) -> tuple[int, int]:
 
 
 def recording_check_config(folder: Path):
-    """The run configuration ``planefuse check FOLDER`` uses for a recording folder: the recording's own planes and
-    monitored area (``room_xy_m``), 10 cm cells, the sensors it has."""
-    from ..config import RunConfig
+    """The run configuration ``planefuse check FOLDER`` uses for a recording folder, the one ``planefuse config
+    init --recording FOLDER`` writes (:func:`planefuse.config.config_for_recording`), and what was chosen and why
+    (messages)."""
+    from ..config import config_for_recording
+    from ..io import read_recording
 
     try:
-        m = load_manifest(folder / "scene.yaml")
-    except ValueError as exc:
+        fit = config_for_recording(read_recording(folder))
+    except (ValueError, OSError) as exc:
         exit_with_error(str(exc))
-    if m.room_xy_m is None:
-        exit_with_error(f"{folder / 'scene.yaml'}: no room_xy_m (monitored area); check it with a run configuration")
-    x0, x1, y0, y1 = m.room_xy_m
-    cfg = RunConfig(recording=folder.resolve())
-    planes = cfg.planes.model_copy(update=dict(heights_m=list(m.planes_heights_m), x_range_m=(x0, x1),
-                                               y_range_m=(y0, y1), cell_size_m=0.1))
-    s = cfg.sensors
-    sensors = s.model_copy(update={
-        "cameras": s.cameras.model_copy(update={"enabled": bool(m.entries("camera"))}),
-        "laser": s.laser.model_copy(update={"enabled": bool(m.entries("laser"))}),
-        "sound": s.sound.model_copy(update={"enabled": bool(m.entries("binaural"))})})
-    return cfg.model_copy(update={"planes": planes, "sensors": sensors})
+    return fit.config, fit.messages
 
 
 @app.command("import")
@@ -143,7 +134,8 @@ def import_cmd(
                                       "frame,person_id,x,y: ground-truth positions on the ground (--units)."),
     points: Path = typer.Option(None, "--points", help="CSV camera,u_px,v_px,x,y,z: pixels of known world points "
                                 "(--units), reprojected by planefuse check."),
-    planes: str = typer.Option("0,0.5,1,1.5", "--planes", help="Suggested plane heights [m]."),
+    planes: str = typer.Option(",".join(f"{h:g}" for h in SystemParams().heights_m), "--planes",
+                               help="Suggested plane heights [m] (default: the library's)."),
     room: str = typer.Option(None, "--room", help="Monitored area X_MIN,X_MAX,Y_MIN,Y_MAX [m]; default: the "
                              "ground truth's extent + 1 m."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Write into a non-empty folder."),

@@ -22,11 +22,29 @@ from ._models import (
     SoundSensorConfig,
     library_fields,
 )
+from ._profiles import (
+    PROFILES,
+    REAL_VIDEO,
+    SIMULATED,
+    FittedConfig,
+    Profile,
+    ProfileSetting,
+    config_for_recording,
+    profile_for_recording,
+)
 
 __all__ = [
     "CameraSensorConfig",
     "CheckIssue",
     "CheckReport",
+    "FittedConfig",
+    "PROFILES",
+    "Profile",
+    "ProfileSetting",
+    "REAL_VIDEO",
+    "SIMULATED",
+    "config_for_recording",
+    "profile_for_recording",
     "ConfigError",
     "ConfigIssue",
     "DetectionModelConfig",

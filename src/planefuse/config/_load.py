@@ -216,7 +216,26 @@ def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
         if problem:
             raise ConfigError(path, [ConfigIssue(".".join(loc), problem, _expected(_field_info(loc)),
                                                  _line_of(root, loc))])
+    cameras = cfg.sensors.cameras
+    if cameras.enabled and cameras.person_detector == "yolox":
+        loc = ("sensors", "cameras", "person_model")
+        problem = _person_model_problem(cameras.person_model, cameras.person_input_px or (416, 416))
+        if problem:
+            raise ConfigError(path, [ConfigIssue(".".join(loc), problem, _expected(_field_info(loc)),
+                                                 _line_of(root, loc))])
     return cfg
+
+
+def _person_model_problem(model_path: str, input_px) -> str:
+    """Why the YOLOX person model at ``model_path`` cannot be run at ``input_px`` ("" when it loads and its output
+    has YOLOX's layout): the run would otherwise stop at its first frame."""
+    from ..vision import load_yolox
+
+    try:
+        load_yolox(model_path, tuple(input_px))
+    except ValueError as err:
+        return str(err)
+    return ""
 
 
 def _sound_model_problem(model_path: Path) -> str:
@@ -240,7 +259,7 @@ def config_yaml(cfg: RunConfig) -> str:
 def config_hash(cfg: RunConfig) -> str:
     """SHA-256 (hex) of everything in ``cfg`` that changes the computed results.
 
-    Presentation-only outputs (``out_dir``, ``figures``, ``animation``,
+    Presentation-only outputs (``out_dir``, ``figures``, ``animation``, ``animation_max_frames``, ``camera_videos``,
     ``report``, ``rerun``, ``figure_dpi``) are left out, so changing them does
     not invalidate a run's finished chunks.
     """
@@ -265,15 +284,24 @@ def _scalar(value: Any) -> str:
     return yaml.safe_dump(value, default_flow_style=True, width=10_000).strip().removesuffix("...").strip()
 
 
-def _model_lines(model: BaseModel, indent: int) -> list[str]:
+def _note_lines(note: str, pad: str, width: int = 116) -> list[str]:
+    """``note`` as comment lines of at most ``width`` characters, indented by ``pad``."""
+    import textwrap
+
+    return [pad + "#   " + line for line in textwrap.wrap(note, max(width - len(pad) - 4, 40))]
+
+
+def _model_lines(model: BaseModel, indent: int, notes: dict[str, str] | None = None, prefix: str = "") -> list[str]:
     pad = "  " * indent
     lines: list[str] = []
     for name, info in type(model).model_fields.items():
         value = getattr(model, name)
         lines.append(pad + _comment(info))
+        if notes and f"{prefix}{name}" in notes:
+            lines.extend(_note_lines(notes[f"{prefix}{name}"], pad))
         if isinstance(value, BaseModel):
             lines.append(f"{pad}{name}:")
-            lines.extend(_model_lines(value, indent + 1))
+            lines.extend(_model_lines(value, indent + 1, notes, f"{prefix}{name}."))
         else:
             lines.append(f"{pad}{name}: {_scalar(value)}")
     return lines
@@ -283,12 +311,15 @@ def _model_lines(model: BaseModel, indent: int) -> list[str]:
 EXAMPLE_RECORDING = "recordings/my-scene"
 
 
-def example_yaml(recording: str = EXAMPLE_RECORDING, config: RunConfig | None = None) -> str:
+def example_yaml(recording: str = EXAMPLE_RECORDING, config: RunConfig | None = None, *,
+                 notes: dict[str, str] | None = None, header: tuple[str, ...] = ()) -> str:
     """A complete, commented example configuration (every field at its default, or at ``config``'s values).
 
     The comments give each field's meaning, unit and accepted range; the text
     loads back with :func:`load_config` unchanged. ``config`` (e.g. fitted to an existing recording: its planes,
-    area and sensors) replaces the defaults; its recording path is replaced by ``recording``.
+    area and sensors) replaces the defaults; its recording path is replaced by ``recording``. ``notes`` (dotted
+    field path -> text, e.g. a profile's measurements) are written as comments under those fields; ``header``
+    lines as comments at the top.
     """
     cfg = RunConfig(recording=Path(recording)) if config is None else \
         config.model_copy(update={"recording": Path(recording)})
@@ -297,6 +328,7 @@ def example_yaml(recording: str = EXAMPLE_RECORDING, config: RunConfig | None = 
         "# Units are in the field names (_m metres, _s seconds, _hz hertz, _m_s metres per second).",
         "# World frame: z up against gravity, the ground plane pi_ref at z = 0, metres.",
         "# Check it with:  planefuse check THIS_FILE.yaml",
+        *(f"# {line}" for line in header),
         "",
     ]
     body: list[str] = []
@@ -305,7 +337,7 @@ def example_yaml(recording: str = EXAMPLE_RECORDING, config: RunConfig | None = 
         body.append(_comment(info))
         if isinstance(value, BaseModel):
             body.append(f"{name}:")
-            body.extend(_model_lines(value, 1))
+            body.extend(_model_lines(value, 1, notes, f"{name}."))
             body.append("")
         else:
             body.append(f"{name}: {_scalar(value)}")

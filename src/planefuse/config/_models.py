@@ -113,10 +113,11 @@ class CameraSensorConfig(_Model):
     """Cameras: background subtraction, then registration of the foreground on the planes (planefuse.vision)."""
 
     enabled: bool = _field(description="Use the cameras", library="system.cameras")
-    foreground_method: Literal["knn", "mog2", "cnt", "mean"] = _field(
+    foreground_method: Literal["knn", "mog2", "cnt", "mean", "none"] = _field(
         description="Background subtractor: OpenCV's knn, mog2 or cnt (opencv-contrib), or mean (a running-average "
         "background per pixel, numba: 13x cheaper than knn per frame, for steady lighting; it does not follow a "
-        "real camera's exposure changes)", expected="knn, mog2, cnt or mean",
+        "real camera's exposure changes), or none (no subtraction: the person_detector's boxes alone)",
+        expected="knn, mog2, cnt, mean or none",
         library="system.camera_params.foreground.method",
     )
     history_frames: int = _field(
@@ -153,6 +154,12 @@ class CameraSensorConfig(_Model):
                     "selected settings by default, docs/results.md)",
         expected="imufusion, madgwick, mahony or ekf",
         library="system.camera_params.registration.imu_filter",
+    )
+    ignore_rects_px: list[tuple[str, int, int, int, int]] = _field(
+        [], description="Image regions that are not scene evidence, besides the recording's own (planefuse import "
+        "--ignore-rect): [camera, u_min, v_min, u_max, v_max] each, max exclusive (a watermark, a TV, a privacy "
+        "zone found after the import)", unit="px", expected="camera name and 0 <= u_min < u_max, 0 <= v_min < v_max",
+        library="system.camera_ignore_rects_px",
     )
     sensor_model: Literal["cell", "generative"] = _field(
         description="Cameras' evidence on the planes: per cell (each cell scored on its own) or generative (people "
@@ -206,27 +213,81 @@ class CameraSensorConfig(_Model):
         "background model (people who stand still do not fade into it); knn only",
         library="system.camera_params.foreground.selective_update",
     )
+    selective_source: Literal["model", "detector"] = _field(
+        description="With selective_update: what is kept out of the background model, the people the cameras' model "
+        "found at the previous instant (model) or the person_detector's boxes of the previous frame (detector)",
+        expected="model or detector", library="system.camera_params.foreground.selective_source",
+    )
     selective_max_frames: int = _field(
         description="With selective_update: a pixel is kept out for at most this many consecutive frames, then "
         "learnt (a ghost of a background object that moved still heals)", unit="frames",
         expected="an integer >= 1", library="system.camera_params.foreground.selective_max_frames",
     )
-    person_detector: Literal["hog"] | None = _field(
-        description="A person detector beside the background subtraction: 'hog' = OpenCV's HOG people detector "
-        "(in opencv-contrib from OpenCV 5); the bodies of its boxes are foreground; null = none",
-        expected="null or 'hog'", library="system.camera_params.foreground.person_detector",
+    person_detector: Literal["hog", "yolox"] | None = _field(
+        description="A person detector beside the background subtraction: 'yolox' = a pretrained YOLOX ONNX model "
+        "(person_model; docs/cameras.md), 'hog' = OpenCV's HOG people detector (in opencv-contrib from OpenCV 5); "
+        "its boxes are the people's silhouettes (foreground); null = none",
+        expected="null, 'hog' or 'yolox'", library="system.camera_params.foreground.person_detector",
+    )
+    person_model: str | None = _field(
+        description="With person_detector yolox: the ONNX file of a YOLOX export (Nano, Tiny, S, ... from the YOLOX "
+        "project's releases; planefuse never downloads it), relative to this file", expected="a path or null",
+        library="system.camera_params.foreground.person_model",
+    )
+    person_input_px: tuple[int, int] | None = _field(
+        description="With person_detector yolox: (width, height) of the canvas each frame is letterboxed into; null "
+        "= fitted to the frame (its own size, or its longer side reduced to 416, each side up to a multiple of 32)",
+        unit="px", expected="null or two multiples of 32",
+        library="system.camera_params.foreground.person_input_px",
     )
     person_upscale: float = _field(
-        description="With person_detector: enlargement of the frame before detection (the detector's window is "
+        description="With person_detector hog: enlargement of the frame before detection (the detector's window is "
         "128 px tall)", expected="> 0", library="system.camera_params.foreground.person_upscale",
     )
-    person_min_score: float = _field(
-        description="With person_detector: smallest SVM score of a kept box", expected="a finite number",
+    person_min_score: float | None = _field(
+        description="With person_detector: smallest score of a kept box (yolox: person probability, null = 0.5; "
+        "hog: SVM margin, null = 0.3)", expected="null or a finite number (yolox: in [0, 1])",
         library="system.camera_params.foreground.person_min_score",
     )
-    person_likelihood: float = _field(
-        description="With person_detector: foreground likelihood at least given to a detected body",
-        expected="in [0, 1]", library="system.camera_params.foreground.person_likelihood",
+    person_nms_iou: float = _field(
+        description="With person_detector yolox: a box overlapping a better one by more than this IoU is dropped",
+        expected="in (0, 1]", library="system.camera_params.foreground.person_nms_iou",
+    )
+    person_likelihood: float | None = _field(
+        description="With person_detector: foreground likelihood at least given to a detected person's box; 0 = the "
+        "boxes leave the foreground as it is; null = the detector's default (hog 0.9, yolox 0: its boxes reach the "
+        "planes as evidence, box_free_log_odds)", expected="null or in [0, 1]",
+        library="system.camera_params.foreground.person_likelihood",
+    )
+    box_log_odds: float = _field(
+        description="With person_detector: peak log-odds each box adds around its foot point on the ground, on every "
+        "plane up to the head (one view places a person; docs/cameras.md); 0 = boxes not registered",
+        expected=">= 0", library="system.camera_params.boxes.log_odds",
+    )
+    box_foot_std_frac: float = _field(
+        description="With box_log_odds: standard deviation of a box's foot pixel in each image direction, as a share "
+        "of the box's height (mapped to the ground: grows with distance)", expected="> 0",
+        library="system.camera_params.boxes.foot_std_frac",
+    )
+    box_free_log_odds: float | None = _field(
+        description="With person_detector: log-odds (<= 0) each camera gives a ground cell it sees outside every one "
+        "of its boxes, on every plane (the detector found nobody there; cells inside a box, hidden behind a detected "
+        "person, get none); 0 = none; null = the detector's default (yolox -3, chosen on the EPFL terrace's tuning "
+        "frames; hog 0)", expected="null or <= 0", library="system.camera_params.boxes.free_log_odds",
+    )
+    box_override: bool = _field(
+        description="With box_log_odds: where a box's bump lies, the sensor model's evidence against a person is "
+        "dropped (a detected person who stands still has faded from the background model)",
+        library="system.camera_params.boxes.override",
+    )
+    box_min_std_m: float = _field(
+        description="With box_log_odds: standard deviation added to a foot point in every ground direction", unit="m",
+        expected="> 0", library="system.camera_params.boxes.min_std_m",
+    )
+    person_outside_weight: float = _field(
+        description="With person_detector: the background subtraction's foreground outside every box is scaled by "
+        "this towards foreground_floor (1 = unchanged, 0 = only the boxes)", expected="in [0, 1]",
+        library="system.camera_params.foreground.person_outside_weight",
     )
     open_px: int = _field(
         description="Side of the morphological opening removing speckle from the foreground; 0 = none", unit="px",
@@ -596,6 +657,15 @@ class OutputsConfig(_Model):
                          library="outputs.rerun")
     figure_dpi: int = _field(description="Resolution of the figures", unit="dpi", expected="an integer >= 1",
                              library="outputs.figure_dpi")
+    animation_max_frames: int | None = _field(
+        description="The animation shows at most this many output steps, evenly spaced (a longer run is subsampled "
+        "and a warning says so); null = every step", unit="steps", expected="null or an integer >= 1",
+        library="outputs.animation_max_frames",
+    )
+    camera_videos: bool = _field(
+        description="Also write figures/camera_<name>_tracks.mp4 per camera: its frame at each output step with the "
+        "tracks drawn from the feet to the head (at most animation_max_frames steps)", library="outputs.camera_videos",
+    )
 
 
 def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:
@@ -646,8 +716,8 @@ class RunConfig(_Model):
     outputs: OutputsConfig = _field(OutputsConfig(), description="Outputs")
 
     def resolved(self, base_dir: Path) -> "RunConfig":
-        """Copy with ``recording``, ``outputs.out_dir`` and ``sensors.sound.model_path`` made absolute against
-        ``base_dir``."""
+        """Copy with ``recording``, ``outputs.out_dir``, ``sensors.sound.model_path`` and
+        ``sensors.cameras.person_model`` made absolute against ``base_dir``."""
 
         def absolute(p: Path) -> Path:
             return (p if p.is_absolute() else base_dir / p).resolve()
@@ -655,10 +725,13 @@ class RunConfig(_Model):
         sound = self.sensors.sound
         if sound.model_path is not None:
             sound = sound.model_copy(update={"model_path": absolute(sound.model_path)})
+        cameras = self.sensors.cameras
+        if cameras.person_model is not None:
+            cameras = cameras.model_copy(update={"person_model": str(absolute(Path(cameras.person_model)))})
         return self.model_copy(update={
             "recording": absolute(self.recording),
             "outputs": self.outputs.model_copy(update={"out_dir": absolute(self.outputs.out_dir)}),
-            "sensors": self.sensors.model_copy(update={"sound": sound}),
+            "sensors": self.sensors.model_copy(update={"sound": sound, "cameras": cameras}),
         })
 
     def _library_values(self, root: str) -> dict[tuple[str, ...], Any]:

@@ -33,6 +33,12 @@ class OutputSettings:
         Write ``planefuse.rrd`` for the rerun viewer.
     figure_dpi : int
         Resolution of the figures [dots per inch].
+    animation_max_frames : int or None
+        The animation shows at most this many output steps, evenly spaced (a longer run is subsampled, and a
+        warning says so); None = every step.
+    camera_videos : bool
+        Also write ``figures/camera_<name>_tracks.mp4`` per camera: the frame nearest each output step with the tracks
+        drawn from the feet to the head (at most ``animation_max_frames`` steps).
 
     Only ``zarr`` and ``chunk_steps`` decide what a resumed run can reuse; the others may change between
     an interrupted run and its resumption.
@@ -45,8 +51,10 @@ class OutputSettings:
     report: bool = True
     rerun: bool = False
     figure_dpi: int = 100
+    animation_max_frames: int | None = 300
+    camera_videos: bool = False
 
     def __post_init__(self) -> None:
-        check_fields(self, chunk_steps="int>=1", figure_dpi="int>=1")
+        check_fields(self, chunk_steps="int>=1", figure_dpi="int>=1", animation_max_frames="?int>=1")
         require(self.animation in ANIMATIONS, self, "animation",
                 f"must be one of {', '.join(ANIMATIONS)}, got {self.animation!r}")

@@ -49,12 +49,24 @@ __all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "re
 
 DETECTION_COLUMNS = ("step", "time_s", "x_m", "y_m", "height_m", "confidence", "source")
 TRACK_COLUMNS = ("step", "time_s", "track_id", "x_m", "y_m", "vx_m_s", "vy_m_s")
+#: ``camera_boxes.csv``: each camera's person boxes [px, the frame's pixels: u right, v down] at each output step.
+BOX_COLUMNS = ("step", "time_s", "camera", "left_px", "top_px", "width_px", "height_px", "score")
 STATE_FILE = "run_state.json"
 CHECKPOINT_FILE = "checkpoint.npz"
 PREVIOUS_CHECKPOINT_FILE = "checkpoint.prev.npz"
 _OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
           CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE, "metrics.json", "figures", "report.html", "animation.gif",
           "animation.mp4", "planefuse.rrd", "config.yaml", STATE_FILE, "tracks_stitched.csv")
+#: Each camera's person boxes as a MOTChallenge 2-D file: ``boxes_<camera>_mot.txt`` (owned like ``_OWNED``).
+_BOX_FILE_PREFIX, _BOX_FILE_SUFFIX = "boxes_", "_mot.txt"
+
+
+def _owned(name: str) -> bool:
+    """True for an entry of an output folder that a run writes."""
+    return name in _OWNED or name == "camera_boxes.csv" or (
+        name.startswith(_BOX_FILE_PREFIX) and name.endswith(_BOX_FILE_SUFFIX))
+
+
 #: In ``figures/``: the names of the figures planefuse wrote there (the only files of it a new run deletes).
 FIGURES_WRITTEN = ".planefuse-figures"
 
@@ -64,7 +76,7 @@ def _foreign_entries(out_dir: Path, owned_by_a_run: bool) -> list[str]:
     names = [p.name for p in out_dir.iterdir() if TMP_MARK not in p.name]
     if not owned_by_a_run:
         return sorted(names)
-    foreign = [n for n in names if n not in _OWNED]
+    foreign = [n for n in names if not _owned(n)]
     figures = out_dir / "figures"
     if figures.is_dir():
         ours = _written_figures(figures)
@@ -290,10 +302,12 @@ class OutputWriter:
             self._clear()
         self._dets = _Table(DETECTION_COLUMNS)
         self._tracks = _Table(TRACK_COLUMNS)
+        self._boxes = _Table(BOX_COLUMNS)
         self._tables_dirty = True  # the files do not hold these (empty or truncated) tables yet
         self._open_zarr()
         if self.resumed:
-            for table, name in ((self._dets, "detections.csv"), (self._tracks, "tracks.csv")):
+            for table, name in ((self._dets, "detections.csv"), (self._tracks, "tracks.csv"),
+                                (self._boxes, "camera_boxes.csv")):
                 if (self.out_dir / name).exists():
                     cols = read_table(self.out_dir / name)
                     table.rows = list(zip(*(cols[c].tolist() for c in table.columns)))
@@ -352,7 +366,7 @@ class OutputWriter:
                 (figures / name).unlink(missing_ok=True)
             with contextlib.suppress(OSError):
                 figures.rmdir()  # only when empty
-        for name in _OWNED:
+        for name in [*_OWNED, *(n for n in os.listdir(self.out_dir) if _owned(n) and n not in _OWNED)]:
             p = self.out_dir / name
             if name == "figures":
                 continue
@@ -465,6 +479,29 @@ class OutputWriter:
             self._tracks.rows.append((int(step), float(time_s), int(i), *map(float, p), *map(float, vv)))
             self._tables_dirty = True
 
+    def write_camera_boxes(self, step: int, time_s: float, camera: str, ltwh_px, score) -> None:
+        """Record a camera's person boxes at ``step`` (the detector's, at the camera instant ``time_s`` [s]).
+
+        Parameters
+        ----------
+        camera : str
+        ltwh_px : array-like, shape (K, 4)
+            ``left, top, width, height`` [px] in the frame's pixels.
+        score : array-like, shape (K,)
+            The detector's score of each box.
+
+        Call it before the ``write_occupancy`` of the same step: that call may commit the step's chunk.
+        """
+        self._check_open_step(step)
+        b = np.asarray(ltwh_px, float).reshape(-1, 4)
+        sc = np.asarray(score, float).reshape(-1)
+        if len(b) != len(sc):
+            raise ValueError(f"camera {camera!r}: ltwh_px {b.shape} and score {sc.shape} disagree on K")
+        for (left, top, w, h), c in zip(b, sc):
+            self._boxes.rows.append((int(step), float(time_s), str(camera), float(left), float(top), float(w),
+                                     float(h), float(c)))
+            self._tables_dirty = True
+
     def _check_open_step(self, step: int) -> None:
         if int(step) < self._steps_written:
             raise ValueError(
@@ -497,8 +534,17 @@ class OutputWriter:
         # only the steps whose occupancy is written: an interruption between a step's tables and its occupancy
         # (Ctrl-C) must not leave the tables one step ahead of the store and run_state.json
         dets, tracks = self._dets.upto(self._steps_written), self._tracks.upto(self._steps_written)
+        boxes = self._boxes.upto(self._steps_written)
         atomic_write_text(self.out_dir / "detections.csv", self._dets.csv_text(dets))
         atomic_write_text(self.out_dir / "tracks.csv", self._tracks.csv_text(tracks))
+        if self._boxes.rows:  # a person detector ran: its boxes, and one MOTChallenge 2-D file per camera
+            atomic_write_text(self.out_dir / "camera_boxes.csv", self._boxes.csv_text(boxes))
+            for camera in sorted({r[2] for r in self._boxes.rows}):
+                rows = [(r[0] + 1, -1, *r[3:8], -1, -1, -1) for r in boxes if r[2] == camera]
+                with atomic_open(self.out_dir / f"{_BOX_FILE_PREFIX}{camera}{_BOX_FILE_SUFFIX}", "w") as f:
+                    np.savetxt(f, np.asarray(rows, float).reshape(-1, 10),
+                               fmt=["%d", "%d", "%.2f", "%.2f", "%.2f", "%.2f", "%.4f", "%d", "%d", "%d"],
+                               delimiter=",")
         for name, table_rows, id_col in (("detections_mot.txt", dets, None), ("tracks_mot.txt", tracks, 2)):
             rows = np.asarray([(r[0], -1 if id_col is None else r[id_col], r[2 if id_col is None else 3],
                                 r[3 if id_col is None else 4], r[5] if id_col is None else 1.0)
@@ -508,7 +554,8 @@ class OutputWriter:
                 np.savetxt(f, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"],
                            delimiter=",")
         # rows held back (their step's occupancy not yet written) are written with their step
-        self._tables_dirty = len(dets) < len(self._dets.rows) or len(tracks) < len(self._tracks.rows)
+        self._tables_dirty = len(dets) < len(self._dets.rows) or len(tracks) < len(self._tracks.rows) \
+            or len(boxes) < len(self._boxes.rows)
 
     def _commit(self, checkpoint: Callable[[], Mapping[str, np.ndarray]] | None) -> None:
         if checkpoint is not None:
@@ -577,6 +624,10 @@ class OutputWriter:
         """Detections recorded so far as column arrays (:data:`DETECTION_COLUMNS`)."""
         return _columns(self._dets.columns, self._dets.rows)
 
+    def camera_boxes_table(self) -> dict[str, np.ndarray]:
+        """Every camera's person boxes written so far (:data:`BOX_COLUMNS`)."""
+        return _columns(self._boxes.columns, self._boxes.rows)
+
     def tracks_table(self) -> dict[str, np.ndarray]:
         """Tracks recorded so far as column arrays (:data:`TRACK_COLUMNS`)."""
         return _columns(self._tracks.columns, self._tracks.rows)
@@ -629,7 +680,7 @@ class OutputWriter:
             self.rerun = None
 
 
-_COLUMN_DTYPES = {"step": np.int64, "track_id": np.int64, "source": object}
+_COLUMN_DTYPES = {"step": np.int64, "track_id": np.int64, "source": object, "camera": object}
 
 
 def _columns(columns: tuple[str, ...], rows: list) -> dict[str, np.ndarray]:

@@ -31,11 +31,16 @@ def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) 
     from ..viz import FigureInputs
 
     cams = rec.cameras
-    images, ignored = {}, {}
+    images, labels, frames, ignored = {}, {}, {}, {}
     for c in cams:
         cs = rec.camera(c.name)
         if len(cs):
-            images[c.name] = cs.frame(len(cs) // 2)
+            mid = len(cs) // 2
+            images[c.name] = cs.frame(mid)[..., ::-1]  # BGR -> RGB
+            labels[c.name] = f"frame {mid}, t = {cs.times_s[mid]:.2f} s"
+            # four frames across the run with the tracks drawn (RGB for matplotlib)
+            picks = np.unique(np.linspace(0, len(cs) - 1, min(4, len(cs))).round().astype(int))
+            frames[c.name] = [(int(i), float(cs.times_s[i]), cs.frame(int(i))[..., ::-1]) for i in picks]
         if cs.ignore_mask is not None:
             ignored[c.name] = cs.ignore_mask
     rep = report
@@ -51,7 +56,8 @@ def _figure_inputs(rec: Recording, report: ModalityReport, times_s: np.ndarray) 
     return FigureInputs(cameras=cams, camera_images=images, laser_points_world=laser, saliency=sal,
                         saliency_times_s=np.asarray(rep.sound_times_s) if sal is not None else None,
                         saliency_azimuth_rad=rep.sound_azimuth_grid_rad if sal is not None else None,
-                        ground_truth=gt, ignore_masks=ignored)
+                        ground_truth=gt, ignore_masks=ignored, camera_image_labels=labels,
+                        camera_frames=frames, camera_streams={c.name: rec.camera(c.name) for c in cams})
 
 
 def _log_modalities(logger, rec: Recording, report: ModalityReport, step_times: np.ndarray,
@@ -204,10 +210,15 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         figure_inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         figs = run_figures(out.stack, out.occupancy_array(), out.times_s(), out.detections_table(), out.tracks_table(),
                            out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
+    videos = {}
+    if settings.camera_videos and out.n_steps and figure_inputs is not None:
+        videos = {cam.name: f"camera_{check_name(cam.name, 'camera name')}_tracks.mp4" for cam in figure_inputs.cameras
+                  if cam.name in figure_inputs.camera_streams and len(figure_inputs.camera_streams[cam.name])}
+    names = [f"{check_name(name, 'figure name')}.png" for name in figs] if settings.figures else []
+    if names or videos:
+        # the list first: a later run deletes exactly these files and never the user's own files there
+        atomic_write_text(out.out_dir / "figures" / FIGURES_WRITTEN, "\n".join(names + list(videos.values())) + "\n")
     if settings.figures:
-        names = [f"{check_name(name, 'figure name')}.png" for name in figs]
-        # the list first: a later run deletes exactly these figures and never the user's own files there
-        atomic_write_text(out.out_dir / "figures" / FIGURES_WRITTEN, "\n".join(names) + "\n")
         for name, file, png in zip(figs, names, figs.values()):
             p = out.out_dir / "figures" / file
             atomic_write_bytes(p, png)
@@ -216,8 +227,19 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         from ..viz import animate_stack
 
         p = out.out_dir / f"animation.{settings.animation}"
-        animate_stack(p, out.stack, out.occupancy_array(), out.tracks_table())
+        animate_stack(p, out.stack, out.occupancy_array(), out.tracks_table(),
+                      max_frames=settings.animation_max_frames)
         written["animation"] = p
+    if videos:
+        from ..viz import camera_tracks_video
+
+        fps = 1.0 / float(np.median(np.diff(out.times_s()))) if out.n_steps > 1 else 5.0
+        for cam in figure_inputs.cameras:
+            if cam.name in videos:
+                p = out.out_dir / "figures" / videos[cam.name]
+                camera_tracks_video(p, cam, figure_inputs.camera_streams[cam.name], out.times_s(),
+                                    out.tracks_table(), fps=fps, max_frames=settings.animation_max_frames)
+                written[f"camera_{cam.name}_video"] = p
     if settings.report:
         from ..report import write_report
 
@@ -259,6 +281,20 @@ def one_zarr_codec_thread() -> None:
 
     if zarr.config.get("threading.max_workers", None) is None:
         zarr.config.set({"threading.max_workers": 1})
+
+
+def _write_camera_boxes(out: OutputWriter, step: int, time_s: float, report: ModalityReport) -> None:
+    """Write the person boxes of the camera instants up to ``time_s`` [s] at ``step`` and drop them from the
+    report (memory stays flat over a long run)."""
+    if report.camera is None:
+        return
+    for name, items in report.camera.person_boxes.items():
+        n = 0
+        while n < len(items) and items[n][0] <= time_s + 1e-9:
+            t, found = items[n]
+            out.write_camera_boxes(step, t, name, found.ltwh_px, found.score)
+            n += 1
+        del items[:n]
 
 
 def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
@@ -314,6 +350,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
                 if step >= out.resume_step:
                     out.write_detections(step, o.detections)
                     out.write_tracks(step, o.time_s, o.tracks.ids, o.tracks.xy_m, o.tracks.velocity_m_s)
+                    _write_camera_boxes(out, step, o.time_s, run.report)
                     if out.write_occupancy(step, o.time_s, o.occupancy, checkpoint=run.state_dict):
                         return_freed_memory()  # a chunk committed
                 advance(1)
@@ -340,7 +377,8 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         out.finish("presenting")
         try:
             # the figures' material (a frame per camera, laser points, saliency) only where figures are drawn
-            inputs = _figure_inputs(rec, run.report, times) if settings.figures or settings.report else None
+            inputs = _figure_inputs(rec, run.report, times) \
+                if settings.figures or settings.report or settings.camera_videos else None
             write_presentation(out, settings, inputs, progress)
         except (KeyboardInterrupt, MemoryError):
             raise

@@ -166,6 +166,8 @@ class ModalityReport:
         pts, n_pts = pack_ragged(self.laser_points_world, (3,))
         cam = self.camera
         missing = [] if cam is None else [(n, t) for n, ts in cam.missing_frames.items() for t in ts]
+        # the person boxes of camera instants computed but not yet written (a step's boxes are written with it)
+        boxes = [] if cam is None else [(n, t, b) for n, items in cam.person_boxes.items() for t, b in items]
         sal = self.sound_saliency
         return {
             "has_camera": np.asarray(cam is not None),
@@ -173,6 +175,12 @@ class ModalityReport:
             "camera_missing_name": strings([n for n, _ in missing]),
             "camera_missing_time_s": np.array([t for _, t in missing], dtype=float),
             "camera_blind": strings([] if cam is None else cam.blind_cameras),
+            "camera_boxes_name": strings([n for n, _, _ in boxes]),
+            "camera_boxes_time_s": np.array([t for _, t, _ in boxes], dtype=float),
+            "camera_boxes_count": np.array([len(b) for _, _, b in boxes], dtype=np.int64),
+            "camera_boxes_ltwh_px": np.concatenate([b.ltwh_px for _, _, b in boxes]).reshape(-1, 4) if boxes
+            else np.zeros((0, 4)),
+            "camera_boxes_score": np.concatenate([b.score for _, _, b in boxes]) if boxes else np.zeros(0),
             **self.camera_detections.state_dict(),
             "n_laser_scans": np.asarray(self.n_laser_scans, dtype=np.int64),
             "n_laser_invalid_beams": np.asarray(self.n_laser_invalid_beams, dtype=np.int64),
@@ -190,7 +198,7 @@ class ModalityReport:
 
     def load_state_dict(self, state: Mapping[str, np.ndarray]) -> None:
         """Restore what :meth:`state_dict` saved."""
-        from ..vision import CameraReport
+        from ..vision import CameraReport, PersonBoxes
 
         def g(key):
             return get(state, key, "modality report")
@@ -201,6 +209,12 @@ class ModalityReport:
             for n, t in zip(g("camera_missing_name"), g("camera_missing_time_s")):
                 missing.setdefault(str(n), []).append(float(t))
             self.camera = CameraReport(int(g("camera_instants")), missing, [str(n) for n in g("camera_blind")])
+            ends = np.cumsum(g("camera_boxes_count"))
+            ltwh, score = g("camera_boxes_ltwh_px"), g("camera_boxes_score")
+            for n, t, a, b in zip(g("camera_boxes_name"), g("camera_boxes_time_s"), ends - g("camera_boxes_count"),
+                                  ends):
+                self.camera.person_boxes.setdefault(str(n), []).append(
+                    (float(t), PersonBoxes(ltwh[a:b].reshape(-1, 4), score[a:b])))
         self.camera_detections = DetectionLog.from_state_dict(state)
         self.n_laser_scans = int(g("n_laser_scans"))
         self.n_laser_invalid_beams = int(g("n_laser_invalid_beams"))
@@ -355,7 +369,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             warnings.warn("the tracks' appearance reads the cameras' frames: their front ends run in this process, "
                           "not on the dask workers", stacklevel=2)
             remote = None
-        if remote is not None and params.foreground is not None and params.foreground.selective_update:
+        if remote is not None and params.foreground is not None and params.foreground.selective_update \
+                and params.foreground.selective_source == "model":
             # the front ends keep each instant's people out of their background models: they need them at once
             warnings.warn("cameras' selective_update: their front ends run in this process, not on the dask "
                           "workers", stacklevel=2)

@@ -23,7 +23,8 @@ from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_so
 
 __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system",
            "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT", "check_cameras_against_stack",
-           "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S"]
+           "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S",
+           "recording_with_ignore_rects"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
 CHECKPOINT_FORMAT = 7  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
@@ -82,6 +83,10 @@ class SystemParams:
         box fills are free of people whatever the sensors say there (a laser's returns there are off the
         box; :class:`planefuse.tracking.EvidenceTracker` ``static_cells``). Empty: none declared. Only with the
         cameras' per-cell sensor model (``"cell"``).
+    camera_ignore_rects_px : tuple of (str, int, int, int, int)
+        Image regions that are not scene evidence, on top of the recording's own (``planefuse import
+        --ignore-rect``): ``(camera name, u_min, v_min, u_max, v_max)`` [px, max exclusive], as unobserved as the
+        recording's (:func:`recording_with_ignore_rects`). Empty: none.
     camera_params : planefuse.vision.CameraParams
         Camera pipeline parameters (foreground, sensor model, person model, registration).
     laser_model : planefuse.laser.LaserSensorModel
@@ -117,6 +122,7 @@ class SystemParams:
     laser_correlation_s: float = 0.0
     sound_correlation_s: float = 0.0
     occluder_boxes_m: tuple[tuple[float, float, float, float, float, float], ...] = ()
+    camera_ignore_rects_px: tuple[tuple[str, int, int, int, int], ...] = ()
     camera_params: CameraParams = field(default_factory=CameraParams)
     laser_model: LaserSensorModel = field(default_factory=system_laser_model)
     tracking: TrackingParams = field(default_factory=TrackingParams)
@@ -131,6 +137,16 @@ class SystemParams:
         check_fields(self, cell_size_m=">0", wall_margin_m=">=0", sound_block_s=">0", output_period_s=">0",
                      match_distance_m=">0", camera_correlation_s=">=0", laser_correlation_s=">=0",
                      sound_correlation_s=">=0")
+        rects = []
+        for r in self.camera_ignore_rects_px:
+            ok = len(r) == 5 and isinstance(r[0], str) and all(float(v).is_integer() for v in r[1:])
+            require(ok, self, "camera_ignore_rects_px", f"each entry must be (camera, u_min, v_min, u_max, v_max) "
+                    f"with integer pixels, got {list(r)}")
+            name, u0, v0, u1, v1 = r[0], *(int(v) for v in r[1:])
+            require(0 <= u0 < u1 and 0 <= v0 < v1, self, "camera_ignore_rects_px",
+                    f"{name}: a rectangle needs 0 <= u_min < u_max and 0 <= v_min < v_max, got {[u0, v0, u1, v1]}")
+            rects.append((name, u0, v0, u1, v1))
+        object.__setattr__(self, "camera_ignore_rects_px", tuple(rects))
         # metres, not millimetres or centimetres: a cell is at most 5 m, a plane at most 10 m above the ground
         require(self.cell_size_m <= 5.0, self, "cell_size_m", f"must be at most 5 m, got {self.cell_size_m}")
         try:
@@ -193,6 +209,38 @@ def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: 
     check_occluders_against_stack(params.occluder_boxes_m, stack)
     check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
     return stack
+
+
+def recording_with_ignore_rects(rec: Recording, rects) -> Recording:
+    """``rec`` with the image rectangles ``rects`` ((camera, u_min, v_min, u_max, v_max) [px, max exclusive])
+    added to its cameras' ignore masks (a copy: ``rec`` and its streams are not changed; ``rec`` itself when
+    ``rects`` is empty).
+
+    Raises
+    ------
+    ValueError
+        A camera the recording does not have, or a rectangle reaching past its image.
+    """
+    if not rects:
+        return rec
+    import copy
+
+    streams = dict(rec.camera_streams)
+    for name, u0, v0, u1, v1 in rects:
+        if name not in streams:
+            raise ValueError(f"sensors.cameras.ignore_rects_px names camera {name!r}, which the recording does not "
+                             f"have (its cameras: {', '.join(rec.camera_streams) or 'none'})")
+        cs = streams[name]
+        if cs is rec.camera_streams[name]:
+            cs = streams[name] = copy.copy(cs)
+        w, h = cs.camera.intrinsics.width_px, cs.camera.intrinsics.height_px
+        if u1 > w or v1 > h:
+            raise ValueError(f"sensors.cameras.ignore_rects_px: rectangle {[u0, v0, u1, v1]} of camera {name!r} "
+                             f"reaches past its {w}x{h} px image")
+        mask = np.zeros((h, w), bool) if cs.ignore_mask is None else cs.ignore_mask.copy()
+        mask[v0:v1, u0:u1] = True
+        cs.ignore_mask = mask
+    return replace(rec, camera_streams=streams)
 
 
 def can_evaluate(rec: Recording, times_s) -> bool:
@@ -375,6 +423,7 @@ class SystemRun:
 
     def __init__(self, rec: Recording, params: SystemParams = SystemParams(), stack: PlaneStack | None = None,
                  checkpoint: Mapping[str, np.ndarray] | None = None, client=None) -> None:
+        rec = recording_with_ignore_rects(rec, params.camera_ignore_rects_px)
         self.rec, self.params, self.client = rec, params, client
         self.stack = stack if stack is not None else stack_for_recording(rec, params)
         self.report = ModalityReport()

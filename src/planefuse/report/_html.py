@@ -130,7 +130,9 @@ def render_report(
         parts.append("<p class='muted'>No figures.</p>")
     for name, png in figures.items():
         caption = _TITLES.get(name, name.replace("_", " "))
-        if name.startswith("camera_"):
+        if name.startswith("camera_") and name.endswith("_tracks"):
+            caption = f"Camera {name[7:-7]}: frames with the tracks drawn from the feet to the head"
+        elif name.startswith("camera_"):
             caption = f"Camera {name[7:]} with the registered plane grids"
         b64 = base64.b64encode(png).decode("ascii")
         parts.append(f"<figure id='fig-{html.escape(name)}'><img alt='{html.escape(caption)}' "

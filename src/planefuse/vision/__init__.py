@@ -24,6 +24,9 @@ from ._foreground import (
 )
 from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams, detection_evidence_prior
+from ._boxes import BoxEvidenceParams, box_evidence, box_feet
+from ._yolox import (PersonBoxes, YoloxDetector, YoloxModelInfo, decode_yolox, fitted_input_size, letterbox,
+                     load_yolox)
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
 from ._pipeline import (CameraFrontEnd, CameraParams, CameraReport, camera_detections, camera_foregrounds,
                         frame_is_dead, lookups_from_cameras, subtraction_window)
@@ -66,4 +69,14 @@ __all__ = [
     "recording_frames",
     "subtraction_window",
     "wildtrack_frames",
+    "PersonBoxes",
+    "BoxEvidenceParams",
+    "box_evidence",
+    "box_feet",
+    "YoloxDetector",
+    "YoloxModelInfo",
+    "decode_yolox",
+    "letterbox",
+    "fitted_input_size",
+    "load_yolox",
 ]

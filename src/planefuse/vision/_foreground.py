@@ -17,6 +17,7 @@ import numpy as np
 from .._params import check_fields, require
 from ._fusion import quantise_foreground
 from ._mean_background import MeanBackground
+from ._yolox import PersonBoxes, YoloxDetector, check_input_size, fitted_input_size
 
 __all__ = [
     "BackgroundSubtractor",
@@ -136,6 +137,12 @@ class ForegroundParams:
         foreground decision is the squared colour distance of the frame to that average against the KNN threshold
         (no shadow label). Off: every pixel is learnt (OpenCV's blind update). Not kept for the EPFL terrace
         (frames 0-1499: a little better warm, worse from a cold start; docs/results.md).
+    selective_source : {"model", "detector"}
+        With ``selective_update``, whose pixels are kept out of the model: ``"model"``, the silhouettes of the people
+        the camera model explains at the previous instant (fed back by :func:`planefuse.vision.camera_detections`);
+        ``"detector"``, the boxes the ``person_detector`` found in the previous frame (the subtractor protects
+        itself: a background object that moved -- a ghost -- is no person to a detector, so it heals at once, and
+        the cold start needs no camera model).
     knn_samples : int
         KNN only: background samples kept per pixel (OpenCV's ``setNSamples``; its default, 7). A pixel is
         background once ``kNNSamples`` (2) of them are within the threshold, so the first samples usually decide
@@ -156,20 +163,47 @@ class ForegroundParams:
         learns the people then in view as background, and the camera model's "people" on those frames are its
         ghosts (EPFL terrace, frames 1000-1499 from a cold start: filtered MODA -0.08 with protection from the
         first frame; docs/results.md).
-    person_detector : {None, "hog"}
-        A person detector run on every frame beside the subtractor: ``"hog"`` is OpenCV's HOG + linear SVM people
-        detector (Dalal & Triggs 2005, trained on INRIA Person; its model ships inside OpenCV: the core module in
-        OpenCV 4, ``opencv-contrib`` from OpenCV 5). The body of each box it finds (the middle half of its width,
-        the middle three quarters of its height: the detector's 64 x 128 px window has that margin around the
-        person) gets at least ``person_likelihood``, so that a person who stands still and has faded into the
-        background model is still foreground. None: background subtraction alone.
+    person_detector : {None, "hog", "yolox"}
+        A person detector run on every frame beside the subtractor; the boxes it finds are each person's
+        silhouette in that view: the likelihood inside them is at least ``person_likelihood`` (a person who
+        stands still and has faded into the background model is still foreground), and they reach the planes as
+        :class:`~planefuse.vision.BoxEvidenceParams` evidence (``CameraParams.boxes``). ``"yolox"``: a pretrained
+        YOLOX ONNX model (``person_model``; :class:`~planefuse.vision.YoloxDetector`), the whole box.
+        ``"hog"``: OpenCV's HOG + linear SVM people detector (Dalal & Triggs 2005, trained on INRIA Person; its
+        model ships inside OpenCV: the core module in OpenCV 4, ``opencv-contrib`` from OpenCV 5), the body of
+        each box (the middle half of its width, the middle three quarters of its height: the detector's 64 x 128
+        px window has that margin around the person). None: background subtraction alone.
+    person_model : str or None
+        ``"yolox"``: path of the ONNX file (a YOLOX export of the raw-head layout: Nano, Tiny, S, ...; the user
+        downloads it from the YOLOX project's releases, planefuse never downloads anything).
+    person_input_px : (int, int) or None
+        ``"yolox"``: canvas (width, height) [px] the frame is letterboxed into, multiples of 32. None: fitted to the
+        frame (:func:`~planefuse.vision.fitted_input_size`: its own size, or reduced to a longer side of 416 px, the
+        Nano model's own input, never enlarged). Per camera on the EPFL terrace's tuning frames 0-1475 every 25th
+        (both cameras, IoU 0.5, score 0.5) the fitted 384 x 288 against 416 x 416 (the frames enlarged 1.16 times):
+        recall 0.821 / precision 0.879 against 0.833 / 0.936, 12.2 against 19.8 ms per frame on one core; the whole
+        system scored the same or better with it (:func:`~planefuse.vision.fitted_input_size`).
     person_upscale : float
-        Factor the frame is enlarged by before detection: the detector's window is 128 px tall, people in a 288 px
-        high frame are often 40-120 px.
-    person_min_score : float
-        Smallest SVM score [unitless margin] of a box that is kept.
-    person_likelihood : float
-        Foreground likelihood at least given to the body of a detected box, in [0, 1].
+        ``"hog"``: factor the frame is enlarged by before detection: the detector's window is 128 px tall,
+        people in a 288 px high frame are often 40-120 px.
+    person_min_score : float or None
+        Smallest score of a kept box: ``"yolox"`` its person probability in [0, 1] (None: 0.5, chosen on the
+        terrace tuning frames above: recall 0.845 / precision 0.747 at 0.3, 0.836 / 0.892 at 0.4, 0.833 / 0.936
+        at 0.5, 0.833 / 0.943 at 0.55), ``"hog"`` its SVM margin (None: 0.3).
+    person_nms_iou : float
+        ``"yolox"``: a box overlapping a better one by more than this IoU is suppressed (YOLOX's 0.45).
+    person_likelihood : float or None
+        Foreground likelihood at least given to a detected person's box, in [0, 1]; 0 leaves the foreground as it
+        is (and ``person_outside_weight`` is not used). None: the detector's default, ``"hog"`` 0.9, ``"yolox"`` 0:
+        YOLOX's boxes filled into the foreground the generative model explains were worse than the subtraction
+        alone on the EPFL terrace's tuning frames (1000-1499 cold, filtered MODA 0.621 / 0.781 at 0.5 / 1.0 m
+        against 0.696 / 0.895; the boxes alone, 0.638 / 0.808): a box holds the background beside the person, which
+        the model explains by more people. YOLOX's boxes reach the planes as evidence of free space instead
+        (:class:`~planefuse.vision.BoxEvidenceParams` ``free_log_odds``).
+    person_outside_weight : float
+        The subtractor's foreground outside every box, relative to ``floor``, is multiplied by this, in [0, 1]:
+        foreground a detector does not explain counts less (a shadow, a lighting change), but a person the
+        detector missed inside a group still leaves some. 1: unchanged.
     """
 
     method: str = "knn"
@@ -194,17 +228,22 @@ class ForegroundParams:
     downscale: int = 1
     selective_update: bool = False
     selective_max_frames: int = 50
+    selective_source: str = "model"
     knn_samples: int = 7
     cnt_min_stability: int = 15
     mean_foreground_rate: float = 0.2
     person_detector: str | None = None
+    person_model: str | None = None
+    person_input_px: tuple[int, int] | None = None
     person_upscale: float = 2.0
-    person_min_score: float = 0.3
-    person_likelihood: float = 0.9
+    person_min_score: float | None = None
+    person_nms_iou: float = 0.45
+    person_likelihood: float | None = None
+    person_outside_weight: float = 1.0
 
     def __post_init__(self) -> None:
-        require(self.method in ("knn", "mog2", "cnt", "mean"), self, "method",
-                f"must be 'knn', 'mog2', 'cnt' or 'mean', got {self.method!r}")
+        require(self.method in ("knn", "mog2", "cnt", "mean", "none"), self, "method",
+                f"must be 'knn', 'mog2', 'cnt', 'mean' or 'none', got {self.method!r}")
         require(self.primed_rate in ("steady", "automatic"), self, "primed_rate",
                 f"must be 'steady' or 'automatic', got {self.primed_rate!r}")
         check_fields(self, history="int>=1", plate_frames="?int>=1", threshold="?>0", shadow_likelihood="[0,1]",
@@ -222,11 +261,42 @@ class ForegroundParams:
                 f"must be >= 2 (a pixel is background when 2 samples match), got {self.knn_samples}")
         require(not self.selective_update or self.method == "knn", self, "selective_update",
                 f"needs method 'knn' (the decision on protected pixels uses its dist2Threshold), got {self.method!r}")
+        require(self.selective_source in ("model", "detector"), self, "selective_source",
+                f"must be 'model' or 'detector', got {self.selective_source!r}")
+        require(not self.selective_update or self.selective_source != "detector" or self.person_detector is not None,
+                self, "selective_source", "'detector' with selective_update needs a person_detector")
         require(len(self.gain_blocks) == 2 and min(self.gain_blocks) >= 1, self, "gain_blocks",
                 f"must be (rows, cols) >= 1, got {self.gain_blocks}")
-        require(self.person_detector in (None, "hog"), self, "person_detector",
-                f"must be None or 'hog', got {self.person_detector!r}")
-        check_fields(self, person_upscale=">0", person_min_score="finite", person_likelihood="[0,1]")
+        require(self.person_detector in (None, "hog", "yolox"), self, "person_detector",
+                f"must be None, 'hog' or 'yolox', got {self.person_detector!r}")
+        check_fields(self, person_upscale=">0", person_min_score="?finite", person_likelihood="?[0,1]",
+                     person_nms_iou="(0,1]", person_outside_weight="[0,1]")
+        require(self.person_detector != "yolox" or self.person_model is not None, self, "person_model",
+                "must name the YOLOX ONNX file with person_detector 'yolox'")
+        require(self.person_detector != "yolox" or self.person_min_score is None or
+                0 <= self.person_min_score <= 1, self, "person_min_score",
+                f"must lie in [0, 1] for 'yolox' (a probability), got {self.person_min_score}")
+        if self.person_detector == "yolox" and self.person_input_px is not None:
+            try:
+                check_input_size(self.person_input_px)
+            except ValueError as exc:
+                require(False, self, "person_input_px", str(exc))
+        require(self.method != "none" or self.person_detector is not None, self, "method",
+                "'none' (no background subtraction) needs a person_detector: nothing else would see people")
+
+    @property
+    def person_level(self) -> float:
+        """:attr:`person_likelihood`, or the detector's default (``"hog"`` 0.9, ``"yolox"`` 0)."""
+        if self.person_likelihood is not None:
+            return float(self.person_likelihood)
+        return 0.9 if self.person_detector == "hog" else 0.0
+
+    @property
+    def min_person_score(self) -> float:
+        """:attr:`person_min_score`, or the detector's default (``"yolox"`` 0.5, ``"hog"`` 0.3)."""
+        if self.person_min_score is not None:
+            return float(self.person_min_score)
+        return 0.5 if self.person_detector == "yolox" else 0.3
 
     @property
     def n_plate_frames(self) -> int:
@@ -254,7 +324,9 @@ class BackgroundSubtractor:
         self.height_px = int(height_px)
         self.params = params
         self.name = name
-        if params.method == "mog2":
+        if params.method == "none":
+            self._model = _NoBackground()
+        elif params.method == "mog2":
             self._model = cv2.createBackgroundSubtractorMOG2(
                 history=params.history,
                 varThreshold=16.0 if params.threshold is None else float(params.threshold),
@@ -303,7 +375,7 @@ class BackgroundSubtractor:
         #: running average of the frames' background pixels (model size, float32): the background protected
         #: pixels are fed and compared with
         self._mean_background: np.ndarray | None = None
-        self._people = PersonDetector(params) if params.person_detector is not None else None
+        self._people = PersonDetector(params, name) if params.person_detector is not None else None
 
     def protect(self, people) -> None:
         """Keep the pixels ``people`` (height_px, width_px) bool -- where the camera model explains the image by
@@ -365,10 +437,20 @@ class BackgroundSubtractor:
             raise ValueError(f"{self.name}: frame must be uint8, got {img.dtype}")
         return img
 
+    @property
+    def protects_itself(self) -> bool:
+        """True where the selective update keeps the person detector's boxes out of the model
+        (:attr:`ForegroundParams.selective_source` ``"detector"``): nobody else calls :meth:`protect`."""
+        return self.params.selective_update and self.params.selective_source == "detector"
+
     def update(self, frame) -> None:
         """Update the background model with ``frame`` as :meth:`apply` does, without computing the foreground
-        (replaying the frames before a resumed run's first one)."""
-        self._learn(self._check(frame), self._rate)
+        (replaying the frames before a resumed run's first one; with :attr:`protects_itself` the detector still
+        runs, so that the protected pixels are the same)."""
+        img = self._check(frame)
+        self._learn(img, self._rate)
+        if self.protects_itself:
+            self.protect(self._people.silhouettes(self._people.detect(img), self.height_px, self.width_px))
 
     def _learn(self, img: np.ndarray, rate: float) -> np.ndarray:
         # OpenCV's KNN model draws its per-pixel update phases (randu) from cv::theRNG, which every model
@@ -460,6 +542,8 @@ class BackgroundSubtractor:
         like = self._subtract(img, quantised)
         if self._people is not None:
             self._people.mark(img, like, quantised)
+            if self.protects_itself:  # the people it found stay out of the model at the next frame
+                self.protect(self._people.silhouettes(self._people.last_boxes, self.height_px, self.width_px))
         return like
 
     def _subtract(self, img: np.ndarray, quantised: bool) -> np.ndarray:
@@ -494,47 +578,107 @@ class BackgroundSubtractor:
         return quantise_foreground(like) if quantised else like
 
 
+class _NoBackground:
+    """The subtractor of :attr:`ForegroundParams.method` ``"none"``: every pixel background."""
+
+    def apply(self, image: np.ndarray, learningRate: float = -1.0) -> np.ndarray:  # noqa: N803 (OpenCV's name)
+        return np.zeros(image.shape[:2], np.uint8)
+
+
 class PersonDetector:
-    """OpenCV's HOG people detector marking the bodies of the people it finds in a foreground likelihood
-    (:attr:`ForegroundParams.person_detector`).
+    """A person detector marking the people it finds in a foreground likelihood
+    (:attr:`ForegroundParams.person_detector`: OpenCV's HOG people detector or a YOLOX model).
 
     Parameters
     ----------
     params : ForegroundParams
-        ``person_upscale``, ``person_min_score`` and ``person_likelihood`` are used.
+        ``person_*`` fields are used.
+    name : str
+        Camera name used in error messages.
+
+    Attributes
+    ----------
+    last_boxes : PersonBoxes
+        The boxes of the last frame given to :meth:`mark` (frame pixels).
     """
 
-    def __init__(self, params: ForegroundParams) -> None:
-        if not hasattr(cv2, "HOGDescriptor"):
-            raise ValueError(f"person_detector 'hog' needs OpenCV's HOG people detector, absent from this OpenCV "
-                             f"{cv2.__version__} (OpenCV 5 moved it to opencv-contrib-python-headless)")
+    def __init__(self, params: ForegroundParams, name: str = "camera") -> None:
         self.params = params
-        self._hog = cv2.HOGDescriptor()
-        self._hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
-        self._level = float(params.person_likelihood)
+        self.min_score = params.min_person_score
+        if params.person_detector == "yolox":
+            # one detector per canvas size (fitted to each frame size where person_input_px is None)
+            self._yolox: dict[tuple[int, int], YoloxDetector] = {}
+            if params.person_input_px is not None:
+                self._yolox_for(params.person_input_px)
+        else:
+            if not hasattr(cv2, "HOGDescriptor"):
+                raise ValueError(f"person_detector 'hog' needs OpenCV's HOG people detector, absent from this OpenCV "
+                                 f"{cv2.__version__} (OpenCV 5 moved it to opencv-contrib-python-headless)")
+            self._hog = cv2.HOGDescriptor()
+            self._hog.setSVMDetector(cv2.HOGDescriptor_getDefaultPeopleDetector())
+        self._level = params.person_level
         self._quantised_level = int(quantise_foreground(np.float32([self._level])).ravel()[0])
+        self.last_boxes = PersonBoxes.empty()
 
-    def boxes(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Boxes of the people in ``frame`` (grey or BGR uint8), shape (K, 4): left, top, width, height [px] in the
-        frame's pixels, and their SVM scores, shape (K,)."""
+    def _yolox_for(self, input_wh_px) -> YoloxDetector:
+        wh = tuple(int(v) for v in input_wh_px)
+        if wh not in self._yolox:
+            self._yolox[wh] = YoloxDetector(self.params.person_model, wh, self.min_score, self.params.person_nms_iou)
+        return self._yolox[wh]
+
+    def detect(self, frame: np.ndarray) -> PersonBoxes:
+        """The people in ``frame`` (grey or BGR uint8): boxes in the frame's pixels and their scores."""
+        if self.params.person_detector == "yolox":
+            h, w = np.shape(frame)[:2]
+            wh = self.params.person_input_px or fitted_input_size((w, h))
+            return self._yolox_for(wh).detect(frame)
         k = self.params.person_upscale
         img = frame if k == 1 else cv2.resize(frame, None, fx=k, fy=k, interpolation=cv2.INTER_LINEAR)
         rects, scores = self._hog.detectMultiScale(img, winStride=(8, 8), padding=(8, 8), scale=1.05)
         rects = np.asarray(rects, dtype=float).reshape(-1, 4) / k
         scores = np.asarray(scores, dtype=float).reshape(-1)
-        keep = scores >= self.params.person_min_score
-        return rects[keep], scores[keep]
+        keep = scores >= self.min_score
+        order = np.argsort(-scores[keep], kind="stable")
+        return PersonBoxes(rects[keep][order], scores[keep][order])
+
+    def boxes(self, frame: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`detect` as ``(ltwh_px (K, 4), score (K,))``."""
+        found = self.detect(frame)
+        return found.ltwh_px, found.score
+
+    def silhouettes(self, boxes: PersonBoxes, height_px: int, width_px: int) -> np.ndarray:
+        """The pixels ``(height_px, width_px)`` bool of the people in ``boxes``: YOLOX's whole boxes, HOG's bodies
+        (its window's margin left out)."""
+        mask = np.zeros((height_px, width_px), bool)
+        hog = self.params.person_detector == "hog"
+        for x, y, bw, bh in boxes.ltwh_px:
+            if hog:
+                x, y, bw, bh = x + bw / 4, y + bh / 8, bw / 2, 3 * bh / 4
+            c0, c1 = max(0, int(round(x))), min(width_px, int(round(x + bw)))
+            r0, r1 = max(0, int(round(y))), min(height_px, int(round(y + bh)))
+            mask[r0:r1, c0:c1] = True
+        return mask
 
     def mark(self, frame: np.ndarray, like: np.ndarray, quantised: bool) -> None:
         """Raise ``like`` (the frame's foreground likelihood, float or quantised) to at least ``person_likelihood``
-        on the bodies of the people found in ``frame``, in place."""
-        level = self._quantised_level if quantised else self._level
+        on the people found in ``frame``, and scale what lies outside them by ``person_outside_weight`` towards
+        ``floor``, in place (:attr:`last_boxes` only, where the level is 0)."""
+        self.last_boxes = self.detect(frame)
+        if self._level == 0:
+            return
         h, w = like.shape
-        for x, y, bw, bh in self.boxes(frame)[0]:
-            c0, c1 = max(0, int(round(x + bw / 4))), min(w, int(round(x + 3 * bw / 4)))
-            r0, r1 = max(0, int(round(y + bh / 8))), min(h, int(round(y + 7 * bh / 8)))
-            if c1 > c0 and r1 > r0:
-                np.maximum(like[r0:r1, c0:c1], level, out=like[r0:r1, c0:c1])
+        inside = self.silhouettes(self.last_boxes, h, w)
+        p = self.params
+        if p.person_outside_weight < 1.0:
+            outside = ~inside
+            if quantised:
+                floor = int(quantise_foreground(np.float32([p.floor])).ravel()[0])
+                v = like[outside].astype(np.float32)
+                like[outside] = np.round(floor + p.person_outside_weight * np.maximum(v - floor, 0)).astype(np.uint8)
+            else:
+                like[outside] = p.floor + p.person_outside_weight * np.maximum(like[outside] - p.floor, 0)
+        level = self._quantised_level if quantised else self._level
+        np.maximum(like, level, out=like, where=inside)
 
 
 class GainCompensator:

@@ -14,6 +14,7 @@ from ..geometry import H_plane_image_calibrated, PinholeCamera
 from ..grid import Evidence, GroundDetections, PlaneStack
 from ..occupancy import PersonVolume, silhouettes_from_cameras
 from ..registration import CameraRegistration, ImagePlaneLookup, RegistrationParams
+from ._boxes import BoxEvidenceParams, box_evidence, combine_box_evidence
 from ._foreground import BackgroundSubtractor, ForegroundParams
 from ._fusion import NEUTRAL_FOREGROUND, NEUTRAL_LEVEL, CameraFusion, FusionParams, max_log_ratio, quantise_foreground
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams
@@ -103,6 +104,10 @@ class CameraParams:
         the grid's cells (``generative``; Fleuret et al. 2008, docs/cameras.md).
     generative : GenerativeSensorParams
         The generative model's parameters (used when ``sensor_model == "generative"``).
+    boxes : BoxEvidenceParams
+        The person detector's boxes (``foreground.person_detector``) registered on every plane: each box's foot point
+        on the ground and its body up to the head (:func:`planefuse.vision.box_evidence`), added to the sensor
+        model's evidence; ``boxes.log_odds`` 0 = not registered.
     frame_stride : int
         Process every ``frame_stride``-th synchronised camera instant of a recording, from the first
         (:func:`planefuse.vision.camera_instants`); the others are not read. 1 = every frame. The background
@@ -126,6 +131,7 @@ class CameraParams:
     registration: RegistrationParams = field(default_factory=RegistrationParams)
     sensor_model: Literal["cell", "generative"] = "cell"
     generative: GenerativeSensorParams = field(default_factory=GenerativeSensorParams)
+    boxes: BoxEvidenceParams = field(default_factory=BoxEvidenceParams)
     frame_stride: int = 1
     max_rate_hz: float | None = 5.0
 
@@ -148,11 +154,15 @@ class CameraReport:
         cameras were fused without it).
     blind_cameras : list of str
         Cameras that see no cell of the stack.
+    person_boxes : dict
+        Camera name -> list of ``(time_s, PersonBoxes)``: the person detector's boxes at each processed instant
+        (``ForegroundParams.person_detector``; empty without one).
     """
 
     instants: int = 0
     missing_frames: dict[str, list[float]] = field(default_factory=dict)
     blind_cameras: list[str] = field(default_factory=list)
+    person_boxes: dict[str, list] = field(default_factory=dict)
 
     @property
     def n_missing(self) -> int:
@@ -246,6 +256,13 @@ class CameraFrontEnd:
             fg = quantise_foreground(fg)
         return fg
 
+    @property
+    def last_boxes(self):
+        """The person detector's boxes in the last frame given to :meth:`foreground` (frame pixels), or None
+        without a detector (:attr:`ForegroundParams.person_detector`)."""
+        people = None if self.subtractor is None else self.subtractor._people
+        return None if people is None else people.last_boxes
+
     def protect(self, people: np.ndarray) -> None:
         """Keep the pixels ``people`` (height_px, width_px) bool out of the background model at the next frame
         (:meth:`BackgroundSubtractor.protect`, ``ForegroundParams.selective_update``)."""
@@ -257,11 +274,13 @@ class CameraFrontEnd:
         if self.check(img) == OK:
             self.learn(img)
 
-    def process(self, img: np.ndarray | None) -> tuple[np.ndarray | None, str]:
-        """``(foreground, status)``: status :data:`OK` with :meth:`foreground`, else :data:`NO_FRAME` /
-        :data:`DEAD_FRAME` with None."""
+    def process(self, img: np.ndarray | None) -> tuple[np.ndarray | None, str, object]:
+        """``(foreground, status, boxes)``: status :data:`OK` with :meth:`foreground` and :attr:`last_boxes`, else
+        :data:`NO_FRAME` / :data:`DEAD_FRAME` with None and None."""
         status = self.check(img)
-        return (self.foreground(img) if status == OK else None), status
+        if status != OK:
+            return None, status, None
+        return self.foreground(img), status, self.last_boxes
 
 
 def _checked_window(window, width_px: int, height_px: int) -> tuple[int, int, int, int]:
@@ -312,9 +331,10 @@ def subtraction_window(lookup: ImagePlaneLookup, camera: CameraParams) -> tuple[
 def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]]],
                        front_ends: Sequence[CameraFrontEnd], replay: int = 0,
                        registration: CameraRegistration | None = None,
-                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str]]]:
-    """The front ends of all cameras, in this process: ``(time_s, foregrounds, statuses)`` per instant of
-    ``frames`` after the first ``replay`` (which only update the background models).
+                       ) -> Iterator[tuple[float, list[np.ndarray | None], list[str], list]]:
+    """The front ends of all cameras, in this process: ``(time_s, foregrounds, statuses, boxes)`` per instant of
+    ``frames`` after the first ``replay`` (which only update the background models); ``boxes`` holds each camera's
+    person boxes (:attr:`CameraFrontEnd.last_boxes`; None without a frame or a person detector).
 
     With ``registration``, every live frame (replayed ones included) is first brought back to its camera's
     calibrated view (:meth:`CameraRegistration.stabilise`); black or frozen frames are told from the raw frames.
@@ -335,13 +355,14 @@ def camera_foregrounds(frames: Iterable[tuple[float, Sequence[np.ndarray | None]
                     fe.learn(img)
             continue
         fgs = [fe.foreground(img) if s == OK else None for fe, img, s in zip(front_ends, images, status)]
+        boxes = [fe.last_boxes if s == OK else None for fe, s in zip(front_ends, status)]
         if registration is not None:
             for c, fg in enumerate(fgs):
                 unseen = registration.unseen(c) if fg is not None else None
                 if unseen is not None:
                     fgs[c] = fg = fg.copy()
                     fg[unseen] = NEUTRAL_LEVEL if fg.dtype == np.uint8 else NEUTRAL_FOREGROUND
-        yield time_s, fgs, status
+        yield time_s, fgs, status, boxes
 
 
 def camera_detections(
@@ -398,7 +419,7 @@ def camera_detections(
     ignore_masks : sequence of (bool ndarray or None), optional
         Per camera, pixels that are not scene evidence, for the generative model (taken from ``registration``
         when given; the per-cell model has them in its lookups).
-    foregrounds : iterable of (time_s, foregrounds, statuses), optional
+    foregrounds : iterable of (time_s, foregrounds, statuses, boxes), optional
         The cameras' front ends computed elsewhere (per-camera streams on dask workers: ``planefuse.batch.
         remote_foregrounds``): per instant, each camera's :meth:`CameraFrontEnd.process`. ``frames``,
         ``backgrounds`` and ``replay`` are then not used. Not with ``params.foreground.selective_update``, whose
@@ -447,7 +468,9 @@ def camera_detections(
     generative = None
     if registration is not None:
         cameras, ignore_masks = registration.cameras, registration.ignore_masks
-    selective = params.foreground is not None and params.foreground.selective_update
+    # the camera model's people fed back to the front ends (a detector's boxes stay inside each front end)
+    selective = params.foreground is not None and params.foreground.selective_update and \
+        params.foreground.selective_source == "model"
     if selective and (cameras is None or foregrounds is not None):
         raise ValueError("foreground selective_update needs the calibrated cameras (cameras= or registration=) and "
                          "the front ends in this process (not foregrounds=)")
@@ -482,7 +505,12 @@ def camera_detections(
     last = [None] * fusion.n_cameras if last_live_s is None else list(last_live_s)
     if len(last) != fusion.n_cameras:
         raise ValueError(f"last_live_s: expected {fusion.n_cameras} times (None where none), got {len(last)}")
-    for i, (time_s, fgs, status) in enumerate(foregrounds):
+    detector = None if params.foreground is None else params.foreground.person_detector
+    box_params = params.boxes.for_detector(detector)
+    if detector is not None and box_params.active and cameras is None:
+        raise ValueError("CameraParams.boxes registers person boxes: it needs the calibrated cameras (cameras= or "
+                         "registration=)")
+    for i, (time_s, fgs, status, boxes) in enumerate(foregrounds):
         replayed = selective and i < replay
         for c, what in enumerate(status if not replayed else ()):
             if what != OK:
@@ -503,6 +531,14 @@ def camera_detections(
             q = generative.marginals(fgs, prior)
             evidence = Evidence(float(time_s), "cameras", generative.log_odds_from_marginals(q, prior))
             detections = generative.detections(q, time_s, params.person.nms_radius_m)
+        if report is not None and not replayed:
+            for name, found in zip(fusion.names, boxes):
+                if found is not None:
+                    report.person_boxes.setdefault(name, []).append((float(time_s), found))
+        if box_params.active and any(found is not None for found in boxes):
+            bumps = box_evidence(cameras, boxes, stack, box_params, ignore_masks, lookups)
+            evidence = Evidence(float(time_s), "cameras", combine_box_evidence(evidence.log_odds, bumps, box_params),
+                                copy=False)
         if selective:
             for fe, people in zip(front_ends, people_masks(cameras, detections.xy_m, person)):
                 fe.protect(people)

@@ -21,7 +21,8 @@ from PIL import GifImagePlugin, Image
 from ..grid import PlaneStack
 from ..outputs._atomic import TMP_MARK
 
-__all__ = ["stack_frames", "stack_palette_frames", "animate_stack", "PALETTE"]
+__all__ = ["stack_frames", "stack_palette_frames", "animate_stack", "PALETTE", "camera_track_frames",
+           "camera_tracks_video"]
 
 
 #: Palette of the animation frames: 254 levels of matplotlib's "magma" for P(occupied) 0..1, then grey
@@ -111,7 +112,7 @@ def animate_stack(
     tracks: Mapping[str, np.ndarray] | None = None,
     *,
     fps: float = 10.0,
-    max_frames: int = 300,
+    max_frames: int | None = 300,
     max_width_px: int = 1200,
     block_steps: int = 16,
 ) -> Path:
@@ -125,8 +126,8 @@ def animate_stack(
     tracks : dict of column arrays, optional
     fps : float
         Frames per second of the animation.
-    max_frames : int
-        Longer runs are subsampled evenly (the count dropped is warned about).
+    max_frames : int or None
+        Longer runs are subsampled evenly (the count dropped is warned about); None = every step.
     max_width_px : int
         Cells are drawn with as many pixels as fit this width (at least 1, at most 8).
     block_steps : int
@@ -144,9 +145,11 @@ def animate_stack(
     T = occupancy.shape[0]
     if T == 0:
         raise ValueError("occupancy has no time steps to animate")
-    idx = np.unique(np.linspace(0, T - 1, min(T, max_frames)).round().astype(int))
+    shown = T if max_frames is None else min(T, int(max_frames))
+    idx = np.unique(np.linspace(0, T - 1, shown).round().astype(int))
     if len(idx) < T:
-        warnings.warn(f"animation shows {len(idx)} of {T} steps (max_frames={max_frames})", stacklevel=2)
+        warnings.warn(f"animation shows {len(idx)} of {T} steps, evenly spaced (max_frames={max_frames}; every step: "
+                      "outputs.animation_max_frames: null)", stacklevel=2)
     L, ny, nx = stack.shape
     cell_px = max(1, min(8, (max_width_px - 4 * (L - 1)) // (L * nx)))
 
@@ -199,3 +202,76 @@ def _write_mp4(path: Path, frames, fps: float) -> None:
     finally:
         if vw is not None:
             vw.release()
+
+
+def camera_track_frames(camera, stream, step_times_s, tracks: Mapping[str, np.ndarray] | None, *,
+                        steps=None, head_m: float = 1.7):
+    """Camera frames with the tracks drawn, one per output step: BGR uint8 (H, W, 3) images, lazily.
+
+    For each output step ``k`` (of ``steps``, all by default), the frame of ``stream`` nearest in time to
+    ``step_times_s[k]``, with every track of that step as a line from its feet (z = 0) to ``head_m`` above them,
+    in its colour of the figures (:func:`planefuse.viz.track_colour`) and labelled with its id, and the frame
+    number, time and step written in its top-left corner.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+    stream : planefuse.io.CameraStream
+        The camera's frames (``times_s``, ``frame(i)`` BGR).
+    step_times_s : ndarray, shape (T,)
+        Times of the output steps [s].
+    tracks : dict of column arrays
+        ``step``, ``track_id``, ``x_m``, ``y_m`` (the run's ``tracks.csv``).
+    """
+    from ._figures import _rows_at, track_colour
+
+    step_times_s = np.asarray(step_times_s, float)
+    frame_times = np.asarray(stream.times_s, float)
+    steps = range(len(step_times_s)) if steps is None else steps
+    for k in steps:
+        i = int(np.argmin(np.abs(frame_times - step_times_s[k])))
+        img = np.ascontiguousarray(stream.frame(i)).copy()
+        ids, xy = _rows_at(tracks, int(k))
+        for tid, p in zip(ids, xy):
+            uv = camera.project(np.array([[p[0], p[1], 0.0], [p[0], p[1], head_m]]))
+            if not np.isfinite(uv).all() or np.abs(uv).max() > 1e5:
+                continue
+            r, g, b = (int(255 * c) for c in track_colour(tid)[:3])
+            a, z = (tuple(int(round(v)) for v in q) for q in uv)
+            cv2.line(img, a, z, (b, g, r), 2, cv2.LINE_AA)
+            cv2.putText(img, str(int(tid)), (z[0] - 4, z[1] - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (b, g, r), 1,
+                        cv2.LINE_AA)
+        label = f"{camera.name} frame {i} t={frame_times[i]:.2f}s step {int(k)}"
+        cv2.putText(img, label, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3, cv2.LINE_AA)
+        cv2.putText(img, label, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+        yield img
+
+
+def camera_tracks_video(path: Path | str, camera, stream, step_times_s, tracks: Mapping[str, np.ndarray] | None, *,
+                        fps: float = 5.0, max_frames: int | None = None, head_m: float = 1.7) -> Path:
+    """Write an MP4 of ``camera``'s frames with the tracks drawn (:func:`camera_track_frames`), one frame per
+    output step (at most ``max_frames``, evenly spaced; None = every step), atomically to ``path``.
+
+    Raises
+    ------
+    ValueError
+        ``path`` does not end in ``.mp4``, or there is no output step.
+    OSError
+        OpenCV has no video encoder here.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".mp4":
+        raise ValueError(f"camera video path must end in .mp4, got {path.name!r}")
+    T = len(step_times_s)
+    if T == 0:
+        raise ValueError("no output step to draw")
+    shown = T if max_frames is None else min(T, int(max_frames))
+    steps = np.unique(np.linspace(0, T - 1, shown).round().astype(int))
+    frames = camera_track_frames(camera, stream, step_times_s, tracks, steps=steps, head_m=head_m)
+    tmp = path.with_name(f".{path.stem}{TMP_MARK}{path.suffix}")
+    try:
+        _write_mp4(tmp, (f[: f.shape[0] // 2 * 2, : f.shape[1] // 2 * 2] for f in frames), fps)
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path

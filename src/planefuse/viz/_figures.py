@@ -26,6 +26,8 @@ __all__ = [
     "FigureInputs",
     "plot_plane_occupancy",
     "plot_camera_grid",
+    "plot_camera_tracks",
+    "track_colour",
     "plot_saliency",
     "plot_laser_points",
     "plot_metrics",
@@ -59,6 +61,13 @@ class FigureInputs:
         Ground-truth table with columns ``step``, ``track_id``, ``x_m``, ``y_m`` (drawn dashed).
     ignore_masks : dict of str -> ndarray
         Per camera name, its ignore regions, (H, W) bool (pixels that are not scene evidence), drawn on its frame.
+    camera_image_labels : dict of str -> str
+        Per camera name, which frame ``camera_images`` holds ("frame 12, t = 2.40 s").
+    camera_frames : dict of str -> list of (int, float, ndarray)
+        Per camera name, a few frames ``(frame index, time [s], image RGB (H, W, 3) uint8)`` on which the tracks
+        of the output step nearest in time are drawn (``camera_<name>_tracks``).
+    camera_streams : dict of str -> planefuse.io.CameraStream
+        Per camera name, all its frames (for ``outputs.camera_videos``).
     """
 
     cameras: list[PinholeCamera] = field(default_factory=list)
@@ -69,6 +78,9 @@ class FigureInputs:
     saliency_azimuth_rad: np.ndarray | None = None
     ground_truth: dict[str, np.ndarray] | None = None
     ignore_masks: dict[str, np.ndarray] = field(default_factory=dict)
+    camera_image_labels: dict[str, str] = field(default_factory=dict)
+    camera_frames: dict[str, list] = field(default_factory=dict)
+    camera_streams: dict[str, object] = field(default_factory=dict)
 
 
 def png_bytes(fig: Figure, dpi: int = 100) -> bytes:
@@ -88,6 +100,18 @@ def _plane_axes(n: int, size_in: float = 3.2) -> tuple[Figure, np.ndarray]:
     return fig, axes.ravel()
 
 
+def track_colour(track_id) -> tuple:
+    """The colour of a track (or ground-truth person) ``track_id`` in every figure: tab10 by id."""
+    return matplotlib.colormaps["tab10"](int(track_id) % 10)
+
+
+def _legend(fig: Figure, ax) -> None:
+    """Every labelled line of ``ax`` in one legend under the figure (as many columns as fit)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncol=min(8, len(labels)), fontsize=7)
+
+
 def _track_lines(ax, tracks: Mapping[str, np.ndarray] | None, upto_step: float, style: str = "-",
                  label: str = "track") -> None:
     if not tracks or len(tracks.get("step", [])) == 0:
@@ -96,14 +120,12 @@ def _track_lines(ax, tracks: Mapping[str, np.ndarray] | None, upto_step: float, 
     ids = np.asarray(tracks["track_id"])
     xy = np.stack([np.asarray(tracks["x_m"], float), np.asarray(tracks["y_m"], float)], axis=-1)
     keep = steps <= upto_step
-    cmap = matplotlib.colormaps["tab10"]
-    for k, tid in enumerate(np.unique(ids[keep])):
+    for tid in np.unique(ids[keep]):
         m = keep & (ids == tid)
         order = np.argsort(steps[m])
         path = xy[m][order]
-        ax.plot(path[:, 0], path[:, 1], style, color=cmap(int(tid) % 10), lw=1.2,
-                label=f"{label} {int(tid)}" if k < 6 else None)
-        ax.plot(path[-1, 0], path[-1, 1], "o", color=cmap(int(tid) % 10), ms=4)
+        ax.plot(path[:, 0], path[:, 1], style, color=track_colour(tid), lw=1.2, label=f"{label} {int(tid)}")
+        ax.plot(path[-1, 0], path[-1, 1], "o", color=track_colour(tid), ms=4)
 
 
 def plot_plane_occupancy(
@@ -152,10 +174,11 @@ def plot_plane_occupancy(
         _track_lines(ax, tracks, upto)
         ax.set_xlim(stack.extent_m[:2])
         ax.set_ylim(stack.extent_m[2:])
-    if axes[0].get_legend_handles_labels()[0]:
-        axes[0].legend(fontsize=7, loc="upper right")
+    _legend(fig, axes[0])
     fig.colorbar(im, ax=list(axes[: stack.n_planes]), shrink=0.8, label="P(occupied)")
-    fig.suptitle("Occupancy per plane" + (f" at t = {time_s:.2f} s" if time_s is not None else ""))
+    at = [f"step {step}" if step is not None else "", f"t = {time_s:.2f} s" if time_s is not None else ""]
+    at = ", ".join(a for a in at if a)
+    fig.suptitle("Occupancy per plane" + (f" at {at}" if at else ""))
     return fig
 
 
@@ -179,7 +202,7 @@ def grid_lines_world(stack: PlaneStack, plane: int, spacing_m: float = 1.0, samp
 
 
 def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spacing_m: float = 1.0,
-                     ignore_mask=None) -> Figure:
+                     ignore_mask=None, image_label: str = "") -> Figure:
     """A camera frame with the grid of every plane projected through the camera (lens distortion included).
 
     Parameters
@@ -192,6 +215,8 @@ def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spaci
         Distance between drawn grid lines [m].
     ignore_mask : ndarray, shape (H, W), bool, optional
         The camera's ignore regions (pixels that are not scene evidence), drawn hatched in red.
+    image_label : str
+        Which frame ``image`` is (its number and time), shown in the title.
     """
     w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
     fig = Figure(figsize=(5.0, 5.0 * h / w + 0.3), layout="constrained")
@@ -216,8 +241,75 @@ def plot_camera_grid(camera: PinholeCamera, stack: PlaneStack, image=None, spaci
     ax.set_ylim(h - 0.5, -0.5)
     ax.set_xlabel("u [px]")
     ax.set_ylabel("v [px]")
-    ax.set_title(f"{camera.name}: registered planes (grid every {spacing_m:g} m)", fontsize=9)
+    ax.set_title(f"{camera.name}: registered planes (grid every {spacing_m:g} m)"
+                 + (f"\n{image_label}" if image_label else ""), fontsize=9)
     ax.legend(fontsize=7, loc="lower right")
+    return fig
+
+
+def _rows_at(table: Mapping[str, np.ndarray] | None, step: int) -> tuple[np.ndarray, np.ndarray]:
+    """``track_id`` (or -1s) and ``(x_m, y_m)`` of the rows of ``table`` at output step ``step``."""
+    if not table or len(table.get("step", [])) == 0:
+        return np.zeros(0, int), np.zeros((0, 2))
+    m = np.asarray(table["step"]) == step
+    ids = np.asarray(table["track_id"])[m] if "track_id" in table else np.full(int(m.sum()), -1)
+    xy = np.stack([np.asarray(table["x_m"], float)[m], np.asarray(table["y_m"], float)[m]], -1)
+    return ids, xy
+
+
+def plot_camera_tracks(camera: PinholeCamera, frames, times_s, tracks: Mapping[str, np.ndarray] | None,
+                       detections: Mapping[str, np.ndarray] | None = None, *, ignore_mask=None,
+                       head_m: float = 1.7) -> Figure:
+    """Camera frames with the tracks of the output step nearest each frame drawn as feet-to-head lines.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+    frames : sequence of (int, float, ndarray)
+        ``(frame index, time [s], image (H, W, 3) RGB uint8)``, one panel each.
+    times_s : ndarray, shape (T,)
+        Times of the output steps [s].
+    tracks, detections : dict of column arrays
+        The run's tables (``step``, ``track_id``, ``x_m``, ``y_m``); each track is a vertical segment from its
+        ground position to ``head_m`` above it, in its colour of the floor-plan figures (:func:`track_colour`),
+        labelled with its id; detections are grey crosses at the feet.
+    ignore_mask : ndarray, shape (H, W), bool, optional
+    head_m : float
+        Height of the drawn segment [m].
+    """
+    w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
+    n = len(frames)
+    cols = min(n, 2)
+    rows = -(-n // cols)
+    fig = Figure(figsize=(4.2 * cols, 4.2 * rows * h / w + 0.8), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    times_s = np.asarray(times_s, float)
+    for ax, (index, t, image) in zip(axes, frames):
+        step = int(np.argmin(np.abs(times_s - t)))
+        ax.imshow(np.asarray(image), extent=(-0.5, w - 0.5, h - 0.5, -0.5))
+        if ignore_mask is not None and np.any(ignore_mask):
+            ax.contour(np.arange(w), np.arange(h), np.asarray(ignore_mask, float), levels=[0.5], colors="red",
+                       linewidths=0.6)
+        _, dxy = _rows_at(detections, step)
+        if len(dxy):
+            uv = camera.project(np.c_[dxy, np.zeros(len(dxy))])
+            ax.plot(uv[:, 0], uv[:, 1], "x", color="0.8", ms=5, mew=1.2)
+        ids, xy = _rows_at(tracks, step)
+        for tid, p in zip(ids, xy):
+            uv = camera.project(np.array([[p[0], p[1], 0.0], [p[0], p[1], head_m]]))
+            if not np.isfinite(uv).all():
+                continue
+            ax.plot(uv[:, 0], uv[:, 1], "-", color=track_colour(tid), lw=2.5)
+            ax.annotate(str(int(tid)), uv[1], color=track_colour(tid), fontsize=8, fontweight="bold",
+                        ha="center", va="bottom")
+        ax.set_xlim(-0.5, w - 0.5)
+        ax.set_ylim(h - 0.5, -0.5)
+        ax.set_axis_off()
+        ax.set_title(f"frame {index}, t = {t:.2f} s (step {step}): {len(ids)} tracks", fontsize=8)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.suptitle(f"{camera.name}: tracks (feet to {head_m:g} m, colours as the floor plan), detections x",
+                 fontsize=9)
     return fig
 
 
@@ -334,12 +426,17 @@ def run_figures(
         det_xy = np.stack([np.asarray(detections["x_m"], float)[dstep == last],
                            np.asarray(detections["y_m"], float)[dstep == last]], -1) if dstep.size else None
         jobs.append(("occupancy_last", lambda: plot_plane_occupancy(
-            stack, occ[last], time_s=float(times_s[last]), detections_xy_m=det_xy, tracks=tracks,
+            stack, occ[last], time_s=float(times_s[last]), step=last, detections_xy_m=det_xy, tracks=tracks,
             ground_truth=inputs.ground_truth)))
-        jobs.append(("occupancy_mean", lambda: _mean_fig(stack, occ, tracks, inputs.ground_truth)))
+        jobs.append(("occupancy_mean", lambda: _mean_fig(stack, occ, tracks, inputs.ground_truth, times_s)))
     for cam in inputs.cameras:
         jobs.append((f"camera_{cam.name}", lambda cam=cam: plot_camera_grid(
-            cam, stack, inputs.camera_images.get(cam.name), ignore_mask=inputs.ignore_masks.get(cam.name))))
+            cam, stack, inputs.camera_images.get(cam.name), ignore_mask=inputs.ignore_masks.get(cam.name),
+            image_label=inputs.camera_image_labels.get(cam.name, ""))))
+        if inputs.camera_frames.get(cam.name) and len(times_s):
+            jobs.append((f"camera_{cam.name}_tracks", lambda cam=cam: plot_camera_tracks(
+                cam, inputs.camera_frames[cam.name], times_s, tracks, detections,
+                ignore_mask=inputs.ignore_masks.get(cam.name))))
     if inputs.saliency is not None:
         jobs.append(("saliency", lambda: plot_saliency(inputs.saliency_times_s, inputs.saliency_azimuth_rad,
                                                        inputs.saliency)))
@@ -386,7 +483,9 @@ def occupancy_mean(occupancy, block_steps: int = 16) -> np.ndarray:
         return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
-def _mean_fig(stack: PlaneStack, occ, tracks, ground_truth) -> Figure:
+def _mean_fig(stack: PlaneStack, occ, tracks, ground_truth, times_s=None) -> Figure:
     fig = plot_plane_occupancy(stack, occupancy_mean(occ), tracks=tracks, ground_truth=ground_truth)
-    fig.suptitle(f"Mean occupancy over {occ.shape[0]} steps, with all tracks")
+    span = f" (steps 0-{occ.shape[0] - 1}, t = {times_s[0]:.2f}-{times_s[-1]:.2f} s)" \
+        if times_s is not None and len(times_s) else ""
+    fig.suptitle(f"Mean occupancy over {occ.shape[0]} steps{span}, with all tracks")
     return fig

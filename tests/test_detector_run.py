@@ -1,0 +1,102 @@
+"""A person detector in a whole run: each camera's boxes written per output step (``camera_boxes.csv`` and one
+MOTChallenge 2-D file per camera), identical after an interrupted run resumes, and its boxes registered on the
+planes. The detector is a tiny ONNX model built here that finds one known box in every frame."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from planefuse.io import read_recording
+from planefuse.outputs import OutputSettings, OutputWriter, read_table
+from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
+from planefuse.sim import default_scene_config, simulate
+
+from test_vision_yolox import SIDE, constant_model, raw_rows, set_row
+
+pytest.importorskip("onnx", reason="the onnx package (dev extra) builds the test model")
+
+
+@pytest.fixture(scope="module")
+def recording_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rec") / "scene"
+    simulate(default_scene_config(duration_s=2.0, seed=2)).write(d, image_format="jpg")
+    return d
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    rows = raw_rows()
+    # one box: centre (28, 28), 16 x 32 px on the 64 x 64 canvas, score 0.9
+    set_row(rows, 8, 3, 3, (0.5, 0.5, math.log(2.0), math.log(4.0)), 0.9, 1.0)
+    return constant_model(tmp_path_factory.mktemp("model") / "one_box.onnx", rows)
+
+
+def _params(model: str, box_log_odds: float = 2.0) -> SystemParams:
+    base = SystemParams(laser=False, sound=False)
+    cams = base.camera_params
+    fg = replace(cams.foreground, person_detector="yolox", person_model=model, person_input_px=(SIDE, SIDE),
+                 person_likelihood=None)
+    boxes = replace(cams.boxes, log_odds=box_log_odds, free_log_odds=0.0)
+    return replace(base, camera_params=replace(cams, foreground=fg, boxes=boxes))
+
+
+def _run(rec, out, params, resume=True):
+    settings = OutputSettings(animation="none", figures=False, report=False, chunk_steps=3)
+    return run_to_folder(rec, RunPlan(params, out, settings, resume=resume), progress_mode="quiet")
+
+
+def test_each_cameras_boxes_are_written_per_step_and_survive_a_resume(recording_dir, model, tmp_path, monkeypatch):
+    rec = read_recording(recording_dir)
+    params = _params(model)
+    ref = tmp_path / "ref"
+    _run(rec, ref, params)
+    boxes = read_table(ref / "camera_boxes.csv")
+    names = [c.name for c in rec.cameras]
+    w, h = rec.cameras[0].intrinsics.width_px, rec.cameras[0].intrinsics.height_px
+    r = min(SIDE / w, SIDE / h)
+    n_steps = len(read_table(ref / "tracks.csv")["step"]) and int(read_table(ref / "detections.csv")["step"].max()) + 1
+    # one box per camera and camera instant (5 Hz, the output rate): its canvas box (20, 12, 36, 44) / r
+    assert sorted(set(boxes["camera"])) == sorted(names)
+    for name in names:
+        mine = boxes["camera"] == name
+        np.testing.assert_allclose(np.c_[boxes["left_px"], boxes["top_px"], boxes["width_px"], boxes["height_px"]][mine],
+                                   np.tile(np.array([20.0, 12.0, 16.0, 32.0]) / r, (mine.sum(), 1)), atol=0.01)
+        np.testing.assert_allclose(boxes["score"][mine], 0.9, rtol=1e-5)
+        assert np.array_equal(boxes["step"][mine], np.unique(boxes["step"][mine]))  # one instant per step
+        mot = np.loadtxt(ref / f"boxes_{name}_mot.txt", delimiter=",", ndmin=2)
+        assert mot.shape == (mine.sum(), 10)
+        np.testing.assert_array_equal(mot[:, 0], boxes["step"][mine] + 1)  # MOTChallenge frames count from 1
+        assert (mot[:, 1] == -1).all()
+    assert boxes["step"].max() <= n_steps
+    # interrupted at step 4 (in its second chunk) and resumed: the same files
+    original = OutputWriter.write_occupancy
+
+    def write(self, k, *a, **kw):
+        if k == 4:
+            raise KeyboardInterrupt
+        return original(self, k, *a, **kw)
+
+    out = tmp_path / "out"
+    with monkeypatch.context() as m:
+        m.setattr(OutputWriter, "write_occupancy", write)
+        with pytest.raises(KeyboardInterrupt):
+            _run(rec, out, params)
+    _run(rec, out, params)
+    for name in ["camera_boxes.csv", "tracks.csv", *(f"boxes_{n}_mot.txt" for n in names)]:
+        assert (out / name).read_bytes() == (ref / name).read_bytes(), name
+
+
+def test_registered_boxes_change_the_occupancy_only_through_their_bumps(recording_dir, model, tmp_path):
+    rec = read_recording(recording_dir)
+    with_boxes, _ = _run(rec, tmp_path / "on", _params(model, 3.0))
+    without, _ = _run(rec, tmp_path / "off", _params(model, 0.0))
+    a, b = (read_table(tmp_path / d / "camera_boxes.csv") for d in ("on", "off"))
+    assert len(a["step"]) == len(b["step"]) > 0  # the detector runs either way
+    import zarr
+    za, zb = (zarr.open_group(tmp_path / d / "occupancy.zarr", mode="r")["occupancy"][:] for d in ("on", "off"))
+    assert not np.array_equal(za, zb)
+    assert (za >= zb - 1e-6).mean() > 0.99  # the bumps only add evidence for a person

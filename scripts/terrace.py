@@ -139,6 +139,8 @@ ROWS = {
     "det": (DET_NAME, _DET),
     "det-nofilter": (DET_NAME, _changes(_DET, _NOFILTER)),
     "det-ground": (DET_NAME, _changes(_DET, _GROUND)),
+    "det-app": (DET_NAME, _changes(_DET, _APPEARANCE)),
+    "det-app-stitch": (DET_NAME, _changes(_DET, _APPEARANCE, _STITCH)),
     "detonly": (DET_ONLY_NAME, _changes(_DET, _DET_ONLY)),
     "detonly-nofilter": (DET_ONLY_NAME, _changes(_DET, _DET_ONLY, _NOFILTER)),
 }

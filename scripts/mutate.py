@@ -39,6 +39,7 @@ EVAL = ("tests/test_eval_detection.py", "tests/test_eval_tracking.py")
 AUDIO = ("tests/test_audio_localize.py", "tests/test_audio_simulate.py", "tests/test_system_accuracy.py")
 VISION = ("tests/test_vision.py", "tests/test_system_accuracy.py")
 PIPELINE = ("tests/test_tracking_async.py", "tests/test_pipeline.py", "tests/test_system_accuracy.py")
+PINNED = ("tests/test_tracking_pinned_rules.py",)  # the tracker's documented rules as exact cases (issue 39)
 
 
 @dataclass(frozen=True)
@@ -186,6 +187,31 @@ MUTATIONS = [
     M("PIPE-4", "pipeline", "src/planefuse/pipeline/_streams.py",
       "heapq.heappush(heap, (float(item[0]), i, item[1]))", "heapq.heappush(heap, (float(i), i, item[1]))",
       "sources not interleaved by time (one source after the other)", PIPELINE),
+    # -- the tracker's documented rules (issue 39: each passed the whole suite before) ------------------------------
+    M("TRK-1", "tracker", "src/planefuse/tracking/_tracker.py",
+      "(np.linalg.norm(y[..., :2], axis=-1) <= cap[:, None])",
+      "(np.linalg.norm(y[..., :2], axis=-1) <= 1.5 * cap[:, None])", "gate distance cap x 1.5", PINNED),
+    M("TRK-2", "tracker", "src/planefuse/tracking/_tracker.py",
+      "gated = (d2_pos <= p.gate_chi2) &", "gated = (d2_pos <= 1.5 * p.gate_chi2) &",
+      "gate chi-square bound x 1.5", PINNED),
+    M("TRK-3", "tracker", "src/planefuse/tracking/_tracker.py",
+      "tr.misses > p.max_misses or", "tr.misses > p.max_misses + 1 or",
+      "a lost track deleted one step later", PINNED),
+    M("TRK-4", "tracker", "src/planefuse/tracking/_tracker.py",
+      "tr.misses > p.max_misses or", "tr.misses >= p.max_misses or",
+      "a lost track deleted one step earlier", PINNED),
+    M("TRK-5", "tracker", "src/planefuse/tracking/_tracker.py",
+      "if not tr.confirmed or tr.misses > p.max_misses", "if tr.misses > p.max_misses",
+      "a tentative track kept after its first miss", PINNED),
+    M("TRK-6", "tracker", "src/planefuse/tracking/_tracker.py",
+      "tr.misses > p.max_misses or not self._inside(tr.x[:2])", "tr.misses > p.max_misses",
+      "a track whose prediction left the grid kept", PINNED),
+    M("ASYNC-1", "tracker", "src/planefuse/tracking/_async.py",
+      "heapq.heappush(self._heap, (t, self._next_seq, evidence))", "self._heap.append((t, self._next_seq, evidence))",
+      "the buffer releases in arrival order, not time order", PINNED),
+    M("ASYNC-2", "tracker", "src/planefuse/tracking/_async.py",
+      "until = np.inf if final else self._newest_s - self.window_s", "until = np.inf",
+      "the buffer holds nothing back: each message fused on arrival (arrival order)", PINNED),
 ]
 
 

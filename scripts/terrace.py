@@ -492,6 +492,7 @@ def main(argv=None) -> int:
             sys.path.insert(0, str(REPO / "benchmarks"))
             from bench_terrace_pom import pom_row
 
+            (out / "pom-det").mkdir(exist_ok=True)
             pom = pom_row(rec, det_masks, frames, lambda d: score(truth, frames, d), out / "pom-det")
             if pom is not None:
                 results.append(dict(row="pom-det", front_end=DET_ONLY_NAME, planes="ground locations (25 cm)",

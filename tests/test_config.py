@@ -147,7 +147,7 @@ def test_missing_required_file_level_and_yaml_errors(tmp_path):
     err = _error(_write(tmp_path, "planes:\n  cell_size_m: 0.1\n"))
     assert err.issues[0].field_path == "recording" and "missing" in err.issues[0].message
     err = _error(_write(tmp_path, "recording: a\nplanes: [unclosed\n"))
-    assert err.issues[0].field_path == "" and "not valid YAML" in err.issues[0].message and err.issues[0].line
+    assert err.issues[0].field_path == "" and "invalid YAML" in err.issues[0].message and err.issues[0].line
     err = _error(_write(tmp_path, "- just\n- a list\n"))
     assert "mapping" in err.issues[0].message
     err = _error(tmp_path / "absent.yaml")
@@ -207,14 +207,14 @@ def test_cli_check_missing_recording_and_connected_reader(tmp_path, monkeypatch)
     (tmp_path / "scene" / "scene.yaml").write_text("{}\n")
     cams = default_camera_ring()
     times = {c.name: np.arange(50) * 0.04 for c in cams} | {"laser": np.arange(20) * 0.1}
-    from planefuse.cli import _check
+    from planefuse.config import _preflight
 
     # the configuration enables sound (the default); the recording has cameras and a laser only
     streams = {c.name: SimpleNamespace(frame_files=[], rate_hz=25.0) for c in cams}
     rec = SimpleNamespace(cameras=cams, lasers={}, audio={}, room_xy_m=(-0.2, 10.2, -0.2, 10.2),
                           planes_heights_m=(0.1, 1.0), camera_streams=streams, root=tmp_path / "scene", source="fake",
                           duration_s=2.0, provenance=None)
-    monkeypatch.setattr(_check, "read_recording_for_check", lambda cfg: (rec, times))
+    monkeypatch.setattr(_preflight, "read_recording_for_check", lambda cfg: (rec, times))
     r = runner.invoke(app, ["check", str(p), "--log-json"])
     (err,) = [i for i in json.loads(r.output)["issues"] if i["level"] == "error"]
     # the words `planefuse run` refuses it with (planefuse.pipeline.check_modalities_present)

@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 from conftest import edit_laser_npz
 
@@ -260,6 +262,29 @@ def test_a_point_mapped_to_infinity_is_nan_not_inf():
         warnings.simplefilter("error")
         out = apply_homography(H, [[0.0, 2.0], [1.0, 2.0]])
     assert np.isnan(out[0]).all() and np.allclose(out[1], [1.0, 2.0])
+
+
+def test_a_point_mapped_beyond_the_float_range_is_nan_not_inf():
+    """Overflow is "mapped to infinity" too (issue 39): x = 1e10 * 1e300 is not a float64; the row is NaN, never
+    inf, and without a NumPy warning; the rows that fit are exact."""
+    H = np.diag([1e10, 1.0, 1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = apply_homography(H, [[1e300, 2.0], [3.0, 2.0], [-1e300, 1e300]])
+    assert np.isnan(out[[0, 2]]).all() and np.array_equal(out[1], [3e10, 2.0])
+
+
+@given(st.lists(st.floats(-1e300, 1e300), min_size=9, max_size=9), st.lists(st.floats(-1e300, 1e300), min_size=2,
+                                                                          max_size=2))
+@settings(max_examples=200, deadline=None, derandomize=True)
+def test_apply_homography_never_returns_inf(h, p):
+    H = np.array(h).reshape(3, 3)
+    try:
+        out = apply_homography(H, [p])
+    except ValueError as err:  # a singular or non-finite H: refused by check_homography, named
+        assert "H " in str(err) or "H has" in str(err)
+        return
+    assert not np.isinf(out).any()
 
 
 def test_resolve_all_inside_is_resolve_inside(tmp_path):

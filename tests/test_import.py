@@ -725,3 +725,41 @@ def test_ignore_rects_in_the_run_configuration_equal_the_imports(installation):
     text = (d / "run.yaml").read_text().replace("ignore_rects_px: []", "ignore_rects_px: [[c0, 10, 5, 40, 30]]")
     (d / "run.yaml").write_text(text)
     assert load_config(d / "run.yaml").system_params().camera_ignore_rects_px == (("c0", 10, 5, 40, 30),)
+
+
+# --------------------------------------------------------------------------- hostile image folders (issue 39)
+def test_import_refuses_an_image_of_another_size_naming_it(installation):
+    d, cams, frames, _ = installation
+    cv2.imwrite(str(d / "c1" / "img_13.png"), np.zeros((H - 8, W - 8, 3), np.uint8))  # one odd frame in the middle
+    r = _cli("import", d / "rec", "--camera", f"c1={d / 'c1'}", "--rate", "c1=25", "--calib-format", "opencv",
+             "--units", "mm", "--calib", f"c1={d / 'c1.yaml'}")
+    line = " ".join(r.output.split())
+    assert r.exit_code == 2 and "img_13.png" in line and f"is {W - 8}x{H - 8} px, 7 of its 8 images are {W}x{H}" in line
+    assert not (d / "rec").exists()
+
+
+def test_a_gap_in_the_image_numbering_keeps_its_time(installation):
+    """Images 10..17 with 12 and 13 missing at 25 Hz: each image is dated by its number (img_14 at 4 / 25 s, not
+    2 / 25 s), the gap is said, and the recording reads back with the frames' own times."""
+    d, cams, frames, _ = installation
+    (d / "c1" / "img_12.png").unlink()
+    (d / "c1" / "img_13.png").unlink()
+    rep = import_recording(d / "lib", [CameraInput("c1", d / "c1", rate_hz=25.0)], {"c1": cams[1]})
+    cs = read_recording(d / "lib").camera("c1")
+    np.testing.assert_allclose(cs.times_s, np.array([0, 1, 4, 5, 6, 7]) / 25.0)
+    np.testing.assert_array_equal(cs.frame(2), frames[4][::-1])
+    assert "2 image number(s) missing (1 gap(s), the first 12..13 after img_11.png)" in rep.notes[0]
+
+
+@pytest.mark.parametrize("names, match", [
+    (["img_1.png", "img_01.png"], "has the number 1 of img_01.png|has the number 1 of img_1.png"),
+    (["f_1000.png", "f_1040.png", "f_1080.png"], "numbers step by 40"),
+    (["a_1.png", "a_2.png", "cover.png"], "cover.png: .*no number"),
+])
+def test_image_numbers_that_cannot_date_the_images_are_refused(tmp_path, names, match):
+    (tmp_path / "c").mkdir()
+    for n in names:
+        cv2.imwrite(str(tmp_path / "c" / n), np.zeros((H, W, 3), np.uint8))
+    cam = PinholeCamera(CameraIntrinsics(K, W, H), T_world_cam_look_at([0, -3, 3], [0, 1, 0]), name="c")
+    with pytest.raises(ValueError, match=match):
+        import_recording(tmp_path / "rec", [CameraInput("c", tmp_path / "c", rate_hz=25.0)], {"c": cam})

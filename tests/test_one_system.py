@@ -183,6 +183,8 @@ CHANGED = {
     "outputs.figure_dpi": 60,
     "outputs.animation_max_frames": 40,
     "outputs.camera_videos": True,
+    "outputs.mcap": True,
+    "outputs.ros2_bag": True,
 }
 
 
@@ -262,11 +264,16 @@ def test_output_options_are_honoured(short_recording, tmp_path):
     plain = OutputSettings(zarr=False, chunk_steps=3, figures=False, animation="none", report=False)
     run_to_folder(short_recording, RunPlan(SystemParams(cameras=False), tmp_path / "a", plain), progress_mode="quiet")
     names = {p.name for p in (tmp_path / "a").iterdir()}
-    assert not names & {"occupancy.zarr", "figures", "report.html", "animation.gif", "animation.mp4"}, names
+    assert not names & {"occupancy.zarr", "figures", "report.html", "animation.gif", "animation.mp4",
+                        "planefuse.mcap", "ros2_bag"}, names
     assert json.loads((tmp_path / "a" / "run_state.json").read_text())["chunk_steps"] == 3
     for dpi, name in ((40, "b"), (80, "c")):
         s = OutputSettings(figures=True, animation="none", report=False, figure_dpi=dpi)
         run_to_folder(short_recording, RunPlan(SystemParams(cameras=False), tmp_path / name, s), progress_mode="quiet")
+    robotics = OutputSettings(figures=False, animation="none", report=False, mcap=True, ros2_bag=True)
+    run_to_folder(short_recording, RunPlan(SystemParams(cameras=False), tmp_path / "d", robotics),
+                  progress_mode="quiet")
+    assert (tmp_path / "d" / "planefuse.mcap").is_file() and (tmp_path / "d" / "ros2_bag" / "metadata.yaml").is_file()
     import cv2
 
     small, large = (cv2.imread(str(next((tmp_path / n / "figures").glob("*.png")))) for n in ("b", "c"))
@@ -279,7 +286,8 @@ def test_resume_key_ignores_output_options_and_follows_models(short_recording, t
     key = resume_key(cfg.plan(), short_recording)
     for path, value in (("outputs.figures", False), ("outputs.out_dir", "elsewhere"), ("outputs.report", False),
                         ("outputs.animation", "none"), ("outputs.figure_dpi", 50), ("outputs.rerun", True),
-                        ("outputs.animation_max_frames", None), ("outputs.camera_videos", True)):
+                        ("outputs.animation_max_frames", None), ("outputs.camera_videos", True),
+                        ("outputs.mcap", True), ("outputs.ros2_bag", True)):
         assert resume_key(config_from_dict(_nested(path, value)).plan(), short_recording) == key, path
     for path, value in (("models.filter.decay_rate_hz", 1.0), ("outputs.chunk_steps", 10), ("planes.heights_m", [1.0])):
         assert resume_key(config_from_dict(_nested(path, value)).plan(), short_recording) != key, path

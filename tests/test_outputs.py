@@ -164,6 +164,9 @@ def test_ctrl_c_leaves_valid_outputs_and_rerun_resumes(job, tmp_path):
 
     same = _writer(cfg)
     assert same.resumed and same.resume_step == 40  # only full chunks count: the short tail is recomputed
+    with pytest.raises(ValueError, match="being written by another planefuse run"):
+        _writer(cfg)  # one writer per folder, in one process too
+    same.close()
     changed = cfg.model_copy(update={"planes": cfg.planes.model_copy(update={"heights_m": [0.0, 0.7]})})
     with pytest.raises(ValueError, match="results of another run"):
         _writer(changed)  # another configuration's results are not replaced silently

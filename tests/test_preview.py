@@ -109,3 +109,23 @@ def test_outputs_camera_videos_writes_one_video_per_camera_with_a_frame_per_step
         cap.release()
     listed = (tmp_path / "out" / "figures" / ".planefuse-figures").read_text().split()
     assert sorted(listed) == sorted(f"camera_{c.name}_tracks.mp4" for c in rec.cameras)
+
+
+def test_camera_tracks_figure_draws_this_cameras_person_boxes_of_the_step():
+    from matplotlib.patches import Rectangle
+
+    from planefuse.viz import plot_camera_tracks
+
+    rec = simulate(default_scene_config(duration_s=0.2, seed=1))
+    cam = rec.cameras[0]
+    image = rec.camera(cam.name).frame(0)[..., ::-1]
+    boxes = {"step": np.array([0, 0, 1]), "camera": np.array([cam.name, "other", cam.name], dtype=object),
+             "left_px": np.array([10.0, 20.0, 30.0]), "top_px": np.array([5.0, 6.0, 7.0]),
+             "width_px": np.array([20.0, 21.0, 22.0]), "height_px": np.array([40.0, 41.0, 42.0]),
+             "score": np.array([0.91, 0.8, 0.7])}
+    fig = plot_camera_tracks(cam, [(0, 0.0, image)], np.array([0.0, 0.2]), None, boxes=boxes)
+    ax = fig.axes[0]
+    rects = [p for p in ax.patches if isinstance(p, Rectangle)]
+    assert len(rects) == 1  # this camera's box at step 0 only
+    assert rects[0].get_xy() == (9.5, 4.5) and (rects[0].get_width(), rects[0].get_height()) == (20.0, 40.0)
+    assert "1 person boxes" in ax.get_title() and any(t.get_text() == "0.91" for t in ax.texts)

@@ -19,13 +19,13 @@ app.add_typer(config_app, name="config")
 
 
 def exit_on_config_error(err: ConfigError) -> None:
-    """Print a :class:`ConfigError` readably and exit with status 2."""
-    console.print(f"[bold red]invalid configuration[/] {escape(str(err.file))}", highlight=False)
+    """Print a :class:`ConfigError` readably (each issue on one line, not wrapped) and exit with status 2."""
+    console.print(f"[bold red]invalid configuration[/] {escape(str(err.file))}", highlight=False, soft_wrap=True)
     for it in err.issues:
         where = f"{err.file}:{it.line}" if it.line else str(err.file)
-        exp = f"\n      expected: {it.expected}" if it.expected else ""
+        exp = f" (expected: {it.expected})" if it.expected else ""
         console.print(f"  [red]x[/] {escape(where)}: [bold]{escape(it.field_path or '<file>')}[/]: "
-                      f"{escape(it.message + exp)}", highlight=False)
+                      f"{escape(it.message + exp)}", highlight=False, soft_wrap=True)
     raise typer.Exit(2)
 
 

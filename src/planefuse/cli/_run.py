@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import typer
 from rich.markup import escape
 
 from ._app import app, console, exit_with_error
+from ._config import exit_on_config_error
 
 
 @app.command()
@@ -36,11 +38,12 @@ def run(
     An interrupted run (Ctrl-C, kill) re-run with the same configuration resumes after its last finished
     chunk and ends with the same files as an uninterrupted run; --fresh starts afresh. An out_dir holding
     another run's results or files planefuse did not write is refused unless --fresh/--force says so;
-    run_state.json says "finished" only once everything (figures, report included) is written."""
+    run_state.json says "finished" only once everything (figures, report included) is written, "failed" or
+    "interrupted" (Ctrl-C, SIGTERM) otherwise. The run first validates as `planefuse check` does and refuses any
+    input check reports an error for; one run writes into an out_dir at a time (a second is refused)."""
     from dataclasses import replace
 
-    from ..config import ConfigError, load_config
-    from ..io import read_recording
+    from ..config import ConfigError, check_run_config, load_config
     from ..outputs import progress_mode
     from ..pipeline import run_plan
     from ._demo import print_summary
@@ -48,12 +51,7 @@ def run(
     try:
         cfg = load_config(config)
     except ConfigError as exc:
-        console.print(f"[red]{escape(str(exc))}[/red]")
-        raise typer.Exit(2) from None
-    try:
-        rec = read_recording(cfg.recording)
-    except (ValueError, OSError) as exc:
-        exit_with_error(f"recording {cfg.recording}: {exc}", 1)
+        exit_on_config_error(exc)
     plan = replace(cfg.plan(resume=not fresh), force=force)
     if rerun:
         plan = replace(plan, outputs=replace(plan.outputs, rerun=True))
@@ -62,10 +60,20 @@ def run(
             import rerun as _  # noqa: F401
         except ImportError:
             exit_with_error("--rerun / outputs.rerun needs rerun-sdk: pip install 'planefuse[viz]'", 2)
+    # the validation `planefuse check` runs: the same input gets the same verdict from both
+    report, rec = check_run_config(cfg, resume=not fresh, force=force)
+    if report.errors:  # one line each, the first last (what a script reads)
+        first, *rest = report.errors
+        for it in rest:
+            console.print(f"[red]error:[/red] {escape(it.subject)}: {escape(' '.join(it.message.split()))}",
+                          soft_wrap=True, highlight=False)
+        exit_with_error(f"{first.subject}: {first.message}" + (f" (and the {len(rest)} error(s) above)" if rest else "")
+                        + "; nothing was run", 1)
     if threads is not None:
         set_threads(threads)
     if workers is not None and scheduler is not None:
         exit_with_error("--workers starts a local cluster; a --scheduler's workers are started with it", 2)
+    previous = _terminate_as_interrupt()
     try:
         if workers is None and scheduler is None:
             _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json))
@@ -74,13 +82,37 @@ def run(
 
             with batch_client(scheduler, workers) as client:
                 _, metrics = run_plan(rec, plan, progress_mode=progress_mode(quiet, log_json), client=client)
-    except KeyboardInterrupt:
-        console.print(f"interrupted: outputs so far are in {escape(str(plan.out_dir))}; re-run to resume")
-        raise typer.Exit(130) from None
+    except KeyboardInterrupt as exc:
+        console.print(f"interrupted: outputs so far are in {escape(str(plan.out_dir))} (run_state.json says "
+                      "interrupted); re-run to resume")
+        raise typer.Exit(143 if isinstance(exc, Terminated) else 130) from None
     except (ValueError, ImportError, OSError) as exc:
         exit_with_error(str(exc), 1)
+    except MemoryError as exc:  # beyond the pre-run estimate (planefuse.pipeline.check_memory): said, not a traceback
+        exit_with_error(f"out of memory during the run ({exc or 'MemoryError'}; run_state.json says failed): coarsen "
+                        "planes.cell_size_m, shrink the grid or lower outputs.chunk_steps", 1)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     if metrics and not quiet:
         print_summary(metrics, plan.out_dir, f"planefuse run {config}")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill PID``, a batch system's time limit) received during a run: handled as Ctrl-C is, so that the
+    run's state says "interrupted" and every file written is valid."""
+
+
+def _terminate_as_interrupt():
+    """Have SIGTERM raise :class:`Terminated` in the main thread; returns the previous handler (None where it cannot
+    be set: not the main thread)."""
+    def handler(signum, frame):
+        raise Terminated()
+
+    try:
+        return signal.signal(signal.SIGTERM, handler)
+    except ValueError:
+        return None
 
 
 def set_threads(n: int) -> None:

@@ -7,6 +7,7 @@ naming the file, each field path and its expected unit and range;
 """
 
 from ._check import CheckIssue, CheckReport, check_recording
+from ._preflight import check_run_config
 from ._load import ConfigError, ConfigIssue, config_from_dict, config_hash, config_yaml, example_yaml, load_config
 from ._models import (
     CameraSensorConfig,
@@ -45,6 +46,7 @@ __all__ = [
     "SIMULATED",
     "config_for_recording",
     "profile_for_recording",
+    "check_run_config",
     "ConfigError",
     "ConfigIssue",
     "DetectionModelConfig",

@@ -13,6 +13,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
+from ..io._yaml import YamlFileError, excerpt, read_yaml, shorten
 from ._models import _LIBRARY_DEFAULTS, ITEM_MARK, RunConfig, library_fields
 
 __all__ = ["ConfigError", "ConfigIssue", "load_config", "config_from_dict", "example_yaml", "config_hash", "config_yaml"]
@@ -40,6 +41,10 @@ class ConfigIssue:
     line: int | None = None
 
 
+#: Most characters of one issue's message (a bad value is quoted by an excerpt; this bounds the rest).
+MESSAGE_CHARS = 400
+
+
 class ConfigError(ValueError):
     """A configuration file that cannot be read or does not validate.
 
@@ -57,7 +62,7 @@ class ConfigError(ValueError):
             where = f"{self.file}:{it.line}" if it.line else f"{self.file}"
             field = it.field_path or "<file>"
             exp = f" (expected: {it.expected})" if it.expected else ""
-            lines.append(f"  {where}: {field}: {it.message}{exp}")
+            lines.append(f"  {where}: {field}: {shorten(it.message, MESSAGE_CHARS)}{exp}")
         return "\n".join(lines)
 
 
@@ -128,7 +133,7 @@ def _issues_from_validation(err: ValidationError, root: yaml.Node | None) -> lis
         elif e["type"] == "missing":
             msg = "required field is missing"
         elif "input" in e and not isinstance(value, dict):
-            msg = f"{msg}; got {value!r}"
+            msg = f"{msg}; got {excerpt(value)}"
         issues.append(ConfigIssue(_path_str(loc), msg, _expected(_field_info(loc)), _line_of(root, loc)))
     return issues
 
@@ -192,19 +197,10 @@ def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
         its line and the expected unit and range.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(path, [ConfigIssue("", f"cannot read the file: {err.strerror or err}")]) from None
-    try:
-        root = yaml.compose(text)
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        problem = getattr(err, "problem", None) or str(err)
-        raise ConfigError(
-            path, [ConfigIssue("", f"not valid YAML: {problem}", line=mark.line + 1 if mark else None)]
-        ) from None
+    try:  # safe YAML, UTF-8 or UTF-16/32 with a byte-order mark, no alias bomb, no duplicate key (io._yaml)
+        data, root = read_yaml(path)
+    except YamlFileError as err:
+        raise ConfigError(path, [ConfigIssue("", err.problem, line=err.line)]) from None
     cfg = config_from_dict({} if data is None else data, path, root)
     if not resolve_paths:
         return cfg
@@ -260,7 +256,7 @@ def config_hash(cfg: RunConfig) -> str:
     """SHA-256 (hex) of everything in ``cfg`` that changes the computed results.
 
     Presentation-only outputs (``out_dir``, ``figures``, ``animation``, ``animation_max_frames``, ``camera_videos``,
-    ``report``, ``rerun``, ``figure_dpi``) are left out, so changing them does
+    ``report``, ``rerun``, ``figure_dpi``, ``mcap``, ``ros2_bag``) are left out, so changing them does
     not invalidate a run's finished chunks.
     """
     data = cfg.model_dump(mode="json")

@@ -666,6 +666,10 @@ class OutputsConfig(_Model):
         description="Also write figures/camera_<name>_tracks.mp4 per camera: its frame at each output step with the "
         "tracks drawn from the feet to the head (at most animation_max_frames steps)", library="outputs.camera_videos",
     )
+    mcap: bool = _field(description="Write planefuse.mcap: tracks, detections and occupancy grids in Foxglove's "
+                        "schemas (opens in Foxglove)", library="outputs.mcap")
+    ros2_bag: bool = _field(description="Write ros2_bag/: people_msgs/People, MarkerArray, PoseArray and an "
+                            "OccupancyGrid per plane in a ROS 2 bag", library="outputs.ros2_bag")
 
 
 def library_fields(model: type[BaseModel] | None = None, prefix: str = "") -> Iterator[tuple[str, str]]:

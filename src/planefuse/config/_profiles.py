@@ -276,7 +276,7 @@ def config_for_recording(rec, profile: str | None = None, person_model: str | No
         if not rec.camera_streams:
             raise ValueError("a person model was given but the recording has no cameras")
         data = _merged(data, {"sensors": {"cameras": {"person_detector": "yolox", "person_model": str(person_model)}}})
-        messages.append(f"person detector: YOLOX {person_model}, its boxes as evidence on the planes (docs/cameras.md)")
+        messages.append(f"person detector: YOLOX {person_model}, its boxes as evidence on the planes (docs/detector.md)")
     return FittedConfig(config_from_dict(data, f"profile {chosen.name}"), chosen, tuple(messages))
 
 

@@ -1,6 +1,7 @@
 """Geometry core: checks, rigid transforms, the pinhole camera and homographies."""
 
-from ._camera import CameraIntrinsics, PinholeCamera, distort_normalized
+from ._camera import MAX_DISTORTION_FRACTION, CameraIntrinsics, PinholeCamera, distort_normalized, distortion_problem, \
+    intrinsics_problem
 from ._checks import (
     check_finite,
     check_homography,
@@ -61,6 +62,9 @@ __all__ = [
     "CameraIntrinsics",
     "PinholeCamera",
     "distort_normalized",
+    "distortion_problem",
+    "intrinsics_problem",
+    "MAX_DISTORTION_FRACTION",
     "check_finite",
     "check_homography",
     "check_intrinsics_matrix",

@@ -63,18 +63,23 @@ def apply_homography(H, points) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., N, 2)
-        Mapped points; NaN where the homogeneous scale is 0 (points mapped to
-        infinity, e.g. the horizon line of an image mapped to a ground plane).
+        Mapped points, never inf: NaN where the point is mapped to infinity -- its homogeneous scale ``w`` is 0
+        relative to ``H`` and the point (``|w| <= 1e-14 max|H| (1 + max|p|)``: e.g. the horizon line of an image
+        mapped to a ground plane) -- or beyond the float64 range (a coordinate that would overflow). A NaN row
+        means "no finite image of this point"; callers test ``np.isfinite(out).all(axis=-1)``.
     """
     H = check_homography(H, "H")
     p = check_points(points, 2, "points")
-    ph = p @ np.swapaxes(H[..., :2], -1, -2) + H[..., None, :, 2]
+    with np.errstate(over="ignore", invalid="ignore"):
+        ph = p @ np.swapaxes(H[..., :2], -1, -2) + H[..., None, :, 2]
     w = ph[..., 2:3]
     scale = np.abs(H).max(axis=(-1, -2))[..., None, None] if H.ndim > 2 else np.abs(H).max()
-    tiny = np.abs(w) <= 1e-14 * scale * (1.0 + np.abs(p).max(axis=-1, keepdims=True))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(over="ignore"):
+        tiny = np.abs(w) <= 1e-14 * scale * (1.0 + np.abs(p).max(axis=-1, keepdims=True))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         out = ph[..., :2] / w
-    return np.where(tiny, np.nan, out)
+    at_infinity = tiny | ~np.isfinite(out).all(axis=-1, keepdims=True)
+    return np.where(at_infinity, np.nan, out)
 
 
 def normalize_homography(H) -> np.ndarray:

@@ -19,6 +19,8 @@ from ._import import (
     read_control_points,
     read_ground_positions,
 )
+from ._rosbag import BAG_SENSOR_TYPES, BagImport, BagTopic, TopicReport, bag_topics, import_bag, \
+    scan_ranges_from_points, select_bag_topics, static_transform
 from ._validate import geometry_findings
 from ._imu_logs import IMU_REFERENCE_COLUMNS, XIO_COLUMNS, ImuLog, read_imu_log
 from ._groundtruth import BODY_COLUMNS, PEOPLE_COLUMNS, SOUND_COLUMNS, GroundTruth, PeopleTruth, SoundTruth
@@ -68,6 +70,15 @@ __all__ = [
     "read_control_points",
     "read_ground_positions",
     "geometry_findings",
+    "BAG_SENSOR_TYPES",
+    "BagImport",
+    "BagTopic",
+    "TopicReport",
+    "bag_topics",
+    "import_bag",
+    "scan_ranges_from_points",
+    "select_bag_topics",
+    "static_transform",
     "BODY_COLUMNS",
     "PEOPLE_COLUMNS",
     "SOUND_COLUMNS",

@@ -13,6 +13,7 @@ import csv
 import os
 import re
 import shutil
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -142,13 +143,90 @@ def _decodable_frames(path: Path, stop: int | None = None) -> int:
     return n
 
 
+def _image_size(path: Path, camera: str) -> tuple[int, int]:
+    """``(width, height)`` [px] of an image file from its header (Pillow reads no pixel)."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as img:
+            return int(img.size[0]), int(img.size[1])
+    except (OSError, UnidentifiedImageError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read the image (camera {camera!r}): {exc}") from None
+
+
+def _common_size(images: list[Path], camera: str) -> tuple[int, int]:
+    """The size [px] every image of a camera has (each file's header is read); an image of another size than most is
+    an error naming it (a run would fail on it later)."""
+    sizes = [_image_size(path, camera) for path in images]
+    common = Counter(sizes).most_common(1)[0][0]
+    odd = [k for k, size in enumerate(sizes) if size != common]
+    if odd:
+        k = odd[0]
+        raise ValueError(f"{images[k]}: camera {camera!r} image is {sizes[k][0]}x{sizes[k][1]} px, "
+                         f"{len(images) - len(odd)} of its {len(images)} images are {common[0]}x{common[1]} px"
+                         + (f" ({len(odd)} of other sizes)" if len(odd) > 1 else "")
+                         + ": every frame of a camera must have one size")
+    return common
+
+
+def _numbered_images(folder: Path, inp: CameraInput) -> tuple[list[Path], np.ndarray, str]:
+    """The images of a folder without a times file, in the order of the last number in their names, each dated by
+    its number: image number ``n`` is at ``start_time_s + (n - n_first) / rate_hz``, so that images missing from the
+    numbering (frames the capture dropped) leave their gap in time instead of every later frame being dated early.
+
+    Returns ``(images, times_s, note)``; the note says how many numbers are missing, and where first.
+
+    Raises
+    ------
+    ValueError
+        No image; no rate; some images with a number and some without; two images with one number; numbers that
+        do not step by 1 (the median step: numbers that are time stamps or every n-th frame need a times file).
+    """
+    images = [x for x in folder.iterdir() if x.suffix.lower() in IMAGE_SUFFIXES]
+    if not images:
+        raise ValueError(f"{folder}: camera {inp.name!r}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+    if inp.rate_hz is None:
+        raise ValueError(f"{folder}: camera {inp.name!r}: an image folder needs a frame rate (--rate NAME=HZ) or "
+                         "a times file (--times NAME=CSV)")
+    numbers = {x: _NUMBER.findall(x.stem) for x in images}
+    unnumbered = sorted(x.name for x, n in numbers.items() if not n)
+    if unnumbered:
+        if len(unnumbered) < len(images):
+            raise ValueError(f"{folder / unnumbered[0]}: camera {inp.name!r}: this image has no number in its name, "
+                             "the others have: they cannot be put in order; remove it or give a times file")
+        images = sorted(images, key=lambda x: x.name)  # no numbers at all: name order, one frame each
+        return images, inp.start_time_s + np.arange(len(images)) / inp.rate_hz, \
+            " (no numbers in the names: in name order, one frame period apart)"
+    images = sorted(images, key=lambda x: (int(numbers[x][-1]), x.name))
+    k = np.array([int(numbers[x][-1]) for x in images], dtype=np.int64)
+    step = np.diff(k)
+    if np.any(step == 0):
+        i = int(np.argmax(step == 0))
+        raise ValueError(f"{images[i + 1]}: camera {inp.name!r}: has the number {k[i]} of {images[i].name}: "
+                         "two images of one frame; remove one")
+    if step.size and np.median(step) != 1:
+        raise ValueError(f"{folder}: camera {inp.name!r}: the image numbers step by {int(np.median(step))} "
+                         f"({images[0].name}, {images[1].name}, ...): are they time stamps or every n-th frame? "
+                         "Give a times file (--times NAME=CSV) with each image's time")
+    times = inp.start_time_s + (k - k[0]) / inp.rate_hz
+    missing = int(k[-1] - k[0] + 1 - len(k))
+    note = ""
+    if missing:
+        i = int(np.argmax(step > 1))
+        note = (f"; warning: {missing} image number(s) missing ({step[step > 1].size} gap(s), the first "
+                f"{k[i] + 1}..{k[i + 1] - 1} after {images[i].name}): each image is dated by its number, the "
+                "camera has no frame in the gaps")
+    return images, times, note
+
+
 def probe_camera_input(inp: CameraInput) -> _Probe:
     """Check one camera's frames and work out their times (videos are decoded through once, to count frames).
 
     Raises
     ------
     ValueError
-        A missing path, an unknown suffix, an empty folder, images of different sizes (first vs last), a bad
+        A missing path, an unknown suffix, an empty folder, an image of another size than the first (each one's
+        header is read; naming it), image numbers that cannot date the images (:func:`_numbered_images`), a bad
         times file, a video shorter than its times file, or a missing rate.
     """
     check_name(inp.name, "camera name")
@@ -191,27 +269,13 @@ def probe_camera_input(inp: CameraInput) -> _Probe:
             if missing:
                 raise ValueError(f"{inp.times_file}: {len(missing)} image(s) listed are not in {p}, first {missing[0]}")
             rate = inp.rate_hz or (1.0 / float(np.median(np.diff(times))) if len(times) > 1 else 1.0)
+            gap_note = ""
         else:
-            images = sorted((x for x in p.iterdir() if x.suffix.lower() in IMAGE_SUFFIXES),
-                            key=lambda x: (int(_NUMBER.findall(x.stem)[-1]) if _NUMBER.findall(x.stem) else -1, x.name))
-            if not images:
-                raise ValueError(f"{p}: camera {inp.name!r}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
-            if inp.rate_hz is None:
-                raise ValueError(f"{p}: camera {inp.name!r}: an image folder needs a frame rate (--rate NAME=HZ) or "
-                                 "a times file (--times NAME=CSV)")
+            images, times, gap_note = _numbered_images(p, inp)
             rate = inp.rate_hz
-            times = inp.start_time_s + np.arange(len(images)) / rate
-        sizes = []
-        for img_path in (images[0], images[-1]):
-            img = cv2.imread(str(img_path), cv2.IMREAD_UNCHANGED)
-            if img is None:
-                raise ValueError(f"{img_path}: cannot decode image (camera {inp.name!r})")
-            sizes.append((img.shape[1], img.shape[0]))
-        if sizes[0] != sizes[1]:
-            raise ValueError(f"{images[-1]}: camera {inp.name!r} image is {sizes[1][0]}x{sizes[1][1]} px, the first "
-                             f"{sizes[0][0]}x{sizes[0][1]} px")
-        return _Probe(sizes[0][0], sizes[0][1], times, float(rate), images=images,
-                      note=f"{inp.name}: {len(images)} images in {p}, {sizes[0][0]}x{sizes[0][1]} px")
+        width, height = _common_size(images, inp.name)
+        note = f"{inp.name}: {len(images)} images in {p}, {width}x{height} px" + gap_note
+        return _Probe(width, height, times, float(rate), images=images, note=note)
     if p.exists():
         raise ValueError(f"{p}: camera {inp.name!r}: not a video ({', '.join(VIDEO_SUFFIXES)}) nor a folder of images")
     raise ValueError(f"{p}: camera {inp.name!r}: no such video file or image folder")

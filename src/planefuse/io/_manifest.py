@@ -228,6 +228,9 @@ class RecordingManifest(_Entry):
     calibration_points_file: str | None = Field(
         None, description="CSV camera,u_px,v_px,x_m,y_m,z_m: pixels of known world points (planefuse check)")
     source: str = ""
+    clock_origin_ns: int | None = Field(
+        None, description="what time 0 of the recording is on the source's clock [ns], e.g. the header stamp of a "
+        "ROS bag's first message (planefuse import-bag); the robotics outputs stamp their messages with it")
 
     @model_validator(mode="after")
     def _refs(self) -> RecordingManifest:

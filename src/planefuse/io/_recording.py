@@ -76,6 +76,8 @@ class Recording:
         Pixels of known world points (from ``planefuse import``), reprojected by ``planefuse check``.
     root : Path or None
         Folder the recording was read from.
+    clock_origin_ns : int or None
+        Time 0 on the source's clock [ns] (a ROS bag's header stamps), or None.
     """
 
     duration_s: float
@@ -91,6 +93,7 @@ class Recording:
     provenance: dict | None = None
     calibration_points: ControlPoints | None = None
     root: Path | None = None
+    clock_origin_ns: int | None = None
 
     @property
     def cameras(self) -> list[PinholeCamera]:
@@ -276,7 +279,8 @@ def write_recording(rec: Recording, out_dir: str | Path, *, overwrite: bool = Fa
         (root / "simulation.yaml").write_text(yaml.safe_dump(rec.provenance, sort_keys=False))
     manifest = RecordingManifest(duration_s=rec.duration_s, planes_heights_m=list(rec.planes_heights_m),
                                  room_xy_m=rec.room_xy_m, wall_height_m=rec.wall_height_m, sensors=sensors,
-                                 groundtruth=gt, calibration_points_file=points_rel, source=rec.source)
+                                 groundtruth=gt, calibration_points_file=points_rel, source=rec.source,
+                                 clock_origin_ns=rec.clock_origin_ns)
     text = yaml.safe_dump(manifest.model_dump(mode="json", exclude_none=True), sort_keys=False, width=120)
     (root / MANIFEST_NAME).write_text(text)
     return manifest
@@ -347,7 +351,8 @@ def read_recording(path: str | Path) -> Recording:
         raise ValueError(f"{root}: recording folder not found")
     m = load_manifest(root / MANIFEST_NAME)
     rec = Recording(duration_s=m.duration_s, planes_heights_m=list(m.planes_heights_m),
-                    room_xy_m=m.room_xy_m, wall_height_m=m.wall_height_m, source=m.source, root=root)
+                    room_xy_m=m.room_xy_m, wall_height_m=m.wall_height_m, source=m.source, root=root,
+                    clock_origin_ns=m.clock_origin_ns)
     for e in m.entries("camera"):
         rec.camera_streams[e.name] = CameraStream.from_files(root, e)
     for e in m.entries("imu"):

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import soundfile as sf
 
-from ..geometry import CameraIntrinsics, PinholeCamera
+from ..geometry import CameraIntrinsics, PinholeCamera, intrinsics_problem
 from ._manifest import BinauralEntry, CameraEntry, ImuEntry, LaserEntry
 from ._paths import PathArray, resolve_all_inside, resolve_inside
 from ._timestamps import Gap, TimeChecker, read_csv_chunks
@@ -46,8 +46,19 @@ IMU_COLUMNS = ["time_s", "gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s", "accel_
 
 
 def camera_from_entry(e: CameraEntry) -> PinholeCamera:
-    """The :class:`PinholeCamera` a manifest entry describes."""
+    """The :class:`PinholeCamera` a manifest entry describes.
+
+    Raises
+    ------
+    ValueError
+        Naming the camera: its intrinsics are implausible for its image (:func:`planefuse.geometry.intrinsics_problem`:
+        principal point outside the image, a field of view over 170 or under 0.5 degrees, very non-square pixels, a
+        lens distortion that folds back or moves the image's edges by more than half their radius).
+    """
     intr = CameraIntrinsics(np.asarray(e.K, dtype=float), e.width_px, e.height_px, np.asarray(e.dist, dtype=float))
+    problem = intrinsics_problem(intr)
+    if problem is not None:
+        raise ValueError(f"camera {e.name!r}: {problem}")
     return PinholeCamera(intr, np.asarray(e.T_world_cam, dtype=float), name=e.name)
 
 

@@ -60,12 +60,12 @@ class TimeChecker:
         if back.size and (not dup.size or back[0] < dup[0]):
             i = back[0]
             raise ValueError(
-                f"{self.source}: {at(i)}: time_s {t[i]!r} goes backwards (previous {prev[i]!r}); "
+                f"{self.source}: {at(i)}: time_s {float(t[i])!r} goes backwards (previous {float(prev[i])!r}); "
                 "timestamps must increase"
             )
         if dup.size:
             i = dup[0]
-            raise ValueError(f"{self.source}: {at(i)}: duplicate time_s {t[i]!r}; timestamps must increase")
+            raise ValueError(f"{self.source}: {at(i)}: duplicate time_s {float(t[i])!r}; timestamps must increase")
         if self.rate_hz > 0:
             dt = t - prev
             big = np.nonzero(np.isfinite(prev) & (dt > 1.5 / self.rate_hz))[0]

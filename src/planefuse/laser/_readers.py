@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry._transforms import transform_from_rotation_translation
+from ..io._bag_messages import points_from_pointcloud2  # the message parser sits with the bag import (io)
 from ._scanner import LaserScan
 
 __all__ = [
@@ -216,42 +217,6 @@ class PointCloudFrame:
         return int(np.sum(~np.isfinite(self.points).all(axis=1)))
 
 
-_PC2_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
-
-
-def points_from_pointcloud2(msg) -> np.ndarray:
-    """x, y, z (N, 3) float64 [m] of a deserialised ``sensor_msgs/PointCloud2`` message.
-
-    Raises
-    ------
-    ValueError
-        When a field x, y or z is missing or has an unknown datatype, or the data are too short.
-    """
-    fields = {f.name: f for f in msg.fields}
-    missing = [k for k in "xyz" if k not in fields]
-    if missing:
-        raise ValueError(f"PointCloud2 lacks fields {missing} (has {sorted(fields)})")
-    endian = ">" if msg.is_bigendian else "<"
-    names, formats, offsets = [], [], []
-    for k in "xyz":
-        f = fields[k]
-        if f.datatype not in _PC2_DTYPES:
-            raise ValueError(f"PointCloud2 field {k!r} has unknown datatype {f.datatype}")
-        names.append(k)
-        formats.append(endian + _PC2_DTYPES[f.datatype])
-        offsets.append(f.offset)
-    dt = np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": msg.point_step})
-    n = int(msg.width) * int(msg.height)
-    data = np.asarray(msg.data, dtype=np.uint8)
-    if msg.row_step * msg.height > data.size or n * msg.point_step > data.size:
-        raise ValueError(f"PointCloud2 data has {data.size} bytes, fewer than {n} points x {msg.point_step} bytes")
-    if msg.row_step != msg.width * msg.point_step:  # padded rows: take each row separately
-        rows = data[: msg.row_step * msg.height].reshape(msg.height, msg.row_step)[:, : msg.width * msg.point_step]
-        data = np.ascontiguousarray(rows).reshape(-1)
-    rec = np.frombuffer(data[: n * msg.point_step].tobytes(), dtype=dt, count=n)
-    return np.column_stack([rec["x"], rec["y"], rec["z"]]).astype(float)
-
-
 def _stamp_s(msg) -> float:
     return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
@@ -378,13 +343,15 @@ def read_transform_yaml(path) -> np.ndarray:
     ValueError
         Missing keys, wrong shapes, or ``R`` not a rotation.
     """
-    import yaml
+    from ..io._yaml import YamlFileError, read_yaml
 
     try:
-        with open(path) as f:
-            d = yaml.safe_load(f)
+        d, _ = read_yaml(path)  # safe YAML: no alias bomb, no duplicate key
+    except YamlFileError as err:
+        raise ValueError(f"cannot read R and t from {err}") from None
+    try:
         R, t = np.asarray(d["R"], dtype=float), np.asarray(d["t"], dtype=float)
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as err:
+    except (KeyError, TypeError, ValueError) as err:
         raise ValueError(f"cannot read R and t from {path}: {type(err).__name__}: {err}") from err
     if R.shape != (3, 3) or t.shape != (3,):
         raise ValueError(f"{path}: R must be 3x3 and t 3 numbers, got {R.shape} and {t.shape}")

@@ -6,6 +6,7 @@ See ``docs/outputs.md`` for the folder layout and how the pipeline drives the wr
 from ._atomic import atomic_open, atomic_write_bytes, atomic_write_json, atomic_write_text, remove_stale_temporaries
 from ._settings import ANIMATIONS, OutputSettings
 from ._progress import ProgressMode, ProgressReporter, progress_mode, progress_steps
+from ._mcap import MCAP_FILE, ROS2_BAG_DIR, occupancy_topic, read_mcap_messages, write_run_mcap, write_run_ros2_bag
 from ._writer import (DETECTION_COLUMNS, FIGURES_WRITTEN, TRACK_COLUMNS, OutputWriter, mot_rows, out_dir_problem,
                       read_table, rows_by_step)
 
@@ -29,4 +30,10 @@ __all__ = [
     "read_table",
     "rows_by_step",
     "remove_stale_temporaries",
+    "MCAP_FILE",
+    "ROS2_BAG_DIR",
+    "occupancy_topic",
+    "read_mcap_messages",
+    "write_run_mcap",
+    "write_run_ros2_bag",
 ]

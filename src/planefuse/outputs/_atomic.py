@@ -11,6 +11,7 @@ import contextlib
 import io
 import json
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -41,10 +42,13 @@ def atomic_open(path: Path | str, mode: str = "w", encoding: str | None = "utf-8
     removed and ``path`` is left as it was.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     if mode not in ("w", "wb"):
         raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TMP_MARK}", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TMP_MARK}", dir=path.parent)
+    except OSError as exc:
+        raise _naming(exc, path) from exc
     try:
         os.fchmod(fd, _FILE_MODE)
         with os.fdopen(fd, mode, encoding=None if "b" in mode else encoding,
@@ -53,10 +57,19 @@ def atomic_open(path: Path | str, mode: str = "w", encoding: str | None = "utf-8
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise _naming(exc, path) from exc
         raise
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """``exc`` with ``path`` in its message (a full disk's ``[Errno 28] No space left on device`` names no file)."""
+    if exc.errno is None:
+        return OSError(f"cannot write {path}: {exc}")
+    return OSError(exc.errno, f"cannot write {path}: {exc.strerror or exc}")
 
 
 def atomic_write_bytes(path: Path | str, data: bytes) -> None:
@@ -103,10 +116,14 @@ def atomic_write_json(path: Path | str, obj: Any) -> None:
 
 
 def remove_stale_temporaries(folder: Path | str) -> int:
-    """Delete temporary files left in ``folder`` (not recursive) by a killed writer; return how many."""
+    """Delete temporary files (and bag folders) left in ``folder`` (not recursive) by a killed writer; return how
+    many."""
     n = 0
     for p in Path(folder).glob(f".*{TMP_MARK}*"):
         with contextlib.suppress(FileNotFoundError):
-            p.unlink()
+            if p.is_dir():  # a ROS 2 bag folder being written (planefuse.outputs.write_run_ros2_bag)
+                shutil.rmtree(p)
+            else:
+                p.unlink()
             n += 1
     return n

@@ -39,6 +39,12 @@ class OutputSettings:
     camera_videos : bool
         Also write ``figures/camera_<name>_tracks.mp4`` per camera: the frame nearest each output step with the tracks
         drawn from the feet to the head (at most ``animation_max_frames`` steps).
+    mcap : bool
+        Write ``planefuse.mcap``: tracks, detections and each plane's occupancy grid in Foxglove's schemas
+        (``planefuse.outputs.write_run_mcap``; opens in Foxglove with no ROS).
+    ros2_bag : bool
+        Write ``ros2_bag/``: the same as ROS 2 messages (``people_msgs/People``, ``visualization_msgs/MarkerArray``,
+        ``geometry_msgs/PoseArray``, ``nav_msgs/OccupancyGrid`` per plane) in a ROS 2 bag (MCAP storage).
 
     Only ``zarr`` and ``chunk_steps`` decide what a resumed run can reuse; the others may change between
     an interrupted run and its resumption.
@@ -53,6 +59,8 @@ class OutputSettings:
     figure_dpi: int = 100
     animation_max_frames: int | None = 300
     camera_videos: bool = False
+    mcap: bool = False
+    ros2_bag: bool = False
 
     def __post_init__(self) -> None:
         check_fields(self, chunk_steps="int>=1", figure_dpi="int>=1", animation_max_frames="?int>=1")

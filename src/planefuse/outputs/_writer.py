@@ -43,6 +43,7 @@ import zarr
 
 from ..grid import GroundDetections, PlaneStack
 from ._atomic import TMP_MARK, atomic_open, atomic_write_json, atomic_write_text, remove_stale_temporaries
+from ._lock import LOCK_FILE, OutputLock, lock_holder
 
 __all__ = ["OutputWriter", "DETECTION_COLUMNS", "TRACK_COLUMNS", "mot_rows", "read_table", "rows_by_step",
            "out_dir_problem", "FIGURES_WRITTEN"]
@@ -56,7 +57,8 @@ CHECKPOINT_FILE = "checkpoint.npz"
 PREVIOUS_CHECKPOINT_FILE = "checkpoint.prev.npz"
 _OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
           CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE, "metrics.json", "figures", "report.html", "animation.gif",
-          "animation.mp4", "planefuse.rrd", "config.yaml", STATE_FILE, "tracks_stitched.csv")
+          "animation.mp4", "planefuse.rrd", "planefuse.mcap", "ros2_bag", "config.yaml", STATE_FILE,
+          "tracks_stitched.csv")
 #: Each camera's person boxes as a MOTChallenge 2-D file: ``boxes_<camera>_mot.txt`` (owned like ``_OWNED``).
 _BOX_FILE_PREFIX, _BOX_FILE_SUFFIX = "boxes_", "_mot.txt"
 
@@ -73,7 +75,7 @@ FIGURES_WRITTEN = ".planefuse-figures"
 
 def _foreign_entries(out_dir: Path, owned_by_a_run: bool) -> list[str]:
     """Entries of ``out_dir`` no planefuse run wrote (all of them in a folder without a run's state)."""
-    names = [p.name for p in out_dir.iterdir() if TMP_MARK not in p.name]
+    names = [p.name for p in out_dir.iterdir() if TMP_MARK not in p.name and p.name != LOCK_FILE]
     if not owned_by_a_run:
         return sorted(names)
     foreign = [n for n in names if not _owned(n)]
@@ -97,7 +99,8 @@ def out_dir_problem(out_dir: Path | str, *, config_hash: str, resume: bool = Tru
     """Why a run with ``config_hash`` must not write into ``out_dir`` (None when it may), without writing.
 
     Refused: a folder equal to or inside ``protected`` (the recording); a path that is a file, lies below a
-    file or cannot be written; a folder holding files no planefuse run wrote (unless ``force``: they are kept);
+    file or cannot be written; a folder another planefuse run is writing into (its lock, :mod:`._lock`, is held;
+    whatever ``force`` says); a folder holding files no planefuse run wrote (unless ``force``: they are kept);
     a folder holding another run's results -- a different configuration or recording (unless ``force``, or
     ``resume=False``: ``--fresh`` starts afresh and replaces them).
     """
@@ -118,6 +121,10 @@ def out_dir_problem(out_dir: Path | str, *, config_hash: str, resume: bool = Tru
             break
     if not out.is_dir():
         return None
+    holder = lock_holder(out)
+    if holder is not None:
+        return (f"out_dir {out} is being written by another planefuse run ({holder}): wait for it to end, or choose "
+                "another folder (outputs.out_dir)")
     state_path = out / STATE_FILE
     state = None
     if state_path.exists():
@@ -246,7 +253,13 @@ class OutputWriter:
     Raises
     ------
     ValueError
-        ``out_dir`` is refused (:func:`out_dir_problem`) or cannot be created.
+        ``out_dir`` is refused (:func:`out_dir_problem`), cannot be created, or another run holds its lock.
+
+    Notes
+    -----
+    One writer per folder: the writer holds the folder's lock (:class:`~planefuse.outputs._lock.OutputLock`,
+    ``.planefuse.lock``) from its creation until :meth:`finish` (status ``"finished"``), :meth:`mark_finished`,
+    the end of its ``with`` block or its deletion; a lock left by a killed run is taken over with a warning.
 
     Attributes
     ----------
@@ -284,10 +297,19 @@ class OutputWriter:
         self.config_text = config_text
         self.person_radius_m = float(person_radius_m)
         self.metrics: dict[str, Any] = {}
+        self._lock = OutputLock(self.out_dir)
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ValueError(f"out_dir {self.out_dir}: cannot create the folder ({exc.strerror or exc})") from None
+        self._lock.acquire()  # before anything in the folder is read or changed
+        try:
+            self._open(resume)
+        except BaseException:
+            self._lock.release()
+            raise
+
+    def _open(self, resume: bool) -> None:
         remove_stale_temporaries(self.out_dir)
 
         state = self._read_state()
@@ -347,15 +369,43 @@ class OutputWriter:
         except (OSError, ValueError):
             return None
 
-    def _write_state(self, status: str) -> None:
-        atomic_write_json(self.out_dir / STATE_FILE, {
+    def _state(self, status: str, error: str | None = None) -> dict[str, Any]:
+        state = {
             "status": status,
             "config_hash": self.config_hash,
             "chunk_steps": self.chunk_steps,
             "n_chunks_done": self.n_chunks_done,
             "n_steps_finished": self.n_chunks_done * self.chunk_steps,
             "n_steps_written": self._steps_written,
-        })
+        }
+        if error:
+            state["error"] = error
+        return state
+
+    def _write_state(self, status: str, error: str | None = None) -> None:
+        atomic_write_json(self.out_dir / STATE_FILE, self._state(status, error))
+
+    def record_end(self, status: str, error: str | None = None) -> None:
+        """Record that the run ended without finishing (``"interrupted"``, ``"failed"``, with the error's first
+        300 characters): after a flush of what is buffered where the disk allows, else by overwriting
+        ``run_state.json`` in place, which needs no new disk block (a full disk, ENOSPC, refuses the atomic write of
+        a new file). Never raises."""
+        error = None if error is None else " ".join(error.split())[:300]
+        try:
+            self.flush(status)
+            if error:
+                self._write_state(status, error)
+            return
+        except Exception:  # noqa: BLE001 - the disk is full or gone: fall back to the state alone
+            pass
+        text = json.dumps(self._state(status, error), indent=2) + "\n"
+        with contextlib.suppress(OSError):
+            fd = os.open(self.out_dir / STATE_FILE, os.O_WRONLY | os.O_CREAT, 0o644)
+            try:
+                os.write(fd, text.encode())
+                os.ftruncate(fd, len(text.encode()))
+            finally:
+                os.close(fd)
 
     def _clear(self) -> None:
         """Delete what an earlier run wrote here; in ``figures/`` only the figures it listed (the user's own
@@ -520,10 +570,14 @@ class OutputWriter:
         steps = sorted(self._buffer)
         a, b = steps[0], steps[-1] + 1
         L, ny, nx = self.stack.shape
-        self._occ.resize((b, L, ny, nx))
-        self._time.resize((b,))
-        self._occ[a:b] = np.stack([self._buffer[s][1] for s in steps])
-        self._time[a:b] = np.array([self._buffer[s][0] for s in steps])
+        try:
+            self._occ.resize((b, L, ny, nx))
+            self._time.resize((b,))
+            self._occ[a:b] = np.stack([self._buffer[s][1] for s in steps])
+            self._time[a:b] = np.array([self._buffer[s][0] for s in steps])
+        except OSError as exc:  # a full disk (ENOSPC), a folder gone: name what could not be written
+            raise OSError(exc.errno, f"cannot write {self.out_dir / 'occupancy.zarr'}: "
+                          f"{exc.strerror or exc}") from exc
         self._steps_written = b
         self._buffer.clear()
         self._write_tables()
@@ -648,10 +702,22 @@ class OutputWriter:
         if self.rerun is not None:
             self.rerun.close()
             self.rerun = None
+        if status == "finished":
+            self._lock.release()
+
+    def close(self) -> None:
+        """Release the folder's lock (and close the rerun recording) without writing anything: a writer opened only
+        to look at a folder, or one whose run is given up. The writer must not be written to afterwards."""
+        if self.rerun is not None:
+            with contextlib.suppress(Exception):
+                self.rerun.close()
+            self.rerun = None
+        self._lock.release()
 
     def mark_finished(self) -> None:
-        """Record the run as finished (after everything else is written)."""
+        """Record the run as finished (after everything else is written) and release the folder's lock."""
         self._write_state("finished")
+        self._lock.release()
 
     def summary(self) -> dict[str, Any]:
         """Counts for the report: steps, planes, grid, detections, tracks, resume information."""
@@ -671,13 +737,17 @@ class OutputWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is not None:
-            with contextlib.suppress(Exception):
-                self.flush("interrupted" if issubclass(exc_type, KeyboardInterrupt) else "failed")
-        if self.rerun is not None:
-            with contextlib.suppress(Exception):
-                self.rerun.close()
-            self.rerun = None
+        try:
+            if exc_type is not None:
+                interrupted = issubclass(exc_type, KeyboardInterrupt)
+                self.record_end("interrupted" if interrupted else "failed",
+                                None if interrupted else f"{exc_type.__name__}: {exc}")
+            if self.rerun is not None:
+                with contextlib.suppress(Exception):
+                    self.rerun.close()
+                self.rerun = None
+        finally:
+            self._lock.release()
 
 
 _COLUMN_DTYPES = {"step": np.int64, "track_id": np.int64, "source": object, "camera": object}

@@ -24,11 +24,13 @@ from ._system import (
     check_modalities_present,
     check_memory,
     filter_memory_bytes,
+    memory_limits_bytes,
     evaluate_system,
     recording_with_ignore_rects,
     run_system,
     stack_for_recording,
     system_laser_model,
+    writer_buffered_steps,
 )
 
 __all__ = [
@@ -44,6 +46,8 @@ __all__ = [
     "check_modalities_present",
     "check_memory",
     "filter_memory_bytes",
+    "memory_limits_bytes",
+    "writer_buffered_steps",
     "camera_evidence",
     "camera_source",
     "evaluate_system",

@@ -19,7 +19,7 @@ from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_writ
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
 from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
-    check_modalities_present, run_system, stack_for_recording
+    check_modalities_present, run_system, stack_for_recording, writer_buffered_steps
 
 if TYPE_CHECKING:  # matplotlib and rerun (~1 s of imports) only where figures or a rerun recording are asked for
     from ..viz import FigureInputs
@@ -184,7 +184,7 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
 
 
 def write_presentation(out: OutputWriter, settings: OutputSettings, figure_inputs: FigureInputs | None = None,
-                       progress=None) -> dict[str, Path]:
+                       progress=None, cameras=(), clock_origin_ns: int | None = None) -> dict[str, Path]:
     """Figures, animation and ``report.html`` of a finished run folder, as ``settings`` asks.
 
     Parameters
@@ -196,6 +196,10 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
         Extra material for the figures (cameras and frames, laser points, saliency, ground truth).
     progress : ProgressReporter, optional
         Reports the figure step.
+    cameras : sequence of CameraStream
+        The recording's cameras, whose frames (with the tracks drawn over them) go into ``planefuse.mcap``.
+    clock_origin_ns : int, optional
+        The recording's time 0 on its source's clock [ns]: the robotics outputs' stamps start there.
 
     Returns
     -------
@@ -209,7 +213,8 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
 
         figure_inputs = figure_inputs if figure_inputs is not None else FigureInputs()
         figs = run_figures(out.stack, out.occupancy_array(), out.times_s(), out.detections_table(), out.tracks_table(),
-                           out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress)
+                           out.metrics, figure_inputs, dpi=settings.figure_dpi, progress=progress,
+                           camera_boxes=out.camera_boxes_table())
     videos = {}
     if settings.camera_videos and out.n_steps and figure_inputs is not None:
         videos = {cam.name: f"camera_{check_name(cam.name, 'camera name')}_tracks.mp4" for cam in figure_inputs.cameras
@@ -240,6 +245,18 @@ def write_presentation(out: OutputWriter, settings: OutputSettings, figure_input
                 camera_tracks_video(p, cam, figure_inputs.camera_streams[cam.name], out.times_s(),
                                     out.tracks_table(), fps=fps, max_frames=settings.animation_max_frames)
                 written[f"camera_{cam.name}_video"] = p
+    if (settings.mcap or settings.ros2_bag) and out.n_steps:
+        from ..outputs._mcap import MCAP_FILE, ROS2_BAG_DIR, write_run_mcap, write_run_ros2_bag
+
+        tables = (out.out_dir, out.stack, out.times_s(), out.occupancy_array(), out.detections_table(),
+                  out.tracks_table())
+        if settings.mcap:
+            written[MCAP_FILE] = write_run_mcap(tables[0] / MCAP_FILE, *tables[1:], person_radius_m=out.person_radius_m,
+                                                cameras=cameras, clock_origin_ns=clock_origin_ns)
+        if settings.ros2_bag:
+            written[ROS2_BAG_DIR] = write_run_ros2_bag(tables[0] / ROS2_BAG_DIR, *tables[1:],
+                                                       person_radius_m=out.person_radius_m,
+                                                       clock_origin_ns=clock_origin_ns)
     if settings.report:
         from ..report import write_report
 
@@ -322,13 +339,14 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     if plan.out_dir is None:
         raise ValueError("run_to_folder needs a plan with an out_dir (run_plan evaluates in memory)")
     params, settings = plan.params, plan.outputs
-    stack = stack_for_recording(rec, params)
-    if settings.zarr:
-        one_zarr_codec_thread()
-    text = plan.text()
     # output steps at the multiples of the period before the recording's end (its duration: the end of its last
     # sample period); an estimate for the progress bar, which is set to the steps done at the end
     n_steps = int(np.floor((rec.duration_s - 1e-9) / params.output_period_s)) + 1
+    stack = stack_for_recording(rec, params, buffered_steps=writer_buffered_steps(settings.chunk_steps, settings.zarr,
+                                                                                  n_steps))
+    if settings.zarr:
+        one_zarr_codec_thread()
+    text = plan.text()
     with progress_steps(progress_mode) as progress, OutputWriter(
         plan.out_dir, stack, config_hash=resume_key(plan, rec), chunk_steps=settings.chunk_steps,
         write_zarr=settings.zarr, config_text=text, person_radius_m=params.tracking.cluster.person_radius_m,
@@ -379,7 +397,8 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
             # the figures' material (a frame per camera, laser points, saliency) only where figures are drawn
             inputs = _figure_inputs(rec, run.report, times) \
                 if settings.figures or settings.report or settings.camera_videos else None
-            write_presentation(out, settings, inputs, progress)
+            write_presentation(out, settings, inputs, progress, cameras=list(rec.camera_streams.values()),
+                               clock_origin_ns=rec.clock_origin_ns)
         except (KeyboardInterrupt, MemoryError):
             raise
         except Exception as exc:  # the tables are complete: say what failed, in one line, and keep them

@@ -23,8 +23,8 @@ from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_so
 
 __all__ = ["SystemParams", "SystemResult", "SystemRun", "run_system", "evaluate_system",
            "stack_for_recording", "system_laser_model", "CHECKPOINT_FORMAT", "check_cameras_against_stack",
-           "check_memory", "filter_memory_bytes", "available_memory_bytes", "can_evaluate", "EVAL_WARMUP_S",
-           "recording_with_ignore_rects"]
+           "check_memory", "filter_memory_bytes", "available_memory_bytes", "memory_limits_bytes",
+           "writer_buffered_steps", "can_evaluate", "EVAL_WARMUP_S", "recording_with_ignore_rects"]
 
 #: Version of :meth:`SystemRun.state_dict`'s layout (a checkpoint of another version is not resumed).
 CHECKPOINT_FORMAT = 7  # 2: the BOF's active tiles, the Kalman tracks; 3: each weighted sensor's last message time;
@@ -189,10 +189,15 @@ class SystemResult:
     stitched: dict = field(default_factory=dict)
 
 
-def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: bool = True) -> PlaneStack:
+def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: bool = True,
+                        buffered_steps: int = 0) -> PlaneStack:
     """The plane stack of ``params`` on ``rec``: the configured extent, or else the recording's monitored
     area ``rec.room_xy_m`` less ``params.wall_margin_m`` on every side, so that the walls (static, seen by
-    the laser) are not inside the grid; the configured heights, or else the recording's suggestion."""
+    the laser) are not inside the grid; the configured heights, or else the recording's suggestion.
+
+    Refused (``ValueError``): cameras and planes that cannot work together, occluders far from the grid, and a
+    grid whose state and ``buffered_steps`` output grids (:func:`writer_buffered_steps`) do not fit in the
+    available memory (:func:`check_memory`)."""
     heights = params.heights_m if params.heights_m is not None else tuple(rec.planes_heights_m)
     x, y = params.x_range_m, params.y_range_m
     if x is None or y is None:
@@ -207,7 +212,7 @@ def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: 
     if params.cameras and check_cameras:
         check_cameras_against_stack(rec.cameras, stack)
     check_occluders_against_stack(params.occluder_boxes_m, stack)
-    check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0)
+    check_memory(stack, params, n_cameras=len(rec.cameras) if params.cameras else 0, buffered_steps=buffered_steps)
     return stack
 
 
@@ -340,21 +345,29 @@ def check_cameras_against_stack(cameras: Sequence, stack: PlaneStack, *, above: 
                          f"{top:.3g} m): no camera sees them from above; lower them (planes.heights_m)")
 
 
-def filter_memory_bytes(stack: PlaneStack, params: SystemParams, n_cameras: int = 0) -> int:
+def filter_memory_bytes(stack: PlaneStack, params: SystemParams, n_cameras: int = 0, buffered_steps: int = 0) -> int:
     """Estimated memory [bytes] of a run's per-cell state on ``stack``, before allocating it.
 
     Per cell: the filter state, float32 ``P(occ, v_k)`` for the K velocity hypotheses and ``P(free)``, held
     twice (the state and its update): ``2 (K + 1) 4`` bytes; the outputs (occupancy, mean velocity x and
-    y): ``3 x 4`` bytes; each camera's plane lookup (pixel u, v float32 and visibility): ``12`` bytes.
+    y): ``3 x 4`` bytes; each camera's plane lookup (pixel u, v float32 and visibility): ``12`` bytes; and
+    ``buffered_steps`` float32 occupancy grids the output writer holds at once (:func:`writer_buffered_steps`:
+    a chunk of ``chunk_steps`` steps and its stacked copy): ``4`` bytes each.
     """
     K = params.tracking.bof.n_velocities
-    per_cell = 2 * (K + 1) * 4 + 3 * 4 + 12 * int(n_cameras)
+    per_cell = 2 * (K + 1) * 4 + 3 * 4 + 12 * int(n_cameras) + 4 * int(buffered_steps)
     return int(stack.n_planes * stack.ny * stack.nx) * per_cell
 
 
-def available_memory_bytes() -> int:
-    """Memory available to a new allocation [bytes]: psutil's ``available``, else ``MemAvailable`` of
-    /proc/meminfo; a very large number where neither can be read (no refusal then)."""
+def writer_buffered_steps(chunk_steps: int, zarr: bool = True, n_steps: int = 0) -> int:
+    """Occupancy grids (L, ny, nx) the output writer holds at once: a chunk of ``chunk_steps`` steps before it is
+    written and its stacked copy while it is (``2 chunk_steps``); without ``zarr`` on disk every one of the run's
+    ``n_steps`` steps is kept in memory too."""
+    return 2 * int(chunk_steps) + (0 if zarr else int(n_steps))
+
+
+def _free_memory_bytes() -> int | None:
+    """psutil's ``available``, else ``MemAvailable`` of /proc/meminfo (None where neither can be read)."""
     try:
         import psutil
 
@@ -367,24 +380,107 @@ def available_memory_bytes() -> int:
                 return int(line.split()[1]) * 1024
     except (OSError, ValueError, IndexError):
         pass
-    return 2**62
+    return None
 
 
-def check_memory(stack: PlaneStack, params: SystemParams, n_cameras: int = 0) -> None:
-    """Refuse a grid whose state (:func:`filter_memory_bytes`) would not fit in the available memory.
+def _address_space_left_bytes() -> int | None:
+    """What the process's ``RLIMIT_AS`` (``ulimit -v``) leaves of its address space (None: no limit, or not
+    known)."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft == resource.RLIM_INFINITY or soft < 0:
+            return None
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmSize:"):
+                return max(0, soft - int(line.split()[1]) * 1024)
+        return int(soft)
+    except (ImportError, OSError, ValueError, IndexError):
+        return None
+
+
+def _cgroup_memory_left_bytes(proc_cgroup: Path = Path("/proc/self/cgroup"),
+                              root: Path = Path("/sys/fs/cgroup")) -> int | None:
+    """What the process's cgroup leaves [bytes]: v2 ``memory.max`` less ``memory.current``, the tightest along its
+    path from its own group up to ``root``; v1 ``memory/memory.limit_in_bytes`` less ``memory.usage_in_bytes``, its
+    group's or else the root's (None: no limit, or not known)."""
+    try:
+        lines = proc_cgroup.read_text().splitlines()
+    except OSError:
+        return None
+    left = None
+
+    def take(have: int) -> None:
+        nonlocal left
+        left = max(0, have) if left is None else min(left, max(0, have))
+
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        if parts[0] == "0" and parts[1] == "":  # v2: the group and each of its parents
+            folder = root / parts[2].lstrip("/")
+            for d in (folder, *folder.parents):
+                try:
+                    limit = (d / "memory.max").read_text().strip()
+                    used = int((d / "memory.current").read_text().strip())
+                except (OSError, ValueError):
+                    limit = None
+                if limit not in (None, "max"):
+                    take(int(limit) - used)
+                if d == root:
+                    break
+        elif "memory" in parts[1].split(","):  # v1
+            for d in (root / "memory" / parts[2].lstrip("/"), root / "memory"):
+                try:
+                    limit_v1 = int((d / "memory.limit_in_bytes").read_text())
+                    used = int((d / "memory.usage_in_bytes").read_text())
+                except (OSError, ValueError):
+                    continue
+                if limit_v1 < 2**60:  # "no limit" is a huge number in v1
+                    take(limit_v1 - used)
+                break
+    return left
+
+
+def memory_limits_bytes() -> dict[str, int]:
+    """What bounds a new allocation [bytes], by source: ``"free memory"`` (the machine's available memory),
+    ``"RLIMIT_AS"`` (what the process's address-space limit leaves), ``"cgroup memory.max"`` (what its control
+    group leaves); a source that cannot be read or sets no limit is absent."""
+    out = {}
+    for name, value in (("free memory", _free_memory_bytes()), ("RLIMIT_AS", _address_space_left_bytes()),
+                        ("cgroup memory.max", _cgroup_memory_left_bytes())):
+        if value is not None:
+            out[name] = int(value)
+    return out
+
+
+def available_memory_bytes() -> int:
+    """Memory available to a new allocation [bytes]: the smallest of :func:`memory_limits_bytes` (free memory,
+    the process's ``RLIMIT_AS`` and its cgroup's ``memory.max``); a very large number where none can be read
+    (no refusal then)."""
+    return min(memory_limits_bytes().values(), default=2**62)
+
+
+def check_memory(stack: PlaneStack, params: SystemParams, n_cameras: int = 0, buffered_steps: int = 0) -> None:
+    """Refuse a grid whose state and the writer's buffers (:func:`filter_memory_bytes`) would not fit in the
+    available memory (:func:`available_memory_bytes`: the smallest of the free memory and the process's limits).
 
     Raises
     ------
     ValueError
         One line: the estimate, what is available and what to change.
     """
-    need, have = filter_memory_bytes(stack, params, n_cameras), available_memory_bytes()
+    need, have = filter_memory_bytes(stack, params, n_cameras, buffered_steps), available_memory_bytes()
     if need > 0.8 * have:
         K = params.tracking.bof.n_velocities
-        raise ValueError(f"the grid of {stack.n_planes} planes x {stack.ny} x {stack.nx} cells x {K} velocities "
-                         f"needs about {need / 2**30:.3g} GiB, more than 80 % of the {have / 2**30:.3g} GiB "
-                         "available: coarsen planes.cell_size_m, shrink planes.x_range_m/y_range_m, or reduce "
-                         "models.filter.n_velocities_per_axis")
+        buffers = f" and {buffered_steps} buffered output steps (outputs.chunk_steps)" if buffered_steps else ""
+        raise ValueError(f"the grid of {stack.n_planes} planes x {stack.ny} x {stack.nx} cells x {K} velocities"
+                         f"{buffers} needs about {need / 2**30:.3g} GiB, more than 80 % of the {have / 2**30:.3g} GiB "
+                         "available (the smallest of the free memory and the process's limits, RLIMIT_AS and "
+                         "cgroup memory.max): coarsen planes.cell_size_m, shrink planes.x_range_m/y_range_m, reduce "
+                         "models.filter.n_velocities_per_axis" + (" or outputs.chunk_steps" if buffered_steps else ""))
 
 
 class SystemRun:
@@ -412,6 +508,10 @@ class SystemRun:
         Run each camera's front end (decoding, background subtraction) as a stream on this dask cluster's
         workers (:func:`planefuse.batch.remote_foregrounds`; the recording must be a folder they can read).
         The outputs are identical to the run's in one process.
+    camera_frames : iterable of (time_s, images), optional
+        The cameras' synchronised instants as they arrive (a live run, :mod:`planefuse.live`), instead of the
+        recording's frames: ``rec`` then gives the calibrations only
+        (:func:`~planefuse.pipeline._arriving.arriving_camera_source`). Not with ``checkpoint`` or ``client``.
 
     Attributes
     ----------
@@ -422,9 +522,13 @@ class SystemRun:
     """
 
     def __init__(self, rec: Recording, params: SystemParams = SystemParams(), stack: PlaneStack | None = None,
-                 checkpoint: Mapping[str, np.ndarray] | None = None, client=None) -> None:
+                 checkpoint: Mapping[str, np.ndarray] | None = None, client=None, camera_frames=None) -> None:
         rec = recording_with_ignore_rects(rec, params.camera_ignore_rects_px)
+        if camera_frames is not None and (checkpoint is not None or client is not None):
+            raise ValueError("a run fed arriving camera frames is not resumed from a checkpoint nor spread on a "
+                             "dask cluster")
         self.rec, self.params, self.client = rec, params, client
+        self.camera_frames = camera_frames
         self.stack = stack if stack is not None else stack_for_recording(rec, params)
         self.report = ModalityReport()
         #: the tracks' appearance from the camera frames (None: the tracker does not use appearance)
@@ -491,7 +595,14 @@ class SystemRun:
     def _sources(self, consumed: Mapping[str, int]) -> list[EvidenceSource]:
         rec, params, stack, report = self.rec, self.params, self.stack, self.report
         out = []
-        if params.cameras and rec.camera_streams:
+        if params.cameras and rec.camera_streams and self.camera_frames is not None:
+            from ._arriving import arriving_camera_source
+
+            out.append(arriving_camera_source(rec, stack, params.camera_params, report, self.camera_frames,
+                                              occluder_boxes_m=params.occluder_boxes_m,
+                                              correlation_s=self._camera_correlation_s(),
+                                              tracked_xy=self._tracked_xy if self._track_prior() else None))
+        elif params.cameras and rec.camera_streams:
             out.append(camera_source(rec, stack, params.camera_params, report,
                                      start=consumed.get("cameras", 0), client=self.client,
                                      occluder_boxes_m=params.occluder_boxes_m,

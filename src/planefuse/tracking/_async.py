@@ -134,13 +134,17 @@ class AsyncEvidenceBuffer:
         self._newest_s = max(self._newest_s, t)
         return True
 
-    def ready(self, final: bool = False) -> Iterator[EvidenceBatch]:
-        """Release the batches that are ready (all of them if ``final``), one at a time and in time order.
+    def ready(self, final: bool = False, until_s: float | None = None) -> Iterator[EvidenceBatch]:
+        """Release the batches that are ready (all of them if ``final``), one at a time and in time order;
+        with ``until_s`` [s] also those stamped at or before it (the caller knows no message stamped before
+        ``until_s + merge_tolerance_s`` is still to come).
 
         A batch leaves the buffer only when it is taken, so the buffer's state (:meth:`state_dict`) is
         consistent between any two batches.
         """
         until = np.inf if final else self._newest_s - self.window_s
+        if until_s is not None:
+            until = max(until, float(until_s))
         while (batch := self._pop_batch(until)) is not None:
             yield batch
 

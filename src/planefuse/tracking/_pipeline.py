@@ -148,14 +148,17 @@ class EvidenceTracker:
         #: outputs given so far (the index of the next output step)
         self.n_outputs = 0
 
-    def push(self, evidence: Evidence) -> Iterator[TrackerOutput]:
-        """Hold ``evidence``; iterate the result to process what became ready."""
+    def push(self, evidence: Evidence, until_s: float | None = None) -> Iterator[TrackerOutput]:
+        """Hold ``evidence``; iterate the result to process what became ready (``until_s``: :meth:`drain`)."""
         self.buffer.add(evidence)
-        return self.drain()
+        return self.drain(until_s)
 
-    def drain(self) -> Iterator[TrackerOutput]:
-        """Process the batches the buffer can release now."""
-        for batch in self.buffer.ready():
+    def drain(self, until_s: float | None = None) -> Iterator[TrackerOutput]:
+        """Process the batches the buffer can release now; with ``until_s`` [s] also every batch stamped at or
+        before it, without waiting ``window_s`` for later messages: the caller knows that no message stamped
+        before ``until_s + merge_tolerance_s`` is still to come (a live run's one in-order source,
+        :mod:`planefuse.live`), so the batches are those the window would give, released sooner."""
+        for batch in self.buffer.ready(until_s=until_s):
             yield from self._process(batch)
 
     def flush(self) -> Iterator[TrackerOutput]:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
 
 from ..geometry import PinholeCamera
 from ..grid import PlaneStack
@@ -259,7 +260,7 @@ def _rows_at(table: Mapping[str, np.ndarray] | None, step: int) -> tuple[np.ndar
 
 def plot_camera_tracks(camera: PinholeCamera, frames, times_s, tracks: Mapping[str, np.ndarray] | None,
                        detections: Mapping[str, np.ndarray] | None = None, *, ignore_mask=None,
-                       head_m: float = 1.7) -> Figure:
+                       head_m: float = 1.7, boxes: Mapping[str, np.ndarray] | None = None) -> Figure:
     """Camera frames with the tracks of the output step nearest each frame drawn as feet-to-head lines.
 
     Parameters
@@ -276,8 +277,15 @@ def plot_camera_tracks(camera: PinholeCamera, frames, times_s, tracks: Mapping[s
     ignore_mask : ndarray, shape (H, W), bool, optional
     head_m : float
         Height of the drawn segment [m].
+    boxes : dict of column arrays, optional
+        The person detector's boxes (:data:`planefuse.outputs.BOX_COLUMNS`: ``step``, ``camera``, ``left_px``,
+        ``top_px``, ``width_px``, ``height_px``, ``score``); this camera's boxes of the panel's step are drawn as
+        white rectangles with their score.
     """
     w, h = camera.intrinsics.width_px, camera.intrinsics.height_px
+    mine = None
+    if boxes is not None and len(boxes.get("step", [])):
+        mine = np.asarray(boxes["camera"]) == camera.name
     n = len(frames)
     cols = min(n, 2)
     rows = -(-n // cols)
@@ -290,6 +298,14 @@ def plot_camera_tracks(camera: PinholeCamera, frames, times_s, tracks: Mapping[s
         if ignore_mask is not None and np.any(ignore_mask):
             ax.contour(np.arange(w), np.arange(h), np.asarray(ignore_mask, float), levels=[0.5], colors="red",
                        linewidths=0.6)
+        n_boxes = 0
+        if mine is not None:
+            at = mine & (np.asarray(boxes["step"]) == step)
+            n_boxes = int(at.sum())
+            for left, top, bw, bh, sc in zip(*(np.asarray(boxes[k], float)[at] for k in
+                                               ("left_px", "top_px", "width_px", "height_px", "score"))):
+                ax.add_patch(Rectangle((left - 0.5, top - 0.5), bw, bh, fill=False, ec="white", lw=1.0, ls="--"))
+                ax.annotate(f"{sc:.2f}", (left, top + bh), color="white", fontsize=6, va="top")
         _, dxy = _rows_at(detections, step)
         if len(dxy):
             uv = camera.project(np.c_[dxy, np.zeros(len(dxy))])
@@ -305,11 +321,12 @@ def plot_camera_tracks(camera: PinholeCamera, frames, times_s, tracks: Mapping[s
         ax.set_xlim(-0.5, w - 0.5)
         ax.set_ylim(h - 0.5, -0.5)
         ax.set_axis_off()
-        ax.set_title(f"frame {index}, t = {t:.2f} s (step {step}): {len(ids)} tracks", fontsize=8)
+        found = f", {n_boxes} person boxes" if mine is not None else ""
+        ax.set_title(f"frame {index}, t = {t:.2f} s (step {step}): {len(ids)} tracks{found}", fontsize=8)
     for ax in axes[n:]:
         ax.set_visible(False)
-    fig.suptitle(f"{camera.name}: tracks (feet to {head_m:g} m, colours as the floor plan), detections x",
-                 fontsize=9)
+    fig.suptitle(f"{camera.name}: tracks (feet to {head_m:g} m, colours as the floor plan), detections x"
+                 + (", the person detector's boxes dashed" if mine is not None else ""), fontsize=9)
     return fig
 
 
@@ -402,6 +419,7 @@ def run_figures(
     *,
     dpi: int = 100,
     progress=None,
+    camera_boxes: Mapping[str, np.ndarray] | None = None,
 ) -> dict[str, bytes]:
     """Every figure of a run as PNG bytes, keyed by a file-name stem.
 
@@ -417,6 +435,8 @@ def run_figures(
     metrics : dict
     inputs : FigureInputs
     progress : ProgressReporter, optional
+    camera_boxes : dict of column arrays, optional
+        The person detector's boxes (:meth:`OutputWriter.camera_boxes_table`), drawn on the camera figures.
     """
     occ = occupancy
     jobs: list[tuple[str, object]] = []
@@ -436,7 +456,7 @@ def run_figures(
         if inputs.camera_frames.get(cam.name) and len(times_s):
             jobs.append((f"camera_{cam.name}_tracks", lambda cam=cam: plot_camera_tracks(
                 cam, inputs.camera_frames[cam.name], times_s, tracks, detections,
-                ignore_mask=inputs.ignore_masks.get(cam.name))))
+                ignore_mask=inputs.ignore_masks.get(cam.name), boxes=camera_boxes)))
     if inputs.saliency is not None:
         jobs.append(("saliency", lambda: plot_saliency(inputs.saliency_times_s, inputs.saliency_azimuth_rad,
                                                        inputs.saliency)))

@@ -76,10 +76,25 @@ def with_sets(params: SystemParams, sets: tuple) -> SystemParams:
     return _with_values(params, {tuple(path.split(".")): value for path, value in sets})
 
 
+#: The tracks' appearance as docs/identities.md recommends it (chosen on seeds 1-3 and terrace frames 0-1499).
+APPEARANCE = {"appearance_weight": 16.0, "reid_max_s": 5.0}
+
+
 def _tracker_variants(sweep: str | None) -> dict:
-    """Tracker name -> TrackerParams of the Kalman tracker (``--sweep``: a tuning grid, ``noise`` or ``births``)."""
+    """Tracker name -> TrackerParams of the Kalman tracker (``--sweep``: a tuning grid, ``noise``, ``births`` or
+    ``appearance``; ``--appearance``: the Kalman tracker with the tracks' appearance, ``APPEARANCE``)."""
     base = SystemParams().tracking.tracker
     out = {"kalman": base}
+    if sweep == "appearance":  # appearance in association (weight) and re-identification
+        for w in (8.0, 16.0):
+            out[f"kalman+app w{w:g}"] = replace(base, appearance_weight=w)
+            for d in (0.2, 0.3):
+                out[f"kalman+app w{w:g} reid{d:g}"] = replace(base, appearance_weight=w, reid_max_s=5.0,
+                                                             reid_max_appearance_distance=d)
+        return out
+    if sweep == "with-appearance":
+        out["kalman+appearance"] = replace(base, **APPEARANCE)
+        return out
     if sweep == "births":  # track management: births near confirmed tracks, coasting tracks reported
         for excl in (0.5, 1.0, 1.5):
             for coast in (1, 2):
@@ -124,10 +139,34 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
         prev = load_previous_tracker(previous_source)
         makers["previous"] = lambda: prev.MultiPersonTracker(prev.TrackerParams(), extent)
     rows = []
+    frames = None
+    if any(tp.uses_appearance for tp in trackers.values()):  # the camera frames the tracks' appearance is read from
+        from planefuse.vision import recording_frames
+
+        cp = params.camera_params
+        from planefuse.pipeline._streams import _tapped
+
+        frames = []  # as the run's camera source hands them (a black or frozen frame: None)
+        for _ in _tapped(recording_frames(rec, stride=cp.frame_stride, max_rate_hz=cp.max_rate_hz),
+                         lambda t, imgs: frames.append((t, imgs))):
+            pass
     for name, make in makers.items():
         tracker = make()
+        observer = None
+        if frames is not None and name in trackers and trackers[name].uses_appearance:
+            from planefuse.tracking import AppearanceObserver
+
+            observer = AppearanceObserver(rec.cameras, params.appearance,
+                                          [rec.camera(c.name).ignore_mask for c in rec.cameras],
+                                          occluder_boxes_m=params.occluder_boxes_m)
+            tracker.observer = observer
         t0 = time.perf_counter()
-        tracks = [tracker.step(o.clusters) for o in outs]
+        tracks, k = [], 0
+        for o in outs:
+            while observer is not None and k < len(frames) and frames[k][0] <= o.time_s + 1e-9:
+                observer.add_frames(*frames[k])
+                k += 1
+            tracks.append(tracker.step(o.clusters))
         tracker_ms = 1e3 * (time.perf_counter() - t0) / max(len(outs), 1)
         m = system_metrics(rec, times, dets, [(t.time_s, t.ids, t.xy_m) for t in tracks], result.report,
                            result.elapsed_s, params.match_distance_m)
@@ -209,10 +248,12 @@ def main() -> None:
     ap.add_argument("--filters", default="on,off", help="temporal filter on, off or both")
     ap.add_argument("--modalities", default="all", help=f"comma-separated of {', '.join(MODALITIES)}")
     ap.add_argument("--previous-tracker", action="store_true", help="also the tracker before the Kalman tracker")
-    ap.add_argument("--sweep", nargs="?", const="noise", default=None, choices=("noise", "births"),
+    ap.add_argument("--sweep", nargs="?", const="noise", default=None,
+                    choices=("noise", "births", "appearance", "with-appearance"),
                     help="a grid of Kalman tracker variants, scored on the same runs (choose on seeds 1-3 only): "
                          "noise (default: position and acceleration noise, gate) or births (birth exclusion, "
-                         "coasting tracks reported)")
+                         "coasting tracks reported), appearance (the tracks' appearance: weight, re-identification) "
+                         "or with-appearance (the Kalman tracker without and with the recommended appearance)")
     ap.add_argument("--from-csv", type=Path, default=None, help="re-summarise the rows of an earlier run")
     ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
     ap.add_argument("--n-workers", type=int, default=2)

@@ -111,6 +111,10 @@ def _changes(*parts: dict) -> dict:
 
 
 _CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
+#: The tracks' appearance (docs/identities.md; chosen on frames 0-1499 and simulated seeds 1-3): in association and
+#: re-identification (online), then also the offline stitching of the tracklets.
+_APPEARANCE = {"models": {"detection": {"appearance_weight": 16.0, "reid_max_s": 5.0}}}
+_STITCH = {"models": {"detection": {"stitch": True}}}
 #: The person detector's rows: ``--person-model`` fills the model's path (``detector_rows``). "det": the tuned system
 #: with the detector at the library's settings (its boxes as evidence of free space, docs/cameras.md); "detonly": the
 #: detector alone, its boxes the generative model's silhouettes (no background subtraction; the person's cylinder
@@ -124,6 +128,8 @@ ROWS = {
     "gen": ("tuned", {}),
     "gen-nofilter": ("tuned", _NOFILTER),
     "gen-ground": ("tuned", _GROUND),
+    "gen-app": ("tuned", _APPEARANCE),
+    "gen-app-stitch": ("tuned", _changes(_APPEARANCE, _STITCH)),
     "cell": ("tuned", _CELL_ROW),
     "cell-nofilter": ("tuned", _changes(_CELL_ROW, _NOFILTER)),
     "cell-ground": ("tuned", _changes(_CELL_ROW, _GROUND)),
@@ -133,6 +139,8 @@ ROWS = {
     "det": (DET_NAME, _DET),
     "det-nofilter": (DET_NAME, _changes(_DET, _NOFILTER)),
     "det-ground": (DET_NAME, _changes(_DET, _GROUND)),
+    "det-app": (DET_NAME, _changes(_DET, _APPEARANCE)),
+    "det-app-stitch": (DET_NAME, _changes(_DET, _APPEARANCE, _STITCH)),
     "detonly": (DET_ONLY_NAME, _changes(_DET, _DET_ONLY)),
     "detonly-nofilter": (DET_ONLY_NAME, _changes(_DET, _DET_ONLY, _NOFILTER)),
 }
@@ -255,9 +263,10 @@ def score(truth: TerraceTruth, frames, detections, tracks=None) -> dict:
                 ids, xy = ids[keep], xy[keep]
             gt_frames.append((f / FPS, truth.ids[f], truth.xy_m[f]))
             hyp_frames.append((f / FPS, ids, xy))
-        mot = tracking_metrics(gt_frames, hyp_frames, match_distance_m=0.5)
+        mot = tracking_metrics(gt_frames, hyp_frames, match_distance_m=0.5, switch_events=True)
         out.update(mota=mot["mota"], idf1=mot["idf1"], id_switches=int(mot["num_switches"]),
-                   track_false_positives=int(mot["num_false_positives"]), track_misses=int(mot["num_misses"]))
+                   track_false_positives=int(mot["num_false_positives"]), track_misses=int(mot["num_misses"]),
+                   switch_events=mot["switch_events"])
     return out
 
 
@@ -425,6 +434,11 @@ def main(argv=None) -> int:
             heights = cfg["planes"]["heights_m"]
             planes = "/".join(f"{h:g}" for h in heights) + (" (ground alone)" if heights == [0.0] else "")
             model = "generative" if cams.get("sensor_model") == "generative" else "per cell"
+            det = cfg.get("models", {}).get("detection", {})
+            if det.get("appearance_weight") is not None or det.get("reid_max_s") is not None:
+                model += " + appearance"
+            if det.get("stitch"):
+                model += " + stitching"
             use_filter = cfg.get("models", {}).get("filter", {}).get("enabled", True)
             front_name = TUNED_NAME if front == "tuned" else front
             if cams.get("person_detector"):
@@ -435,7 +449,7 @@ def main(argv=None) -> int:
             # the per-frame detector's own row comes from a run that does not feed its tracks back into the
             # generative model (the filtered one, or, where that one takes the tracks as its prior, the one without
             # the filter)
-            track_prior = model == "generative" and float(cams.get("generative_track_prior_ratio", 1.0)) != 1.0
+            track_prior = model.startswith("generative") and float(cams.get("generative_track_prior_ratio", 1.0)) != 1.0
             if use_filter != track_prior:
                 results.append(dict(row=key + "-perframe", front_end=front_name, planes=planes,
                                     filter="none (per frame)", sensor_model=model, scores=raw))

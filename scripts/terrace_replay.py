@@ -33,7 +33,7 @@ from planefuse.config import config_from_dict  # noqa: E402
 from planefuse.grid import Evidence  # noqa: E402
 from planefuse.io import read_recording  # noqa: E402
 from planefuse.pipeline import SystemRun  # noqa: E402
-from planefuse.vision import GenerativeCameraSensor  # noqa: E402
+from planefuse.vision import GenerativeCameraSensor, recording_frames  # noqa: E402
 
 
 def replayable(field: str) -> bool:
@@ -46,7 +46,8 @@ def replayable(field: str) -> bool:
 
 def capture(rec, config: dict):
     """Run the cameras of ``config`` on ``rec``: (the instants' times [s], the foreground images the generative
-    sensor received at each, that sensor, the system parameters, the stack)."""
+    sensor received at each, that sensor, the system parameters, the stack, the colour frames of each instant (the
+    tracks' appearance))."""
     params = config_from_dict(T.merged(config, {"recording": str(rec.root)})).system_params()
     if params.camera_params.sensor_model != "generative":
         raise ValueError("terrace_replay.py replays the generative sensor model only")
@@ -64,13 +65,21 @@ def capture(rec, config: dict):
         times = [m.time_s for m in run.evidence]
     finally:
         GenerativeCameraSensor.marginals = solve
-    return times, kept["fg"], kept["sensor"], params, run.stack
+    cp = params.camera_params
+    from planefuse.pipeline._streams import _tapped
+
+    frames = []  # as the run's camera source hands them to the tracks' appearance (a black or frozen frame: None)
+    for _ in _tapped(recording_frames(rec, stride=cp.frame_stride, max_rate_hz=cp.max_rate_hz),
+                     lambda t, imgs: frames.append(imgs)):
+        pass
+    return times, kept["fg"], kept["sensor"], params, run.stack, frames
 
 
-def replay(rec, stack, times, foregrounds, sensor, params) -> tuple[list, list]:
+def replay(rec, stack, times, foregrounds, sensor, params, frames=None) -> tuple[list, list]:
     """The outputs of ``params``' generative sensor, filter, clustering and tracker on the kept ``foregrounds``
     (the tracker of a :class:`SystemRun` of ``params`` on ``rec``, asked for the tracked people at each instant
-    as that run asks it), and the per-frame detections."""
+    as that run asks it, and the colour ``frames`` of each instant where its tracker uses appearance), and the
+    per-frame detections."""
     cp = params.camera_params
     if cp.generative != sensor.params:
         sensor = GenerativeCameraSensor(sensor.cameras, stack, cp.generative, names=sensor.names,
@@ -78,12 +87,22 @@ def replay(rec, stack, times, foregrounds, sensor, params) -> tuple[list, list]:
     run = SystemRun(rec, params, stack)  # its sources are never started: only its tracker is used
     tracker, track_prior = run.tracker, run._track_prior()
     outs, detections = [], []
-    for t, fgs in zip(times, foregrounds):
+    for k, (t, fgs) in enumerate(zip(times, foregrounds)):
+        if run.appearance is not None:
+            run.appearance.add_frames(t, frames[k])
         prior = sensor.location_prior(run._tracked_xy(t)) if track_prior else None
         q = sensor.marginals(fgs, prior)
         detections.append(sensor.detections(q, t, cp.person.nms_radius_m))
         outs.extend(tracker.push(Evidence(t, "cameras", sensor.log_odds_from_marginals(q, prior))))
     outs.extend(tracker.flush())
+    if params.stitch.enabled:  # the offline pass over the run's tracks, as run_system does
+        from dataclasses import replace
+
+        from planefuse.tracking import relabel_tracks
+
+        frames = [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outs]
+        frames = relabel_tracks(frames, run.stitch(frames))
+        outs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outs, frames)]
     return outs, detections
 
 
@@ -141,7 +160,7 @@ def main(argv=None) -> int:
         if kept is None:
             kept = capture(rec, base)
             _save_capture(args.capture, key, kept)
-        times, fgs, sensor, _, stack = kept
+        times, fgs, sensor, _, stack, frames = kept
         for spec in ["", *args.tries]:
             sets = [x for x in spec.split(";") if x]
             refused = [x.partition("=")[0] for x in sets if not replayable(x.partition("=")[0])]
@@ -150,7 +169,7 @@ def main(argv=None) -> int:
                 continue
             cfg = T.with_sets(base, sets)
             params = config_from_dict(T.merged(cfg, {"recording": str(rec.root)})).system_params()
-            outs, dets = replay(rec, stack, times, fgs, sensor, params)
+            outs, dets = replay(rec, stack, times, fgs, sensor, params, frames)
             by_cam = {T._frame_of(d.time_s): d.xy_m for d in dets}
             fr = [f for f in scored if f in by_cam]
             raw = T.score(truth, fr, [by_cam[f] for f in fr])

@@ -35,6 +35,9 @@ def test_identity_swap_counts_switches_and_halves_idf1():
     assert m["num_switches"] == 2
     assert m["idf1"] == pytest.approx(0.5)
     assert m["mota"] == pytest.approx(1 - 2 / 40)
+    # each switch listed: when, which person, from which track to which
+    t10 = _gt()[10][0]
+    assert tracking_metrics(_gt(), hyp, switch_events=True)["switch_events"] == [(t10, 10, 1, 2), (t10, 20, 2, 1)]
 
 
 def test_frames_paired_by_time_and_tracks_objects_accepted():

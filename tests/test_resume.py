@@ -297,6 +297,29 @@ def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride, max_ra
         SystemRun(sim, SystemParams(sound=False), checkpoint=state)
 
 
+def test_system_run_with_appearance_resumes_exactly(sim):
+    """The tracks' appearance models, lost tracks and the frames kept for the next steps: a resumed run's camera
+    source hands the appearance the replayed instants' frames again, and the tracker restores its models."""
+    from dataclasses import replace
+
+    base = SystemParams()
+    params = replace(base, tracking=replace(base.tracking, tracker=replace(
+        base.tracking.tracker, appearance_weight=16.0, reid_max_s=5.0)))
+    run = SystemRun(sim, params)
+    ref, state = [], None
+    for out in run.outputs():
+        ref.append(out)
+        if len(ref) == 6:
+            state = _through_file(run.state_dict())
+    resumed = SystemRun(sim, params, checkpoint=state)
+    got = list(resumed.outputs())
+    assert len(got) == len(ref) - 6
+    for a, b in zip(ref[6:], got):
+        np.testing.assert_array_equal(a.tracks.ids, b.tracks.ids)
+        np.testing.assert_array_equal(a.tracks.xy_m, b.tracks.xy_m)
+    assert run.track_appearance() and resumed.track_appearance() == run.track_appearance()
+
+
 # -- a run folder ----------------------------------------------------------------------------------------------
 def _run(rec, out, resume=True, **kw):
     settings = OutputSettings(animation="none", figures=False, report=False, chunk_steps=4, **kw)

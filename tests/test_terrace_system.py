@@ -128,15 +128,16 @@ def test_replay_reproduces_the_run_and_refuses_front_end_changes(tmp_path):
     frames = FRAMES[:6]
     rec = read_recording(terrace.import_terrace(tmp_path, data, frames))
     base = terrace.load_base_config()
-    times, fgs, sensor, params, stack = R.capture(rec, base)
-    assert len(times) == len(fgs) == len(frames)
+    times, fgs, sensor, params, stack, images = R.capture(rec, base)
+    assert len(times) == len(fgs) == len(images) == len(frames)
     occupancy = []
     for sets in ([], ["sensors.cameras.generative_evidence_prior=0.5"],
-                 ["sensors.cameras.generative_track_prior_ratio=3", "sensors.cameras.generative_track_prior_radius_m=1"]):
+                 ["sensors.cameras.generative_track_prior_ratio=3", "sensors.cameras.generative_track_prior_radius_m=1"],
+                 ["models.detection.appearance_weight=16", "models.detection.reid_max_s=5", "models.detection.stitch=true"]):
         cfg = terrace.with_sets(base, sets)
         plan = replace(config_from_dict(terrace.merged(cfg, {"recording": str(rec.root)})).plan(), out_dir=None)
         res, _ = run_plan(rec, plan, progress_mode="quiet")
-        outs, dets = R.replay(rec, stack, times, fgs, sensor, plan.params)
+        outs, dets = R.replay(rec, stack, times, fgs, sensor, plan.params, images)
         assert len(outs) == len(res.outputs)
         for a, b in zip(outs, res.outputs):
             np.testing.assert_array_equal(a.occupancy, b.occupancy)

@@ -586,6 +586,42 @@ class DetectionModelConfig(_Model):
         "mean-shift from the filter's mode (the filter's own mode lags a walker and runs on at a stop or a turn); "
         "false: the filter's mode", library="system.tracking.cluster.position_from_step_evidence",
     )
+    appearance_weight: float | None = _field(
+        description="Weight of the appearance distance (colour of upper and lower body in every camera, 0..1) in the "
+        "tracker's pairing cost, in -2 ln likelihood-ratio units per unit distance; null = position and velocity "
+        "alone (docs/identities.md)", expected="null or >= 0", library="system.tracking.tracker.appearance_weight",
+    )
+    appearance_reference_distance: float = _field(
+        description="Appearance distance at which a pairing is as likely the same person as not", expected="0..1",
+        library="system.tracking.tracker.appearance_reference_distance",
+    )
+    appearance_update_rate: float = _field(
+        description="Rate at which a track's appearance model takes in each new view (a passer-by moves it by at "
+        "most this)", expected="in (0, 1]", library="system.tracking.tracker.appearance_update_rate",
+    )
+    reid_max_s: float | None = _field(
+        description="A track lost for at most this long is re-identified by appearance when its person comes back "
+        "(a new track confirmed near its last position takes its identity); null = no re-identification",
+        unit="s", expected="null or >= 0", library="system.tracking.tracker.reid_max_s",
+    )
+    reid_max_distance_m: float = _field(
+        description="Largest distance between a lost track's last position and a new track for re-identification",
+        unit="m", expected=">= 0", library="system.tracking.tracker.reid_max_distance_m",
+    )
+    reid_max_appearance_distance: float = _field(
+        description="Largest appearance distance between a lost track and a new track for re-identification",
+        expected="0..1", library="system.tracking.tracker.reid_max_appearance_distance",
+    )
+    stitch: bool = _field(
+        description="After the run, join tracklets across gaps by time, space and appearance (offline; a run into a "
+        "folder writes the live tracks as they were, the stitched ones to tracks_stitched.csv, scored under "
+        "'stitched'; a run in memory gives the stitched identities)",
+        library="system.stitch.enabled",
+    )
+    stitch_max_gap_s: float = _field(
+        description="Longest gap between a tracklet's end and the start of the one that continues it (stitching)",
+        unit="s", expected="> 0", library="system.stitch.max_gap_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

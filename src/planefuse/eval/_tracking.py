@@ -56,6 +56,7 @@ def tracking_metrics(
     hypotheses: Iterable,
     match_distance_m: float = 0.5,
     time_tolerance_s: float = 1e-3,
+    switch_events: bool = False,
 ) -> dict[str, float]:
     """MOTA, MOTP, IDF1, identity switches and friends for people tracked on the ground plane.
 
@@ -73,6 +74,9 @@ def tracking_metrics(
         Largest ground distance [m] for a match (motmetrics' distance threshold).
     time_tolerance_s : float
         Largest time difference [s] between paired frames.
+    switch_events : bool
+        Also list the identity switches: ``switch_events``, one ``(time_s, truth id, previous track id, new track
+        id)`` per switch, in time order (the previous track id is the one last matched to that person).
 
     Returns
     -------
@@ -109,5 +113,30 @@ def tracking_metrics(
         if k.startswith("num_") or k.startswith("mostly_"):
             out[k] = int(out[k])
     out["num_frames"] = len(gt)
+    if switch_events:
+        out["switch_events"] = _switch_events(acc, [g[0] for g in gt])
     out["num_unpaired_hypothesis_frames"] = int((~used).sum())
     return out
+
+
+def _switch_events(acc, times_s: list[float]) -> list[tuple[float, Any, Any, Any]]:
+    """``(time_s, truth id, previous track id, new track id)`` of every SWITCH event of a motmetrics accumulator
+    (frames numbered 0.. in the order of ``times_s``)."""
+    last: dict = {}
+    out = []
+    ev = acc.mot_events
+    for (frame, _), row in zip(ev.index, ev.itertuples(index=False)):
+        if row.Type not in ("MATCH", "SWITCH"):
+            continue
+        oid, hid = row.OId, row.HId
+        if row.Type == "SWITCH":
+            prev = last.get(oid)
+            out.append((float(times_s[int(frame)]), _plain(oid), _plain(prev), _plain(hid)))
+        last[oid] = hid
+    return out
+
+
+def _plain(v):
+    """A numpy scalar as a Python one (JSON); a whole float (motmetrics keeps integer ids as floats) as an int."""
+    v = v.item() if hasattr(v, "item") else v
+    return int(v) if isinstance(v, float) and v.is_integer() else v

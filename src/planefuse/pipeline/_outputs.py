@@ -125,6 +125,26 @@ def _steps_from_tables(out: OutputWriter):
     return times, det_xy, tracks
 
 
+def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, det_xy, tracks,
+                    elapsed_s: float) -> dict:
+    """Stitch a finished run's tracks (:meth:`SystemRun.stitch`), write them to ``tracks_stitched.csv`` (step,
+    time_s, track_id, x_m, y_m) and return ``{"stitched_identities": n}`` with, where the run is scored, the
+    stitched tracks' ``stitched`` scores (MOTA, IDF1, identity switches)."""
+    from ..tracking import relabel_tracks
+
+    mapping = run.stitch(tracks)
+    stitched = relabel_tracks(tracks, mapping)
+    rows = ["step,time_s,track_id,x_m,y_m"]
+    for k, (t, ids, xy) in enumerate(stitched):
+        rows += [f"{k},{t!r},{int(i)},{q[0]!r},{q[1]!r}" for i, q in zip(ids, xy)]
+    atomic_write_text(out.out_dir / "tracks_stitched.csv", "\n".join(rows) + "\n")
+    extra: dict = {"stitched_identities": len(mapping)}
+    if _can_score(rec, times):
+        m = system_metrics(rec, times, det_xy, stitched, run.report, elapsed_s, run.params.match_distance_m)
+        extra["stitched"] = {k: m[k] for k in ("mota", "idf1", "id_switches")}
+    return extra
+
+
 def _can_score(rec: Recording, times_s) -> bool:
     """Whether a run with output steps at ``times_s`` [s] is scored: the recording has people ground truth that
     reaches past the evaluation's first second (warned where it does not: the run's counts alone)."""
@@ -157,6 +177,8 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
     metrics = evaluate_system(rec, result, plan.params.match_distance_m) if _can_score(rec, times) else run_counts(
         rec, times, [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in result.outputs], result.report,
         result.elapsed_s)
+    if result.track_appearance:
+        metrics["track_appearance"] = result.track_appearance
     result.metrics = metrics
     return result, metrics
 
@@ -363,6 +385,10 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         else:  # a user's installation: the counts alone (steps, tracks, each sensor's messages and missing frames)
             metrics = run_counts(rec, times, tracks, run.report, result.elapsed_s)
         metrics["resumed_at_step"] = run.resumed_at_step
+        if params.stitch.enabled:  # the offline pass: the live tracks stay as written, the stitched ones beside them
+            metrics.update(_write_stitched(out, rec, run, times, det_xy, tracks, result.elapsed_s))
+        if run.appearance is not None:  # the identity decisions explained: each track's appearance in words
+            metrics["track_appearance"] = run.track_appearance()
         out.write_metrics(metrics)
         result.metrics = metrics
         return_freed_memory()  # before the figures' transient

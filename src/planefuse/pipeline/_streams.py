@@ -309,7 +309,8 @@ def consumed_from_state(state: Mapping[str, np.ndarray]) -> dict[str, int]:
 
 def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityReport,
                   start: int = 0, client=None, occluder_boxes_m=None, correlation_s: float = 0.0,
-                  tracked_xy: Callable[[float], np.ndarray] | None = None) -> EvidenceSource:
+                  tracked_xy: Callable[[float], np.ndarray] | None = None,
+                  frame_tap: Callable[[float, list], None] | None = None) -> EvidenceSource:
     """All cameras' synchronised instants: background subtraction (primed with the empty-scene image where
     the stream has one), registration on every plane and multi-view fusion (planefuse.vision).
 
@@ -324,6 +325,10 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
     run takes each camera's last live frame before ``start`` from the restored report's missing frames.
     ``tracked_xy``: the people tracked so far, predicted to an instant [s] -> (N, 2) [m, world], asked when the
     instant is computed (the generative model's prior, :func:`planefuse.vision.camera_detections`).
+    ``frame_tap(time_s, images)``: handed every instant's frames as read (one per camera, None where missing; the
+    tracks' appearance, :class:`planefuse.tracking.AppearanceObserver`); not with cameras that follow their IMU
+    (their frames are not in the calibrated view; warned, nothing handed) nor remote front ends (which then run in
+    this process).
     """
     from ..registration import CameraRegistration
     from ..vision import CameraReport, camera_detections, camera_instants, recording_frames, subtraction_window
@@ -355,6 +360,15 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             warnings.warn(f"cameras {sorted(registration.tracks)} follow their IMU: their front ends run in this "
                           "process, not on the dask workers", stacklevel=2)
             remote = None
+        tap = frame_tap
+        if tap is not None and registration.tracks:
+            warnings.warn(f"cameras {sorted(registration.tracks)} follow their IMU: the tracks' appearance is not "
+                          "read from their frames", stacklevel=2)
+            tap = None
+        if remote is not None and tap is not None:
+            warnings.warn("the tracks' appearance reads the cameras' frames: their front ends run in this process, "
+                          "not on the dask workers", stacklevel=2)
+            remote = None
         if remote is not None and params.foreground is not None and params.foreground.selective_update \
                 and params.foreground.selective_source == "model":
             # the front ends keep each instant's people out of their background models: they need them at once
@@ -374,6 +388,8 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
             # empty-scene calibration plates prime the background models (no ghosts of people already in view)
             backgrounds = [_background_or_none(rec.camera(n)) for n in names]
             frames = recording_frames(rec, start=start - replay, stride=stride, max_rate_hz=max_rate_hz)
+            if tap is not None:
+                frames = _tapped(frames, tap)
             instants = camera_detections(frames, lookups, stack, params, names=names, report=report.camera,
                                          backgrounds=backgrounds, replay=replay, registration=registration,
                                          correlation_s=correlation_s, last_live_s=last_live_s,
@@ -385,6 +401,23 @@ def camera_source(rec: Recording, stack: PlaneStack, params, report: ModalityRep
 
     gen = messages()
     return EvidenceSource("cameras", ((float(t), partial(next, gen)) for t in times), start)
+
+
+def _tapped(frames, tap: Callable[[float, list], None]):
+    """``frames`` (time_s, images) as they are, each handed to ``tap`` first, with None for a camera's black or
+    frozen frame (:func:`planefuse.vision.frame_is_dead`: a failed camera shows no one's colours)."""
+    from ..vision import frame_is_dead
+
+    previous: dict[int, np.ndarray] = {}
+    for time_s, images in frames:
+        live = []
+        for c, img in enumerate(images):
+            dead = img is not None and frame_is_dead(img, previous.get(c))
+            if img is not None:
+                previous[c] = img
+            live.append(None if dead else img)
+        tap(float(time_s), live)
+        yield time_s, images
 
 
 def _background_or_none(stream) -> np.ndarray | None:

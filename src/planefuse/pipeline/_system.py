@@ -15,7 +15,8 @@ from ..eval import EVAL_WARMUP_S, system_metrics
 from ..grid import PlaneStack, cells_filled_by_occluders, check_occluder_boxes
 from ..io import Recording
 from ..laser import LaserSensorModel
-from ..tracking import EvidenceTracker, TrackerOutput, TrackingParams
+from ..tracking import (AppearanceObserver, AppearanceParams, EvidenceTracker, StitchParams, TrackerOutput,
+                        TrackingParams, relabel_tracks, stitch_identities)
 from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
@@ -100,6 +101,12 @@ class SystemParams:
         Time between output steps [s].
     match_distance_m : float
         Evaluation: largest distance [m] of a detection or track from the person it is matched to.
+    appearance : planefuse.tracking.AppearanceParams
+        How the tracks' appearance is read from the camera frames (used where the tracker uses appearance,
+        ``tracking.tracker.appearance_weight`` or ``reid_max_s``; docs/identities.md).
+    stitch : planefuse.tracking.StitchParams
+        The offline pass over a finished run's tracks (``stitch.enabled``): tracklets joined across gaps by time,
+        space and appearance (:func:`planefuse.tracking.stitch_identities`; docs/identities.md).
     """
 
     heights_m: tuple[float, ...] | None = (0.1, 0.5, 1.0, 1.5)
@@ -123,6 +130,8 @@ class SystemParams:
     sound_model_path: Path | None = None
     output_period_s: float = 0.2
     match_distance_m: float = 0.5
+    appearance: AppearanceParams = field(default_factory=AppearanceParams)
+    stitch: StitchParams = field(default_factory=StitchParams)
 
     def __post_init__(self) -> None:
         check_fields(self, cell_size_m=">0", wall_margin_m=">=0", sound_block_s=">0", output_period_s=">0",
@@ -174,6 +183,10 @@ class SystemResult:
     report: ModalityReport
     elapsed_s: float
     metrics: dict = field(default_factory=dict)
+    #: per track identity, its appearance model in words (:meth:`SystemRun.track_appearance`; empty without)
+    track_appearance: dict = field(default_factory=dict)
+    #: identity -> the identity it continues after the offline stitching (``SystemParams.stitch``; empty without)
+    stitched: dict = field(default_factory=dict)
 
 
 def stack_for_recording(rec: Recording, params: SystemParams, *, check_cameras: bool = True,
@@ -518,6 +531,12 @@ class SystemRun:
         self.camera_frames = camera_frames
         self.stack = stack if stack is not None else stack_for_recording(rec, params)
         self.report = ModalityReport()
+        #: the tracks' appearance from the camera frames (None: the tracker does not use appearance)
+        self.appearance: AppearanceObserver | None = None
+        if params.tracking.tracker.uses_appearance and params.cameras and rec.camera_streams:
+            self.appearance = AppearanceObserver(rec.cameras, params.appearance,
+                                                 [rec.camera(c.name).ignore_mask for c in rec.cameras],
+                                                 occluder_boxes_m=params.occluder_boxes_m)
         consumed: dict[str, int] = {}
         if checkpoint is not None:
             version = int(get(checkpoint, "format", "run"))
@@ -542,6 +561,7 @@ class SystemRun:
         static = (cells_filled_by_occluders(self.stack, params.occluder_boxes_m) if params.occluder_boxes_m
                   else None)
         self.tracker = EvidenceTracker(self.stack, tp, static_cells=static)
+        self.tracker.tracker.observer = self.appearance
         if checkpoint is not None:
             self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
         self.resumed_at_step = self.tracker.n_outputs
@@ -587,7 +607,8 @@ class SystemRun:
                                      start=consumed.get("cameras", 0), client=self.client,
                                      occluder_boxes_m=params.occluder_boxes_m,
                                      correlation_s=self._camera_correlation_s(),
-                                     tracked_xy=self._tracked_xy if self._track_prior() else None))
+                                     tracked_xy=self._tracked_xy if self._track_prior() else None,
+                                     frame_tap=self.appearance.add_frames if self.appearance is not None else None))
         if params.laser and rec.lasers:
             out += laser_sources(rec, stack, params.laser_model, report, start=consumed)
         if params.sound and rec.audio:
@@ -610,6 +631,20 @@ class SystemRun:
         for ev in self.evidence:
             yield from self.tracker.push(ev)
         yield from self.tracker.flush()
+
+    def track_appearance(self) -> dict[str, str]:
+        """Per track identity ever confirmed, its appearance model in words, e.g. ``{"3": "c0 (31 views): upper
+        blue 62 %, lower black 71 %; c1 ..."}`` (the identity decisions explained); empty without appearance."""
+        if self.appearance is None:
+            return {}
+        names = [c.name for c in self.rec.cameras]
+        return {str(i): v for i, v in self.tracker.tracker.appearance_summary(self.params.appearance, names).items()}
+
+    def stitch(self, frames) -> dict[int, int]:
+        """The offline stitching of this run's reported tracks ``frames`` ((time_s, ids, xy_m) per step, in time
+        order) with its tracks' appearance models: identity -> the identity it continues
+        (:func:`planefuse.tracking.stitch_identities`, ``params.stitch``)."""
+        return stitch_identities(frames, self.tracker.tracker.appearance_by_id, self.params.stitch)
 
     def state_dict(self) -> StateDict:
         """The run's state as arrays (:mod:`planefuse._state`); complete while an output is handled."""
@@ -651,7 +686,13 @@ def run_system(
         outputs.append(out)
         if on_output is not None:
             on_output(out)
-    return SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0)
+    result = SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0,
+                          track_appearance=run.track_appearance())
+    if params.stitch.enabled:  # the offline pass: the outputs' track identities joined across gaps
+        result.stitched = run.stitch([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs])
+        frames = relabel_tracks([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs], result.stitched)
+        result.outputs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outputs, frames)]
+    return result
 
 
 def evaluate_system(rec: Recording, result: SystemResult, match_distance_m: float = 0.5) -> dict:

@@ -6,6 +6,8 @@
 (:class:`MultiPersonTracker`). See docs/filter.md.
 """
 
+from ._appearance import (AppearanceObserver, AppearanceParams, TrackAppearance, ViewDescriptors, describe_boxes,
+                          describe_positions, descriptor_distance)
 from ._async import AsyncEvidenceBuffer, EvidenceBatch, LateEvidenceWarning
 from ._bof import (
     BayesianOccupancyFilter,
@@ -22,11 +24,22 @@ from ._bof_numpy import bof_predict_numpy, bof_update_numpy
 from ._clustering import (ClusterParams, Clusters, cluster_occupancy, column_log_odds, positions_from_step_evidence,
                           velocity_variance_m2_s2)
 from ._pipeline import EvidenceTracker, TrackerOutput, TrackingParams, track_evidence
+from ._stitch import StitchParams, relabel_tracks, stitch_identities
 from ._synthetic import evidence_from_people
 from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, cluster_measurements, velocity_correlation_time_s,
                        velocity_prior_variance_m2_s2)
 
 __all__ = [
+    "AppearanceObserver",
+    "StitchParams",
+    "relabel_tracks",
+    "stitch_identities",
+    "AppearanceParams",
+    "TrackAppearance",
+    "ViewDescriptors",
+    "describe_boxes",
+    "describe_positions",
+    "descriptor_distance",
     "AsyncEvidenceBuffer",
     "BOFParams",
     "BOFState",

@@ -72,7 +72,9 @@ Each step (``dt`` since the last one):
    (the blob's centre lies between the two people), so each keeps its own velocity through the merge. A merge
    begins only for a track that had evidence of its own (a cluster, support or a share) at the previous step: a
    track already lost, its covariance grown, would be dragged onto whoever walks by (a person standing unseen,
-   pulled onto a passer-by, then switched with them);
+   pulled onto a passer-by, then switched with them). With appearance in association, a track does not share a
+   blob whose colours are farther than ``appearance_update_max_distance`` from its model: its person has left the
+   blob (the track is lost, and step 7 may find the person again);
 6. support through weak evidence (applied before 5): a confirmed track still without a cluster looks at the
    column evidence ``S`` (:attr:`Clusters.column_log_odds`) within ``gate_m`` of its prediction, away (more than
    ``birth_exclusion_m``) from every cluster taken by another track. Where the filter still holds a person
@@ -92,6 +94,29 @@ Each step (``dt`` since the last one):
 8. new tracks: an unmatched cluster farther than ``birth_exclusion_m`` from every confirmed track starts
    a tentative track at ``x = z``, ``P = R`` (velocity 0 where the cluster's is not informative; the
    velocity variance capped at ``initial_velocity_std_m_s^2``).
+
+9. re-identification (with ``reid_max_s``): a track confirmed for the first time at this step takes the identity of
+   a *lost* track (a confirmed track ended less than ``reid_max_s`` ago, or one still kept but without a cluster
+   now) last seen within ``reid_max_distance_m`` of it whose appearance model is the nearest to its own, within
+   ``reid_max_appearance_distance``; the lost track ends. The new track's first ``confirm_hits`` views make its
+   model (a cluster that is a ghost seldom lives that long). With re-identification, step 7 refuses a lost track a
+   cluster whose appearance is known and farther than ``reid_max_appearance_distance`` from its model.
+
+Appearance
+----------
+With ``appearance_weight`` (or ``reid_max_s``) and an ``observer`` (:class:`planefuse.tracking.AppearanceObserver`,
+which :class:`planefuse.pipeline.SystemRun` attaches), each step's clusters have a colour descriptor from every
+camera that sees them, views hidden by a nearer person or by ignore regions left out
+(:mod:`planefuse.tracking._appearance`). Every track keeps a model per camera, updated from the cluster it took
+(not from a merged blob, step 5, nor from support, step 6) at ``appearance_update_rate``. The association cost of
+step 3 (and 7) gets the appearance term, an approximate ``-2 ln`` likelihood ratio of "same person" against
+"another person or a ghost" for the appearance distance ``d`` in [0, 1]::
+
+    c_td += w (d_td - d0)          (w = appearance_weight, d0 = appearance_reference_distance)
+
+0 where the distance is unknown (no camera where both the track's model and the cluster's view exist). Without
+``appearance_weight`` and ``reid_max_s`` (the default) nothing of this runs: the tracker's decisions and state are
+those without appearance.
 
 Track management (states of a track)
 ------------------------------------
@@ -120,6 +145,7 @@ from scipy.optimize import linear_sum_assignment
 
 from .._params import check_fields
 from .._state import StateDict, float_or_none, get, optional_float
+from ._appearance import TrackAppearance, ViewDescriptors
 from ._bof import BOFParams, velocity_grid_m_s
 from ._clustering import Clusters
 
@@ -186,6 +212,23 @@ class TrackerParams:
         Re-acquisition (step 7): a confirmed track lost for ``k >= 1`` steps may take a cluster no track took
         within its covariance gate and ``gate_m + reacquire_speed_m_s x (k + 1) dt`` [m] of its prediction (a
         person who stopped or turned while unseen); None: never.
+    appearance_weight : float or None
+        Appearance in association ("Appearance" in the module docstring): ``w``, the pairing cost's change
+        (``-2 ln LR`` units) per unit of appearance distance; None: association on position and velocity alone.
+    appearance_reference_distance : float
+        ``d0``: the appearance distance in [0, 1] at which a pairing is as likely as not to be the same person.
+    appearance_update_rate : float
+        Rate in (0, 1] at which a track's appearance model takes in each new view (after the first
+        ``1 / rate`` views, averaged): a passer-by seen once moves it by at most this much.
+    appearance_update_max_distance : float
+        A view farther than this appearance distance from a track's model is not taken into it.
+    reid_max_s : float or None
+        Re-identification (step 9): a track lost for at most this long [s] is a candidate for a new track's
+        identity; None: no re-identification.
+    reid_max_distance_m : float
+        Largest distance [m] between a lost track's last position and a new track's for re-identification.
+    reid_max_appearance_distance : float
+        Largest appearance distance between a lost track's model and a new track's for re-identification.
     """
 
     gate_m: float = 0.75
@@ -209,6 +252,18 @@ class TrackerParams:
     max_supported_s: float = 2.0
     reacquire_speed_m_s: float | None = 2.5  # chosen on seeds 1-3 (docs/results.md)
     velocity_decorrelation: bool = True  # chosen on seeds 1-3 (docs/results.md)
+    appearance_weight: float | None = None
+    appearance_reference_distance: float = 0.3
+    appearance_update_rate: float = 0.1
+    appearance_update_max_distance: float = 0.6
+    reid_max_s: float | None = None
+    reid_max_distance_m: float = 5.0
+    reid_max_appearance_distance: float = 0.3
+
+    @property
+    def uses_appearance(self) -> bool:
+        """Whether the tracks keep appearance models (association or re-identification use them)."""
+        return self.appearance_weight is not None or self.reid_max_s is not None
 
     def __post_init__(self) -> None:
         check_fields(self, gate_m=">0", gate_chi2=">0", confirm_hits="int>=1", max_misses="int>=0",
@@ -218,7 +273,10 @@ class TrackerParams:
                      max_shared_s=">=0", share_min_relative_speed_m_s=">=0", birth_exclusion_m=">=0",
                      detection_probability="(0,1)", clutter_density_per_m2=">0",
                      support_threshold="?finite", person_radius_m=">0", max_supported_s=">=0",
-                     reacquire_speed_m_s="?>=0")
+                     reacquire_speed_m_s="?>=0", appearance_weight="?>=0",
+                     appearance_reference_distance="[0,1]", appearance_update_rate="(0,1]",
+                     appearance_update_max_distance="[0,1]", reid_max_s="?>=0", reid_max_distance_m=">=0",
+                     reid_max_appearance_distance="[0,1]")
 
 
 @dataclass(frozen=True)
@@ -267,6 +325,10 @@ class _Track:
     confirmed: bool = False
     shared_s: float = 0.0  # time [s] this track has been sharing another track's cluster in a row
     supported_s: float = 0.0  # time [s] this track has been supported by weak evidence since its last cluster
+    app: TrackAppearance | None = None  # appearance per camera (with TrackerParams.uses_appearance)
+    new: bool = True  # never confirmed yet (re-identification is tried once, when it is)
+    last_seen_s: float = float("nan")  # time [s] of its last cluster
+    last_xy: np.ndarray | None = None  # its position [m] after that update
 
 
 def cluster_measurements(clusters: Clusters, params: TrackerParams, velocity_prior_var_m2_s2: float | None = None):
@@ -333,12 +395,22 @@ class MultiPersonTracker:
         self.tracks: list[_Track] = []
         self.time_s: float | None = None
         self._next_id = 1
+        #: ``observer(time_s, xy_m (N, 2), occluders_xy_m (M, 2)) -> ViewDescriptors``: the appearance of a step's
+        #: clusters (:class:`planefuse.tracking.AppearanceObserver`), asked where ``params.uses_appearance``
+        self.observer = None
+        #: confirmed tracks ended less than ``reid_max_s`` ago: re-identification candidates (step 9)
+        self.lost: list[_Track] = []
+        #: each identity's latest appearance model (the outputs' summary, offline stitching)
+        self.appearance_by_id: dict[int, TrackAppearance] = {}
+        self._views: ViewDescriptors | None = None  # the current step's cluster appearance
 
     def _associate(self, group: list[_Track], z: np.ndarray, R: np.ndarray, has_v: np.ndarray, free: np.ndarray,
-                   cap_m: np.ndarray | float | None = None, miss_cost: float = 0.0):
+                   cap_m: np.ndarray | float | None = None, miss_cost: float = 0.0,
+                   max_appearance_distance: float | None = None):
         """Gated optimal assignment of ``group`` to the still-free clusters: (track index, cluster index) pairs;
         ``cap_m`` (per track, or one value) [m]: the distance cap of the gate (default ``gate_m``); ``miss_cost``:
-        the cost of leaving a track unassigned (0: a pair only where more likely than a miss and a ghost)."""
+        the cost of leaving a track unassigned (0: a pair only where more likely than a miss and a ghost);
+        ``max_appearance_distance``: pairs whose appearance distance is known and larger are forbidden."""
         det = np.flatnonzero(free)
         if not group or det.size == 0:
             return []
@@ -357,11 +429,37 @@ class MultiPersonTracker:
         nll_c = np.sum(z[det, 2:] ** 2, axis=1) / var_c + 2 * np.log(2 * np.pi * var_c)
         cost = (nll_pos + np.where(has_v[det][None], nll_full - nll_pos - nll_c[None], 0.0)
                 - 2 * np.log(p.detection_probability / ((1 - p.detection_probability) * p.clutter_density_per_m2)))
+        if p.appearance_weight is not None and self._views is not None:
+            cost = cost + self._appearance_cost(group, det)
+        if max_appearance_distance is not None and self._views is not None:
+            views = ViewDescriptors(self._views.hist[det], self._views.valid[det])
+            for i, tr in enumerate(group):
+                if tr.app is not None:
+                    gated[i] &= ~(tr.app.distance(views) > max_appearance_distance)  # NaN (unknown) stays
         n_trk, n_det = cost.shape
         cost = np.concatenate([np.where(gated, cost, np.inf), np.full((n_trk, n_trk), np.inf)], axis=1)
         cost[np.arange(n_trk), n_det + np.arange(n_trk)] = miss_cost  # each track's own "no cluster this step"
         rows, cols = linear_sum_assignment(cost)
         return [(r, int(det[c])) for r, c in zip(rows, cols) if c < n_det]
+
+    def _not_its_person(self, tr: _Track, ci: int) -> bool:
+        """Whether cluster ``ci``'s views are farther than ``appearance_update_max_distance`` from ``tr``'s model
+        (known to be someone else; False where unknown or without appearance in association)."""
+        if self.params.appearance_weight is None or self._views is None or tr.app is None:
+            return False
+        d = tr.app.distance(ViewDescriptors(self._views.hist[ci:ci + 1], self._views.valid[ci:ci + 1]))[0]
+        return bool(d > self.params.appearance_update_max_distance)
+
+    def _appearance_cost(self, group: list[_Track], det: np.ndarray) -> np.ndarray:
+        """``w (d - d0)`` (T, D) per track and free cluster, ``d`` their appearance distance; 0 where unknown."""
+        p = self.params
+        views = ViewDescriptors(self._views.hist[det], self._views.valid[det])
+        out = np.zeros((len(group), len(det)))
+        for i, tr in enumerate(group):
+            if tr.app is not None:
+                d = tr.app.distance(views)
+                out[i] = np.where(np.isfinite(d), p.appearance_weight * (d - p.appearance_reference_distance), 0.0)
+        return out
 
     def predicted_xy(self, time_s: float) -> np.ndarray:
         """Positions (N, 2) [m, world] of the confirmed tracks moved at their velocities from the tracker's time
@@ -386,6 +484,7 @@ class MultiPersonTracker:
             for tr in self.tracks:
                 tr.x, tr.P = kf_predict(tr.x, tr.P, F, Q)
         z, R, has_v = cluster_measurements(clusters, p, self.velocity_prior_var_m2_s2)
+        self._views = self._observe(clusters) if p.uses_appearance else None
         R_upd, has_v_upd = self._decorrelate(R, has_v, dt)  # what an update takes in; association and birth take R
         free = np.ones(len(clusters), bool)
         owner: dict[int, _Track] = {}  # cluster index -> confirmed track that took it
@@ -419,8 +518,12 @@ class MultiPersonTracker:
             if tr.id not in matched:
                 tr.misses += 1
                 if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.x[:2]):
+                    if p.reid_max_s is not None and not tr.new and tr.app is not None:
+                        self.lost.append(tr)  # a re-identification candidate (step 9)
                     continue
             alive.append(tr)
+        if p.reid_max_s is not None:
+            alive = self._reidentify(alive, t)
         confirmed_xy = np.array([tr.x[:2] for tr in alive if tr.confirmed]).reshape(-1, 2)
         for ci in np.flatnonzero(free):
             near = np.linalg.norm(confirmed_xy - z[ci, :2], axis=-1)
@@ -429,8 +532,12 @@ class MultiPersonTracker:
             P0 = R[ci].copy()
             v_var = R[ci, [2, 3], [2, 3]] if has_v[ci] else np.full(2, np.inf)  # unknown: the initial spread
             P0[[2, 3], [2, 3]] = np.minimum(v_var, p.initial_velocity_std_m_s**2)
-            alive.append(_Track(self._next_id, z[ci].copy(), P0, float(clusters.height_m[ci]),
-                                float(clusters.confidence[ci]), confirmed=p.confirm_hits <= 1))
+            born = _Track(self._next_id, z[ci].copy(), P0, float(clusters.height_m[ci]),
+                          float(clusters.confidence[ci]), confirmed=p.confirm_hits <= 1)
+            if p.uses_appearance:
+                born.app = TrackAppearance(np.zeros(self._views.hist.shape[1:]), np.zeros(self._views.hist.shape[1]))
+                self._absorb(born, ci)
+            alive.append(born)
             self._next_id += 1
         self.tracks = alive
         return self.reported()
@@ -446,7 +553,9 @@ class MultiPersonTracker:
         cap = np.array([p.gate_m + p.reacquire_speed_m_s * (tr.misses + 1) * dt for tr in lost])
         # every gated pair is taken (the cost of a miss above any pair's): the alternative to the lost person is a
         # new one, born on the same cluster, not a ghost
-        for ti, ci in self._associate(lost, z, R, has_v, free, cap, miss_cost=1e9):
+        # with re-identification, a lost track takes back no cluster whose appearance is not its person's
+        max_d = p.reid_max_appearance_distance if p.reid_max_s is not None else None
+        for ti, ci in self._associate(lost, z, R, has_v, free, cap, miss_cost=1e9, max_appearance_distance=max_d):
             tr = lost[ti]
             free[ci] = False
             matched.add(tr.id)
@@ -484,6 +593,58 @@ class MultiPersonTracker:
         tr.hits += 1
         tr.misses = 0
         tr.confirmed = tr.confirmed or tr.hits >= self.params.confirm_hits
+        if self._views is not None and not merged:  # a merged blob's views hold two people
+            self._absorb(tr, ci)
+
+    def _absorb(self, tr: _Track, ci: int) -> None:
+        """Take cluster ``ci``'s views into ``tr``'s appearance model; note when and where it was last seen."""
+        p = self.params
+        if tr.app is None:
+            tr.app = TrackAppearance(np.zeros(self._views.hist.shape[1:]), np.zeros(self._views.hist.shape[1]))
+        tr.app.update(self._views, ci, p.appearance_update_rate, p.appearance_update_max_distance)
+        tr.last_seen_s, tr.last_xy = float(self.time_s), tr.x[:2].copy()
+        if tr.confirmed:
+            self.appearance_by_id[tr.id] = tr.app
+
+    def _observe(self, clusters: Clusters) -> ViewDescriptors | None:
+        """The appearance of the step's clusters (``observer``), with the confirmed tracks predicted more than a
+        person's width from every cluster as further occluders (people hidden now, but standing there)."""
+        if self.observer is None:
+            return None
+        xy = np.asarray(clusters.xy_m, float).reshape(-1, 2)
+        pred = np.array([tr.x[:2] for tr in self.tracks if tr.confirmed]).reshape(-1, 2)
+        if len(xy) and len(pred):
+            pred = pred[np.min(np.linalg.norm(pred[:, None] - xy[None], axis=-1), axis=1) > 0.6]
+        return self.observer(float(clusters.time_s), xy, pred)
+
+    def _reidentify(self, alive: list[_Track], t: float) -> list[_Track]:
+        """Step 9: a track confirmed at this step for the first time takes the identity of the lost track (ended, or
+        confirmed and without a cluster now) last seen within ``reid_max_s`` and ``reid_max_distance_m`` whose
+        appearance is nearest its own, within ``reid_max_appearance_distance``; the lost track ends."""
+        p = self.params
+        self.lost = [tr for tr in self.lost if t - tr.last_seen_s <= p.reid_max_s]
+        for tr in [tr for tr in alive if tr.confirmed and tr.new]:
+            tr.new = False
+            if tr.app is None or not tr.app.count.any():
+                continue
+            cands = [c for c in self.lost + [a for a in alive if a.confirmed and not a.new and a.misses >= 1]
+                     if c.app is not None and c.last_xy is not None and t - c.last_seen_s <= p.reid_max_s
+                     and np.linalg.norm(tr.x[:2] - c.last_xy) <= p.reid_max_distance_m]
+            best, best_d = None, p.reid_max_appearance_distance
+            for c in cands:
+                d = tr.app.distance_to(c.app)
+                if np.isfinite(d) and d <= best_d:
+                    best, best_d = c, d
+            if best is None:
+                continue
+            self.appearance_by_id.pop(tr.id, None)
+            tr.id, tr.app = best.id, best.app.merged(tr.app)
+            self.appearance_by_id[tr.id] = tr.app
+            if best in self.lost:
+                self.lost.remove(best)
+            else:
+                alive = [a for a in alive if a is not best]
+        return alive
 
     def _sharers(self, owner: dict[int, _Track], matched: set[int], z: np.ndarray, R: np.ndarray,
                  dt: float) -> dict[int, list[_Track]]:
@@ -507,6 +668,8 @@ class MultiPersonTracker:
             k = int(np.argmin(np.where(ok, d2, np.inf)))
             if np.linalg.norm(tr.x[2:] - owner[int(cis[k])].x[2:]) < p.share_min_relative_speed_m_s:
                 continue  # moving with the owner: a duplicate of the same person, not a crossing
+            if self._not_its_person(tr, int(cis[k])):
+                continue  # the blob's colours are someone else's: the person has left it (lost, step 7 may find it)
             out.setdefault(int(cis[k]), []).append(tr)
         return out
 
@@ -570,9 +733,11 @@ class MultiPersonTracker:
 
     def state_dict(self) -> StateDict:
         """Every track (tentative ones included: state ``x`` (N, 4), covariance ``P`` (N, 4, 4) and the
-        management counters), the clock and the next identity, as arrays."""
+        management counters), the clock and the next identity, as arrays; with appearance, every track's and lost
+        track's appearance model too."""
         tr = self.tracks
-        return {
+        extra = self._appearance_state() if self.params.uses_appearance else {}
+        return {**extra,
             "time_s": optional_float(self.time_s),
             "next_id": np.asarray(self._next_id, dtype=np.int64),
             "id": np.array([t.id for t in tr], dtype=np.int64),
@@ -586,6 +751,45 @@ class MultiPersonTracker:
             "shared_s": np.array([t.shared_s for t in tr], dtype=float),
             "supported_s": np.array([t.supported_s for t in tr], dtype=float),
         }
+
+    def _appearance_state(self) -> StateDict:
+        every = self.tracks + self.lost
+        n_c = next((t.app.count.size for t in every if t.app is not None), 0)
+        shape = next((t.app.hist.shape for t in every if t.app is not None), (0, 2, 0))
+        ids = sorted(self.appearance_by_id)
+        return {
+            "app_hist": np.array([t.app.hist if t.app is not None else np.zeros(shape) for t in every]
+                                 ).reshape((-1,) + shape),
+            "app_count": np.array([t.app.count if t.app is not None else np.full(n_c, -1.0) for t in every]
+                                  ).reshape(-1, n_c),
+            "app_new": np.array([t.new for t in every], dtype=bool),
+            "app_last_seen_s": np.array([t.last_seen_s for t in every], dtype=float),
+            "app_last_xy": np.array([t.last_xy if t.last_xy is not None else (np.nan, np.nan) for t in every],
+                                    dtype=float).reshape(-1, 2),
+            "lost_id": np.array([t.id for t in self.lost], dtype=np.int64),
+            "lost_x": np.array([t.x for t in self.lost], dtype=float).reshape(-1, 4),
+            "by_id": np.array(ids, dtype=np.int64),
+            "by_id_hist": np.array([self.appearance_by_id[i].hist for i in ids]).reshape((-1,) + shape),
+            "by_id_count": np.array([self.appearance_by_id[i].count for i in ids]).reshape(-1, n_c),
+        }
+
+    def _load_appearance_state(self, state) -> None:
+        hist, count = get(state, "app_hist", "tracker"), get(state, "app_count", "tracker")
+        new, seen, last = (get(state, k, "tracker") for k in ("app_new", "app_last_seen_s", "app_last_xy"))
+        lost_id, lost_x = get(state, "lost_id", "tracker"), get(state, "lost_x", "tracker")
+        self.lost = [_Track(int(i), np.array(x, dtype=float), np.eye(4), float("nan"), 0.0, confirmed=False)
+                     for i, x in zip(lost_id, lost_x)]
+        for k, t in enumerate(self.tracks + self.lost):
+            t.app = TrackAppearance(np.array(hist[k]), np.array(count[k])) if np.all(count[k] >= 0) else None
+            t.new, t.last_seen_s = bool(new[k]), float(seen[k])
+            t.last_xy = None if np.isnan(last[k]).any() else np.array(last[k], dtype=float)
+        self.appearance_by_id = {int(i): TrackAppearance(np.array(h), np.array(c)) for i, h, c in zip(
+            get(state, "by_id", "tracker"), get(state, "by_id_hist", "tracker"), get(state, "by_id_count", "tracker"))}
+
+    def appearance_summary(self, params, camera_names=None) -> dict[int, str]:
+        """Per identity ever confirmed, its latest appearance model in words (:meth:`TrackAppearance.summary` with
+        the :class:`AppearanceParams` ``params``)."""
+        return {i: a.summary(params, camera_names) for i, a in sorted(self.appearance_by_id.items())}
 
     def load_state_dict(self, state) -> None:
         """Restore what :meth:`state_dict` saved."""
@@ -606,6 +810,8 @@ class MultiPersonTracker:
         ]
         self.time_s = float_or_none(get(state, "time_s", "tracker"))
         self._next_id = int(get(state, "next_id", "tracker"))
+        if self.params.uses_appearance:
+            self._load_appearance_state(state)
 
     def reported(self) -> Tracks:
         """Confirmed tracks with at most ``max_coast_report`` consecutive misses."""

@@ -375,7 +375,7 @@ class BackgroundSubtractor:
         #: running average of the frames' background pixels (model size, float32): the background protected
         #: pixels are fed and compared with
         self._mean_background: np.ndarray | None = None
-        self._people = PersonDetector(params, name) if params.person_detector is not None else None
+        self._people = PersonDetector(params) if params.person_detector is not None else None
 
     def protect(self, people) -> None:
         """Keep the pixels ``people`` (height_px, width_px) bool -- where the camera model explains the image by
@@ -599,8 +599,6 @@ class PersonDetector:
     ----------
     params : ForegroundParams
         ``person_*`` fields are used.
-    name : str
-        Camera name used in error messages.
 
     Attributes
     ----------
@@ -608,7 +606,7 @@ class PersonDetector:
         The boxes of the last frame given to :meth:`mark` (frame pixels).
     """
 
-    def __init__(self, params: ForegroundParams, name: str = "camera") -> None:
+    def __init__(self, params: ForegroundParams) -> None:
         self.params = params
         self.min_score = params.min_person_score
         if params.person_detector == "yolox":

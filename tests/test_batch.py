@@ -152,11 +152,12 @@ def test_cli_batch_writes_what_planefuse_run_writes(tmp_path, workers_see_checko
     assert r.exit_code == 2 and "cell_size_m" in r.output
 
 
-@pytest.mark.parametrize("cameras", ["cell", "generative, tracks' prior"])
+@pytest.mark.parametrize("cameras", ["cell", "generative, tracks' prior", "person detector"])
 def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_see_checkout, cameras):
     """``planefuse run --workers 2``: each camera's front end on a worker gives the serial single-threaded run's
     (``--threads 1``) tables, occupancy and metrics byte for byte, with missing and black frames; also with the
-    generative model taking the tracked people as its prior (the workers' foregrounds, the tracks in this process)."""
+    generative model taking the tracked people as its prior (the workers' foregrounds, the tracks in this process),
+    and with a person detector on the workers (its boxes come back with the foregrounds: the same camera boxes)."""
     import json
 
     import numpy as np
@@ -172,9 +173,19 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     simulate(scenario_config("camera_dropout", seed=3, duration_s=3.0)).write(tmp_path / "rec", image_format="jpg")
     text = (example_yaml("rec").replace("figures: true", "figures: false").replace("animation: gif", "animation: none")
             .replace("report: true", "report: false").replace("chunk_steps: 50", "chunk_steps: 4"))
-    if cameras != "cell":
+    if cameras == "generative, tracks' prior":
         text = text.replace("sensor_model: cell", "sensor_model: generative").replace(
             "generative_track_prior_ratio: 1.0", "generative_track_prior_ratio: 2.0")
+    if cameras == "person detector":
+        pytest.importorskip("onnx", reason="the onnx package (dev extra) builds the test model")
+        from test_vision_yolox import SIDE, constant_model, raw_rows, set_row
+
+        rows = raw_rows()
+        set_row(rows, 8, 3, 3, (0.5, 0.5, 0.7, 1.4), 0.9, 1.0)  # one box in every frame
+        model = constant_model(tmp_path / "one_box.onnx", rows)
+        text = text.replace("person_detector: null", "person_detector: yolox").replace(
+            "person_model: null", f"person_model: {model}").replace(
+            "person_input_px: null", f"person_input_px: [{SIDE}, {SIDE}]")
     for name in ("serial", "workers"):
         (tmp_path / f"{name}.yaml").write_text(text.replace("out_dir: planefuse-out", f"out_dir: out-{name}"))
     runner = CliRunner()
@@ -184,7 +195,7 @@ def test_run_with_camera_streams_on_workers_is_the_serial_run(tmp_path, workers_
     r = runner.invoke(app, ["run", str(tmp_path / "workers.yaml"), "--quiet", "--workers", "2"], terminal_width=200)
     assert r.exit_code == 0, r.output
     a, b = tmp_path / "out-serial", tmp_path / "out-workers"
-    for f in ("tracks.csv", "detections.csv"):
+    for f in ("tracks.csv", "detections.csv") + (("camera_boxes.csv",) if cameras == "person detector" else ()):
         assert (a / f).read_bytes() == (b / f).read_bytes(), f
     occ = [zarr.open_group(d / "occupancy.zarr", mode="r")["occupancy"][:] for d in (a, b)]
     assert np.array_equal(*occ)

@@ -14,6 +14,8 @@ counted and reported, never silently.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import shutil
 import warnings
 from dataclasses import dataclass, field
@@ -241,14 +243,44 @@ def _check_stamp(ns: int, topic: str, k: int) -> None:
 
 
 # -- the import ---------------------------------------------------------------------------------------------------
+def _removes_its_output_when_refused(fn):
+    """``fn(path, out_dir, *, ..., overwrite)`` refusing a non-empty ``out_dir`` without ``overwrite``, and removing
+    what it wrote when it raises: the output folder if it made it, its entries if it was empty (a folder that held
+    files is left as it is)."""
+    signature = inspect.signature(fn)
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        given = signature.bind(*args, **kwargs)
+        given.apply_defaults()
+        root, overwrite = Path(given.arguments["out_dir"]), given.arguments["overwrite"]
+        existed = root.exists()
+        if existed and any(root.iterdir()) and not overwrite:
+            raise ValueError(f"{root}: output folder is not empty (pass overwrite=True / --overwrite)")
+        fresh = not existed or not any(root.iterdir())
+        try:
+            return fn(*args, **kwargs)
+        except BaseException:
+            if fresh and root.is_dir():  # what this import wrote, and nothing else
+                if existed:
+                    for p in root.iterdir():
+                        shutil.rmtree(p) if p.is_dir() else p.unlink()
+                else:
+                    shutil.rmtree(root)
+            raise
+
+    return wrapper
+
+
+@_removes_its_output_when_refused
 def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tuple[str, str | None]] | None = None,
-               imus: dict[str, str] | None = None, imu_cameras: dict[str, str] | None = None,
-               lasers: dict[str, str] | None = None, clouds: dict[str, str] | None = None,
-               cloud_band_m: tuple[float, float] = (-0.1, 0.1), cloud_beams: int = 1440,
-               cloud_range_m: tuple[float, float] = (0.1, 100.0), world_frame: str | None = None,
-               extra_transforms: list[tuple[str, str, np.ndarray]] = (),
-               planes_heights_m: list[float] = (0.0, 0.5, 1.0, 1.5),
-               room_xy_m: tuple[float, float, float, float] | None = None, overwrite: bool = False) -> BagImport:
+              imus: dict[str, str] | None = None, imu_cameras: dict[str, str] | None = None,
+              lasers: dict[str, str] | None = None, clouds: dict[str, str] | None = None,
+              cloud_band_m: tuple[float, float] = (-0.1, 0.1), cloud_beams: int = 1440,
+              cloud_range_m: tuple[float, float] = (0.1, 100.0), world_frame: str | None = None,
+              extra_transforms: list[tuple[str, str, np.ndarray]] = (),
+              planes_heights_m: list[float] = (0.0, 0.5, 1.0, 1.5),
+              room_xy_m: tuple[float, float, float, float] | None = None, overwrite: bool = False) -> BagImport:
     """Write a planefuse recording folder (``docs/recording-format.md``) from topics of a ROS bag.
 
     Parameters
@@ -299,38 +331,7 @@ def import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tupl
         output folder. A refused import leaves no folder behind (the output folder is removed if the import made
         it, emptied if it was empty).
     """
-    root = Path(out_dir)
-    existed = root.exists()
-    if existed and any(root.iterdir()) and not overwrite:
-        raise ValueError(f"{root}: output folder is not empty (pass overwrite=True / --overwrite)")
-    fresh = not existed or not any(root.iterdir())
-    try:
-        return _import_bag(path, out_dir, cameras=cameras, imus=imus, imu_cameras=imu_cameras, lasers=lasers,
-                           clouds=clouds, cloud_band_m=cloud_band_m, cloud_beams=cloud_beams,
-                           cloud_range_m=cloud_range_m, world_frame=world_frame, extra_transforms=extra_transforms,
-                           planes_heights_m=planes_heights_m, room_xy_m=room_xy_m, overwrite=overwrite)
-    except BaseException:
-        if fresh and root.is_dir():  # what this import wrote, and nothing else
-            if existed:
-                for p in root.iterdir():
-                    shutil.rmtree(p) if p.is_dir() else p.unlink()
-            else:
-                shutil.rmtree(root)
-        raise
-
-
-def _import_bag(path: str | Path, out_dir: str | Path, *, cameras: dict[str, tuple[str, str | None]] | None = None,
-               imus: dict[str, str] | None = None, imu_cameras: dict[str, str] | None = None,
-               lasers: dict[str, str] | None = None, clouds: dict[str, str] | None = None,
-               cloud_band_m: tuple[float, float] = (-0.1, 0.1), cloud_beams: int = 1440,
-               cloud_range_m: tuple[float, float] = (0.1, 100.0), world_frame: str | None = None,
-               extra_transforms: list[tuple[str, str, np.ndarray]] = (),
-               planes_heights_m: list[float] = (0.0, 0.5, 1.0, 1.5),
-               room_xy_m: tuple[float, float, float, float] | None = None, overwrite: bool = False) -> BagImport:
-    """The body of :func:`import_bag` (which removes what a refused import wrote)."""
     path, root = Path(path), Path(out_dir)
-    if root.exists() and any(root.iterdir()) and not overwrite:
-        raise ValueError(f"{root}: output folder is not empty (pass overwrite=True / --overwrite)")
     listing = bag_topics(path)
     by_topic = {t.topic: t for t in listing}
     auto = select_bag_topics(listing)

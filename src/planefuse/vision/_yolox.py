@@ -70,8 +70,6 @@ class YoloxModelInfo:
     Attributes
     ----------
     path : str
-    sha256 : str
-        Hex digest of the file's bytes.
     input_wh_px : (int, int)
         Canvas width and height [px] the model is run at.
     n_classes : int
@@ -79,9 +77,13 @@ class YoloxModelInfo:
     """
 
     path: str
-    sha256: str
     input_wh_px: tuple[int, int]
     n_classes: int
+
+    @property
+    def sha256(self) -> str:
+        """Hex digest of the file's bytes, read when asked (``planefuse check`` prints it; a run does not need it)."""
+        return _sha256(Path(self.path))
 
 
 def check_input_size(input_wh_px) -> tuple[int, int]:
@@ -263,7 +265,7 @@ def load_yolox(path, input_wh_px=(416, 416), class_index: int = 0):
             or out[0, :, 4:].min() < 0 or out[0, :, 4:].max() > 1:
         raise ValueError(f"{p}: outputs are not YOLOX's raw head (log sizes and probabilities in [0, 1]); export "
                          "with decode_in_inference=False")
-    return net, YoloxModelInfo(str(p), _sha256(p), wh, n_classes)
+    return net, YoloxModelInfo(str(p), wh, n_classes)
 
 
 class YoloxDetector:

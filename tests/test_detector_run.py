@@ -4,6 +4,7 @@ planes. The detector is a tiny ONNX model built here that finds one known box in
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 
@@ -88,6 +89,21 @@ def test_each_cameras_boxes_are_written_per_step_and_survive_a_resume(recording_
     _run(rec, out, params)
     for name in ["camera_boxes.csv", "tracks.csv", *(f"boxes_{n}_mot.txt" for n in names)]:
         assert (out / name).read_bytes() == (ref / name).read_bytes(), name
+    # metrics.json says which engine ran the model ("auto" resolved)
+    from planefuse.vision import resolve_engine
+    assert json.loads((out / "metrics.json").read_text())["person_engine"] == resolve_engine("auto")
+
+
+@pytest.mark.parametrize("engine", ["opencv", "onnxruntime"])
+def test_the_run_records_the_engine_that_ran_the_model(recording_dir, model, tmp_path, engine):
+    if engine == "onnxruntime":
+        pytest.importorskip("onnxruntime", reason="onnxruntime (the dev extra) is not installed")
+    rec = read_recording(recording_dir)
+    params = _params(model)
+    cams = params.camera_params
+    params = replace(params, camera_params=replace(cams, foreground=replace(cams.foreground, person_engine=engine)))
+    _run(rec, tmp_path / "out", params)
+    assert json.loads((tmp_path / "out" / "metrics.json").read_text())["person_engine"] == engine
 
 
 def test_registered_boxes_change_the_occupancy_only_through_their_bumps(recording_dir, model, tmp_path):

@@ -108,6 +108,7 @@ CHANGED = {
     "sensors.cameras.person_min_score": 1.0,
     "sensors.cameras.person_likelihood": 0.7,
     "sensors.cameras.person_model": "person.onnx",
+    "sensors.cameras.person_engine": "opencv",
     "sensors.cameras.person_input_px": [384, 288],
     "sensors.cameras.person_nms_iou": 0.6,
     "sensors.cameras.person_outside_weight": 0.5,

@@ -4,6 +4,7 @@ moves a box), and the shared YOLOX-Nano model on real terrace frames against the
 
 from __future__ import annotations
 
+import importlib.util
 import math
 
 import cv2
@@ -19,6 +20,9 @@ from conftest import shared_data, shared_model
 
 onnx = pytest.importorskip("onnx", reason="the onnx package (dev extra) builds the test models")
 from onnx import TensorProto, helper, numpy_helper  # noqa: E402
+
+#: The engines that can run here (OpenCV always; ONNX Runtime with its packages, the dev extra's).
+ENGINES = ["opencv"] + (["onnxruntime"] if all(importlib.util.find_spec(m) for m in ("onnxruntime", "onnx")) else [])
 
 #: The test models' canvas [px]: grids 8 x 8, 4 x 4 and 2 x 2, 84 output rows.
 SIDE = 64
@@ -96,66 +100,79 @@ def test_letterbox_puts_the_resized_frame_top_left_on_grey():
     assert (blob[0, :, 32:, :] == PAD_LEVEL).all()
 
 
-def test_detector_maps_a_box_back_to_the_frame_and_clips_it(tmp_path):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_detector_maps_a_box_back_to_the_frame_and_clips_it(tmp_path, engine):
     rows = raw_rows()
     set_row(rows, 16, 2, 1, (0.5, 0.25, math.log(2.0), math.log(3.0)), 0.9, 0.8)
-    det = YoloxDetector(constant_model(tmp_path / "m.onnx", rows), (SIDE, SIDE), min_score=0.5)
+    det = YoloxDetector(constant_model(tmp_path / "m.onnx", rows), (SIDE, SIDE), min_score=0.5, engine=engine)
     # a 128 x 96 frame: r = min(64 / 128, 64 / 96) = 0.5, so canvas (24, -4, 56, 44) is frame (48, -8, 112, 88)
     found = det.detect(np.zeros((96, 128, 3), np.uint8))
     np.testing.assert_allclose(found.ltwh_px, [[48.0, 0.0, 64.0, 88.0]], rtol=1e-6)
     np.testing.assert_allclose(found.score, [0.72], rtol=1e-6)
 
 
-def test_non_maximum_suppression_and_the_score_threshold(tmp_path):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_non_maximum_suppression_and_the_score_threshold(tmp_path, engine):
     rows = raw_rows()
     set_row(rows, 8, 3, 3, (0.5, 0.5, math.log(3.0), math.log(4.0)), 0.9, 0.9)  # centre (28, 28), 24 x 32
     set_row(rows, 8, 4, 3, (0.0, 0.5, math.log(3.0), math.log(4.0)), 0.8, 0.9)  # centre (32, 28): IoU 0.71
     set_row(rows, 8, 0, 0, (0.5, 0.5, 0.0, 0.0), 0.7, 0.9)                    # far away, 8 x 8
     set_row(rows, 8, 7, 7, (0.5, 0.5, 0.0, 0.0), 0.5, 0.5)                    # score 0.25: below the threshold
     path = constant_model(tmp_path / "m.onnx", rows)
-    found = YoloxDetector(path, (SIDE, SIDE), min_score=0.3, nms_iou=0.45).detect(np.zeros((SIDE, SIDE, 3), np.uint8))
+    empty = np.zeros((SIDE, SIDE, 3), np.uint8)
+    found = YoloxDetector(path, (SIDE, SIDE), min_score=0.3, nms_iou=0.45, engine=engine).detect(empty)
     np.testing.assert_allclose(found.score, [0.81, 0.63], rtol=1e-6)
     np.testing.assert_allclose(found.ltwh_px[0], [16.0, 12.0, 24.0, 32.0], rtol=1e-6)
-    kept_all = YoloxDetector(path, (SIDE, SIDE), min_score=0.3, nms_iou=0.8).detect(np.zeros((SIDE, SIDE, 3), np.uint8))
+    kept_all = YoloxDetector(path, (SIDE, SIDE), min_score=0.3, nms_iou=0.8, engine=engine).detect(empty)
     assert len(kept_all) == 3
 
 
-def test_the_person_class_is_the_one_scored(tmp_path):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_the_person_class_is_the_one_scored(tmp_path, engine):
     rows = raw_rows(n_classes=3)
     set_row(rows, 32, 1, 1, (0, 0, 0, 0), 0.9, [0.1, 0.9, 0.9])  # a confident box of classes 1 and 2
-    found = YoloxDetector(constant_model(tmp_path / "m.onnx", rows), (SIDE, SIDE), min_score=0.2
+    found = YoloxDetector(constant_model(tmp_path / "m.onnx", rows), (SIDE, SIDE), min_score=0.2, engine=engine
                           ).detect(np.zeros((SIDE, SIDE, 3), np.uint8))
     assert len(found) == 0
 
 
-def test_missing_and_non_onnx_files_are_one_line_errors(tmp_path):
+#: Each engine's title in the refusals and its error's gist for a file that is not ONNX.
+NOT_ONNX = {"opencv": r"OpenCV's DNN module can run at 416x416 px \(Unsupported format or combination of formats\)",
+            "onnxruntime": r"ONNX Runtime can run at 416x416 px \(Error parsing message.*\)"}
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_missing_and_non_onnx_files_are_one_line_errors(tmp_path, engine):
     with pytest.raises(ValueError, match=r"nothing\.onnx: person model not found; expected a YOLOX ONNX export"):
-        load_yolox(tmp_path / "nothing.onnx")
+        load_yolox(tmp_path / "nothing.onnx", engine=engine)
     text = tmp_path / "weights.onnx"
     text.write_text("not a model\n")
-    with pytest.raises(ValueError, match=r"weights\.onnx: not an ONNX model that OpenCV's DNN module can run at 416x416 "
-                                         r"px \(Unsupported format or combination of formats\); expected a YOLOX") as err:
-        load_yolox(text)
+    with pytest.raises(ValueError, match=rf"weights\.onnx: not an ONNX model that {NOT_ONNX[engine]}; expected a YOLOX"
+                       ) as err:
+        load_yolox(text, engine=engine)
     assert "\n" not in str(err.value)
 
 
-def test_an_output_that_is_not_yoloxs_layout_is_refused(tmp_path):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_an_output_that_is_not_yoloxs_layout_is_refused(tmp_path, engine):
     path = constant_model(tmp_path / "m.onnx", raw_rows())
     with pytest.raises(ValueError, match=r"m\.onnx: output shape \(1, 84, 6\) is not YOLOX's raw head layout "
                                          r"\(1, 126, 5 \+ classes\) for a 96x64 px input"):
-        load_yolox(path, (96, 64))  # the rows of a 64 x 64 canvas
+        load_yolox(path, (96, 64), engine=engine)  # the rows of a 64 x 64 canvas
     with pytest.raises(ValueError, match="not YOLOX's raw head layout"):
-        load_yolox(constant_model(tmp_path / "short.onnx", np.zeros((N_ROWS, 5), np.float32)), (SIDE, SIDE))
+        load_yolox(constant_model(tmp_path / "short.onnx", np.zeros((N_ROWS, 5), np.float32)), (SIDE, SIDE),
+                   engine=engine)
     decoded = raw_rows()
     decoded[:, 2:4] = 40.0  # pixel sizes: an export with decode_in_inference=True
     with pytest.raises(ValueError, match="decode_in_inference=False"):
-        load_yolox(constant_model(tmp_path / "decoded.onnx", decoded), (SIDE, SIDE))
+        load_yolox(constant_model(tmp_path / "decoded.onnx", decoded), (SIDE, SIDE), engine=engine)
 
 
-def test_a_model_without_the_person_class_is_refused(tmp_path):
+@pytest.mark.parametrize("engine", ENGINES)
+def test_a_model_without_the_person_class_is_refused(tmp_path, engine):
     path = constant_model(tmp_path / "m.onnx", raw_rows(n_classes=1))
     with pytest.raises(ValueError, match=r"has 1 classes, so no person class 1"):
-        load_yolox(path, (SIDE, SIDE), class_index=1)
+        load_yolox(path, (SIDE, SIDE), class_index=1, engine=engine)
 
 
 @pytest.mark.parametrize("frame, canvas", [((360, 288), (384, 288)), ((1920, 1080), (416, 256)),
@@ -233,15 +250,73 @@ def test_config_makes_the_model_path_absolute_against_the_file(tmp_path):
                                            ("text", "not an ONNX model that OpenCV's DNN module can run at 416x416 px"),
                                            ("wrong size", "is not YOLOX's raw head layout")])
 def test_config_refuses_a_bad_model_before_the_run_naming_field_and_line(tmp_path, what, message):
+    """(With person_engine opencv: the other engine's messages are pinned above.)"""
     from planefuse.config import ConfigError, load_config
     if what == "text":
         (tmp_path / "yolox.onnx").write_text("weights\n")
     elif what == "wrong size":
         constant_model(tmp_path / "yolox.onnx", raw_rows())  # the rows of a 64 x 64 canvas, run at 416 x 416
     cfg = tmp_path / "run.yaml"
-    cfg.write_text("recording: rec\nsensors:\n  cameras:\n    person_detector: yolox\n    person_model: yolox.onnx\n")
+    cfg.write_text("recording: rec\nsensors:\n  cameras:\n    person_detector: yolox\n    person_model: yolox.onnx\n"
+                   "    person_engine: opencv\n")
     with pytest.raises(ConfigError, match=rf"run\.yaml:5: sensors\.cameras\.person_model: .*yolox\.onnx: .*{message}"):
         load_config(cfg)
+
+
+def pooled_model(path, side: int = SIDE, objectness: float = 0.25) -> str:
+    """A model exported, as YOLOX's releases are, with a fixed (1, 3, side, side) input whose graph works at any
+    canvas: per stride s, a 1 x 1 convolution (zero weights: every row ``[0, 0, 0, 0, objectness, 1]``) of the
+    s x s average of the image, flattened and concatenated finest first, transposed to (1, A, 6)."""
+    images = helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, side, side])
+    n_rows = sum((side // s) ** 2 for s in (8, 16, 32))
+    output = helper.make_tensor_value_info("output", TensorProto.FLOAT, [1, n_rows, 6])
+    nodes, grids = [], []
+    for s in (8, 16, 32):
+        nodes += [helper.make_node("AveragePool", ["images"], [f"p{s}"], kernel_shape=[s, s], strides=[s, s]),
+                  helper.make_node("Conv", [f"p{s}", "w", "b"], [f"c{s}"]),
+                  helper.make_node("Reshape", [f"c{s}", "flat"], [f"f{s}"])]  # (1, 6, cells)
+        grids.append(f"f{s}")
+    nodes += [helper.make_node("Concat", grids, ["cat"], axis=2),
+              helper.make_node("Transpose", ["cat"], ["output"], perm=[0, 2, 1])]
+    inits = [numpy_helper.from_array(np.zeros((6, 3, 1, 1), np.float32), "w"),
+             numpy_helper.from_array(np.array([0, 0, 0, 0, objectness, 1], np.float32), "b"),
+             numpy_helper.from_array(np.array([1, 6, -1], np.int64), "flat")]
+    model = helper.make_model(helper.make_graph(nodes, "yolox_static", [images], [output], inits),
+                              opset_imports=[helper.make_opsetid("", 13)])
+    model.ir_version = 8
+    onnx.save(model, str(path))
+    return str(path)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_an_export_with_a_fixed_input_runs_at_another_canvas(tmp_path, engine):
+    """YOLOX's releases fix the input at 416 x 416; the fitted canvas differs. OpenCV reshapes the network, ONNX
+    Runtime gets the input's height and width made symbolic: both give the rows of the canvas they run."""
+    path = pooled_model(tmp_path / "m.onnx")
+    net, info = load_yolox(path, (96, 64), engine=engine)
+    assert info.engine == engine and info.input_wh_px == (96, 64)
+    out = net.forward(letterbox(np.zeros((64, 96, 3), np.uint8), (96, 64))[0])
+    assert out.shape == (1, 12 * 8 + 6 * 4 + 3 * 2, 6)
+    np.testing.assert_allclose(out[0], np.tile([0, 0, 0, 0, 0.25, 1], (126, 1)), atol=1e-6)
+    assert onnx.load(path).graph.input[0].type.tensor_type.shape.dim[3].dim_value == SIDE  # the file is untouched
+
+
+def test_auto_is_onnxruntime_where_installed_else_opencv(monkeypatch):
+    from planefuse.vision import resolve_engine
+    import planefuse.vision._yolox as yolox
+
+    present = {"onnxruntime": True, "onnx": True}
+    monkeypatch.setattr(yolox.importlib.util, "find_spec", lambda m: object() if present.get(m, True) else None)
+    assert resolve_engine("auto") == "onnxruntime" and resolve_engine("opencv") == "opencv"
+    present["onnxruntime"] = False
+    assert resolve_engine("auto") == "opencv"
+    with pytest.raises(ValueError, match=r"^person engine 'onnxruntime' needs the onnxruntime and onnx packages: "
+                                         r"pip install 'planefuse\[onnxruntime\]' \(or person_engine: opencv\)$"):
+        resolve_engine("onnxruntime")
+    with pytest.raises(ValueError, match="person engine must be one of auto, opencv, onnxruntime, got 'tensorrt'"):
+        resolve_engine("tensorrt")
+    with pytest.raises(ValueError, match="person_engine"):
+        ForegroundParams(person_detector="yolox", person_model="m.onnx", person_engine="tensorrt")
 
 
 def _one_box_model(tmp_path) -> str:
@@ -330,3 +405,26 @@ def test_yolox_nano_finds_the_annotated_people_of_real_terrace_frames():
     assert n_gt >= 30
     assert tp / n_gt >= 0.7, (tp, n_gt)
     assert tp / max(n_det, 1) >= 0.8, (tp, n_det)
+
+
+@pytest.mark.realdata
+@pytest.mark.skipif(len(ENGINES) < 2, reason="onnxruntime and onnx (the dev extra) are not installed")
+def test_both_engines_find_the_same_boxes_on_real_terrace_frames():
+    """YOLOX-Nano at the fitted 384 x 288 canvas, run by OpenCV and by ONNX Runtime (its fixed 416 x 416 input made
+    symbolic), on terrace frames 0-1499 every 150th of both cameras: the same boxes, to float rounding."""
+    model = shared_model("yolox_nano") / "yolox_nano.onnx"
+    video = shared_data("epfl_video")
+    dets = {e: YoloxDetector(model, (384, 288), min_score=0.5, engine=e) for e in ENGINES}
+    n_boxes = 0
+    for cam in ("c0", "c1"):
+        cap = cv2.VideoCapture(str(video / f"terrace1-{cam}.mp4"))
+        for f in range(0, 1500, 150):
+            cap.set(cv2.CAP_PROP_POS_FRAMES, f)
+            ok, frame = cap.read()
+            assert ok
+            a, b = (dets[e].detect(frame) for e in ENGINES)
+            assert len(a) == len(b), (cam, f)
+            np.testing.assert_allclose(a.ltwh_px, b.ltwh_px, atol=0.01)  # [px]
+            np.testing.assert_allclose(a.score, b.score, atol=1e-4)
+            n_boxes += len(a)
+    assert n_boxes >= 40

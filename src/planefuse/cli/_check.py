@@ -93,13 +93,14 @@ def _check_person_model(cfg: RunConfig, report: CheckReport) -> None:
     cv2.setNumThreads(1)
     try:
         wh = tuple(cams.person_input_px or (416, 416))
-        det = YoloxDetector(cams.person_model, wh)
+        det = YoloxDetector(cams.person_model, wh, engine=cams.person_engine, threads=1)
         ms = det.cost_ms(wh)
     finally:
         cv2.setNumThreads(threads)
     info = det.info
     report.add("info", "sensors.cameras.person_model",
-               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, {ms:.1f} ms per frame on one core at "
+               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, run by {info.engine}, {ms:.1f} ms per "
+               f"frame on one core at "
                f"{wh[0]} x {wh[1]} px (measured now; person_input_px null fits each camera's frames: their own size, "
                "or a longer side of 416 px)")
 

@@ -215,20 +215,21 @@ def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
     cameras = cfg.sensors.cameras
     if cameras.enabled and cameras.person_detector == "yolox":
         loc = ("sensors", "cameras", "person_model")
-        problem = _person_model_problem(cameras.person_model, cameras.person_input_px or (416, 416))
+        problem = _person_model_problem(cameras.person_model, cameras.person_input_px or (416, 416),
+                                        cameras.person_engine)
         if problem:
             raise ConfigError(path, [ConfigIssue(".".join(loc), problem, _expected(_field_info(loc)),
                                                  _line_of(root, loc))])
     return cfg
 
 
-def _person_model_problem(model_path: str, input_px) -> str:
-    """Why the YOLOX person model at ``model_path`` cannot be run at ``input_px`` ("" when it loads and its output
-    has YOLOX's layout): the run would otherwise stop at its first frame."""
+def _person_model_problem(model_path: str, input_px, engine: str = "auto") -> str:
+    """Why the YOLOX person model at ``model_path`` cannot be run at ``input_px`` by ``engine`` ("" when it loads and
+    its output has YOLOX's layout): the run would otherwise stop at its first frame."""
     from ..vision import load_yolox
 
     try:
-        load_yolox(model_path, tuple(input_px))
+        load_yolox(model_path, tuple(input_px), engine=engine)
     except ValueError as err:
         return str(err)
     return ""

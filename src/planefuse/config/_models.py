@@ -234,6 +234,12 @@ class CameraSensorConfig(_Model):
         "project's releases; planefuse never downloads it), relative to this file", expected="a path or null",
         library="system.camera_params.foreground.person_model",
     )
+    person_engine: Literal["auto", "opencv", "onnxruntime"] = _field(
+        description="With person_detector yolox: what runs the model: 'onnxruntime' (pip install "
+        "'planefuse[onnxruntime]'; about half the cost on one core), 'opencv' (OpenCV's DNN module, always there), "
+        "'auto' = onnxruntime where installed, else opencv (run.json says which ran)",
+        expected="'auto', 'opencv' or 'onnxruntime'", library="system.camera_params.foreground.person_engine",
+    )
     person_input_px: tuple[int, int] | None = _field(
         description="With person_detector yolox: (width, height) of the canvas each frame is letterboxed into; null "
         "= fitted to the frame (its own size, or its longer side reduced to 416, each side up to a multiple of 32)",

@@ -179,8 +179,19 @@ def run_plan(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         result.elapsed_s)
     if result.track_appearance:
         metrics["track_appearance"] = result.track_appearance
+    metrics.update(_person_engine(plan.params))
     result.metrics = metrics
     return result, metrics
+
+
+def _person_engine(params) -> dict:
+    """``{"person_engine": name}`` of the engine that ran the YOLOX person model (``"auto"`` resolved), or {}."""
+    fg = params.camera_params.foreground
+    if fg.person_detector != "yolox":
+        return {}
+    from ..vision import resolve_engine
+
+    return {"person_engine": resolve_engine(fg.person_engine)}
 
 
 def write_presentation(out: OutputWriter, settings: OutputSettings, figure_inputs: FigureInputs | None = None,
@@ -385,6 +396,7 @@ def run_to_folder(rec: Recording, plan: RunPlan, *, progress_mode: str = "rich",
         else:  # a user's installation: the counts alone (steps, tracks, each sensor's messages and missing frames)
             metrics = run_counts(rec, times, tracks, run.report, result.elapsed_s)
         metrics["resumed_at_step"] = run.resumed_at_step
+        metrics.update(_person_engine(params))
         if params.stitch.enabled:  # the offline pass: the live tracks stay as written, the stitched ones beside them
             metrics.update(_write_stitched(out, rec, run, times, det_xy, tracks, result.elapsed_s))
         if run.appearance is not None:  # the identity decisions explained: each track's appearance in words

@@ -17,7 +17,7 @@ import numpy as np
 from .._params import check_fields, require
 from ._fusion import quantise_foreground
 from ._mean_background import MeanBackground
-from ._yolox import PersonBoxes, YoloxDetector, check_input_size, fitted_input_size
+from ._yolox import PERSON_ENGINES, PersonBoxes, YoloxDetector, check_input_size, fitted_input_size
 
 __all__ = [
     "BackgroundSubtractor",
@@ -176,6 +176,12 @@ class ForegroundParams:
     person_model : str or None
         ``"yolox"``: path of the ONNX file (a YOLOX export of the raw-head layout: Nano, Tiny, S, ...; the user
         downloads it from the YOLOX project's releases, planefuse never downloads anything).
+    person_engine : str
+        ``"yolox"``: what runs the model (:data:`~planefuse.vision.PERSON_ENGINES`): ``"auto"`` ONNX Runtime where
+        its packages are installed (``pip install 'planefuse[onnxruntime]'``), else OpenCV's DNN module;
+        ``"opencv"``; ``"onnxruntime"``. Their boxes agree to float rounding (tests/test_vision_yolox.py); ONNX
+        Runtime costs about half on one core (5.8 against 11.2 ms per terrace frame at the fitted 384 x 288 canvas,
+        docs/benchmarks.md). A run's ``run.json`` says which ran.
     person_input_px : (int, int) or None
         ``"yolox"``: canvas (width, height) [px] the frame is letterboxed into, multiples of 32. None: fitted to the
         frame (:func:`~planefuse.vision.fitted_input_size`: its own size, or reduced to a longer side of 416 px, the
@@ -234,6 +240,7 @@ class ForegroundParams:
     mean_foreground_rate: float = 0.2
     person_detector: str | None = None
     person_model: str | None = None
+    person_engine: str = "auto"
     person_input_px: tuple[int, int] | None = None
     person_upscale: float = 2.0
     person_min_score: float | None = None
@@ -273,6 +280,8 @@ class ForegroundParams:
                      person_nms_iou="(0,1]", person_outside_weight="[0,1]")
         require(self.person_detector != "yolox" or self.person_model is not None, self, "person_model",
                 "must name the YOLOX ONNX file with person_detector 'yolox'")
+        require(self.person_engine in PERSON_ENGINES, self, "person_engine",
+                f"must be one of {', '.join(map(repr, PERSON_ENGINES))}, got {self.person_engine!r}")
         require(self.person_detector != "yolox" or self.person_min_score is None or
                 0 <= self.person_min_score <= 1, self, "person_min_score",
                 f"must lie in [0, 1] for 'yolox' (a probability), got {self.person_min_score}")
@@ -627,7 +636,9 @@ class PersonDetector:
     def _yolox_for(self, input_wh_px) -> YoloxDetector:
         wh = tuple(int(v) for v in input_wh_px)
         if wh not in self._yolox:
-            self._yolox[wh] = YoloxDetector(self.params.person_model, wh, self.min_score, self.params.person_nms_iou)
+            # ONNX Runtime on as many threads as OpenCV (the run's --threads; OpenCV's DNN module uses them itself)
+            self._yolox[wh] = YoloxDetector(self.params.person_model, wh, self.min_score, self.params.person_nms_iou,
+                                            engine=self.params.person_engine, threads=max(1, cv2.getNumThreads()))
         return self._yolox[wh]
 
     def detect(self, frame: np.ndarray) -> PersonBoxes:

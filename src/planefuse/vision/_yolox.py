@@ -1,4 +1,5 @@
-"""A pretrained YOLOX person detector (ONNX, run by OpenCV's DNN module): letterbox, grid decoding, NMS.
+"""A pretrained YOLOX person detector (ONNX, run by ONNX Runtime or OpenCV's DNN module): letterbox, grid
+decoding, NMS.
 
 YOLOX (Ge et al. 2021, "YOLOX: Exceeding YOLO Series in 2021", arXiv 2107.08430) is an anchor-free detector:
 for an input canvas of ``W x H`` px its head predicts, at every cell of three grids of strides 8, 16 and 32 px
@@ -15,11 +16,18 @@ Boxes that overlap another of higher score by more than an IoU are suppressed (O
 
 Any ONNX export of that layout loads (YOLOX-Nano, -Tiny, -S, -M ...: same head, more capacity); the checks in
 :func:`load_yolox` refuse anything else before a run starts, naming the file and what was expected.
+
+Two engines run the model (:data:`PERSON_ENGINES`): OpenCV's DNN module, always there, and ONNX Runtime (the
+optional extra ``planefuse[onnxruntime]``), about twice as fast on one core (docs/benchmarks.md). ``"auto"`` takes
+ONNX Runtime where it is installed. YOLOX's releases export a fixed 416 x 416 input; OpenCV reshapes the network
+for any canvas, and for ONNX Runtime the export's static height and width are made symbolic before the session is
+built (the weights untouched; the graph computes its reshapes from the input), so both run the fitted canvas.
 """
 
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -28,8 +36,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-__all__ = ["YOLOX_STRIDES", "PersonBoxes", "YoloxDetector", "YoloxModelInfo", "decode_yolox", "fitted_input_size",
-           "letterbox", "load_yolox", "yolox_grid"]
+__all__ = ["PERSON_ENGINES", "YOLOX_STRIDES", "PersonBoxes", "YoloxDetector", "YoloxModelInfo", "decode_yolox",
+           "fitted_input_size", "letterbox", "load_yolox", "resolve_engine", "yolox_grid"]
 
 #: Strides [px] of YOLOX's three output grids, finest first (the order of the output rows).
 YOLOX_STRIDES = (8, 16, 32)
@@ -37,6 +45,9 @@ YOLOX_STRIDES = (8, 16, 32)
 PAD_LEVEL = 114.0
 #: A raw head's log-size outputs stay well inside this on any image; a decoded export's sizes are pixels.
 _MAX_RAW_LOG_SIZE = 12.0
+#: What runs the model: ``"auto"`` (ONNX Runtime where installed, else OpenCV), ``"opencv"`` (OpenCV's DNN
+#: module), ``"onnxruntime"`` (the ``onnxruntime`` and ``onnx`` packages: ``pip install 'planefuse[onnxruntime]'``).
+PERSON_ENGINES = ("auto", "opencv", "onnxruntime")
 
 
 @dataclass(frozen=True)
@@ -74,11 +85,14 @@ class YoloxModelInfo:
         Canvas width and height [px] the model is run at.
     n_classes : int
         Classes of the head (80 for COCO, where person is class 0).
+    engine : str
+        What runs it: ``"opencv"`` or ``"onnxruntime"`` (``"auto"`` resolved).
     """
 
     path: str
     input_wh_px: tuple[int, int]
     n_classes: int
+    engine: str = "opencv"
 
     @property
     def sha256(self) -> str:
@@ -214,8 +228,90 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def load_yolox(path, input_wh_px=(416, 416), class_index: int = 0):
-    """Read a YOLOX ONNX export with OpenCV's DNN module and check its layout on a grey canvas.
+def resolve_engine(engine: str) -> str:
+    """The engine that runs a person model for the setting ``engine`` (:data:`PERSON_ENGINES`): ``"auto"`` is
+    ``"onnxruntime"`` where the ``onnxruntime`` and ``onnx`` packages are installed, else ``"opencv"``.
+
+    Raises
+    ------
+    ValueError
+        ``engine`` is not one of :data:`PERSON_ENGINES`, or ``"onnxruntime"`` without its packages.
+    """
+    if engine not in PERSON_ENGINES:
+        raise ValueError(f"person engine must be one of {', '.join(PERSON_ENGINES)}, got {engine!r}")
+    has_ort = all(importlib.util.find_spec(m) is not None for m in ("onnxruntime", "onnx"))
+    if engine == "auto":
+        return "onnxruntime" if has_ort else "opencv"
+    if engine == "onnxruntime" and not has_ort:
+        raise ValueError("person engine 'onnxruntime' needs the onnxruntime and onnx packages: "
+                         "pip install 'planefuse[onnxruntime]' (or person_engine: opencv)")
+    return engine
+
+
+class _OpenCVNet:
+    """A model run by OpenCV's DNN module (it reshapes the network to each input)."""
+
+    name = "opencv"
+
+    def __init__(self, path: Path, input_wh_px: tuple[int, int], threads: int) -> None:
+        self._net = cv2.dnn.readNetFromONNX(str(path))  # threads: OpenCV's own setting (cv2.setNumThreads)
+
+    def forward(self, blob: np.ndarray) -> np.ndarray:
+        self._net.setInput(blob)
+        return np.asarray(self._net.forward())
+
+
+class _OnnxRuntimeNet:
+    """A model run by ONNX Runtime on the CPU, its input's static height and width made symbolic where the canvas
+    differs from them, on ``threads`` threads that sleep rather than spin between runs."""
+
+    name = "onnxruntime"
+
+    def __init__(self, path: Path, input_wh_px: tuple[int, int], threads: int) -> None:
+        import onnx
+        import onnxruntime
+
+        model = onnx.load(str(path))
+        _free_input_size(model, input_wh_px)
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = max(1, int(threads))
+        options.inter_op_num_threads = 1
+        options.add_session_config_entry("session.intra_op.allow_spinning", "0")  # idle threads cost no CPU
+        options.log_severity_level = 3  # errors only: the checks below say what is wrong in one line
+        self._session = onnxruntime.InferenceSession(model.SerializeToString(), options,
+                                                     providers=["CPUExecutionProvider"])
+        self._input = self._session.get_inputs()[0].name
+
+    def forward(self, blob: np.ndarray) -> np.ndarray:
+        return np.asarray(self._session.run(None, {self._input: blob})[0])
+
+
+def _free_input_size(model, input_wh_px: tuple[int, int]) -> None:
+    """Make the height and width of ``model``'s (an ``onnx.ModelProto``) first input symbolic where they are fixed
+    to another size than ``input_wh_px`` (YOLOX's releases: 416 x 416), and drop the stored intermediate and output
+    shapes that followed from them; the runtime infers them from the input."""
+    graph = model.graph
+    init = {t.name for t in graph.initializer}
+    inputs = [i for i in graph.input if i.name not in init]
+    dims = inputs[0].type.tensor_type.shape.dim if inputs else []
+    if len(dims) != 4:
+        return  # another layout: the checks of load_yolox say so
+    w, h = input_wh_px
+    if all(d.HasField("dim_value") for d in dims[2:]) and (dims[2].dim_value, dims[3].dim_value) == (h, w):
+        return
+    dims[2].dim_param, dims[3].dim_param = "height_px", "width_px"
+    for out in graph.output:  # (1, A, 5 + C): the rows A follow the canvas
+        out_dims = out.type.tensor_type.shape.dim
+        if len(out_dims) > 1:
+            out_dims[1].dim_param = "rows"
+    del graph.value_info[:]
+
+
+_ENGINES = {"opencv": _OpenCVNet, "onnxruntime": _OnnxRuntimeNet}
+
+
+def load_yolox(path, input_wh_px=(416, 416), class_index: int = 0, engine: str = "auto", threads: int = 1):
+    """Read a YOLOX ONNX export and check its layout on a grey canvas.
 
     Parameters
     ----------
@@ -225,34 +321,36 @@ def load_yolox(path, input_wh_px=(416, 416), class_index: int = 0):
         Canvas ``(W, H)`` [px] to run at: multiples of 32 (the model's own 416 x 416, or near the frame's size).
     class_index : int
         The person class (0 in COCO).
+    engine : str
+        What runs it (:data:`PERSON_ENGINES`; :func:`resolve_engine`).
+    threads : int
+        ONNX Runtime's threads (OpenCV uses its process-wide ``cv2.setNumThreads``).
 
     Returns
     -------
-    net : cv2.dnn.Net
+    net
+        The model: ``net.forward(blob (1, 3, H, W) float32) -> (1, A, 5 + C)``, ``net.name`` its engine.
     info : YoloxModelInfo
 
     Raises
     ------
     ValueError
-        One line naming the file: it is missing, not an ONNX model OpenCV reads, its output is not YOLOX's raw
-        head for this canvas (shape, or already decoded boxes), or it has no class ``class_index``.
+        One line naming the file: it is missing, not an ONNX model the engine runs at this canvas, its output is
+        not YOLOX's raw head for this canvas (shape, or already decoded boxes), or it has no class ``class_index``;
+        or the engine is unknown or not installed.
     """
     p = Path(path)
     wh = check_input_size(input_wh_px)
+    name = resolve_engine(engine)
     what = "a YOLOX ONNX export (e.g. yolox_nano.onnx from the YOLOX releases)"
     if not p.is_file():
         raise ValueError(f"{p}: person model not found; expected {what}")
     try:
-        net = cv2.dnn.readNetFromONNX(str(p))
-        blob = np.full((1, 3, wh[1], wh[0]), PAD_LEVEL, np.float32)
-        net.setInput(blob)
-        out = np.asarray(net.forward())
-    except cv2.error as exc:
-        # OpenCV's message: "OpenCV(v) file.cpp:line: error: (-code:Kind) what": keep its kind
-        first = next((ln for ln in str(exc).splitlines() if "error:" in ln), str(exc))
-        kind = first.split("error:", 1)[-1].split(")", 1)[0].split(":", 1)[-1].strip()
-        raise ValueError(f"{p}: not an ONNX model that OpenCV's DNN module can run at {wh[0]}x{wh[1]} px ({kind}); "
-                         f"expected {what}") from None
+        net = _ENGINES[name](p, wh, threads)
+        out = net.forward(np.full((1, 3, wh[1], wh[0]), PAD_LEVEL, np.float32))
+    except Exception as exc:  # noqa: BLE001 - each engine's own errors (cv2.error, onnx's DecodeError, ORT's Fail ...)
+        raise ValueError(f"{p}: not an ONNX model that {_ENGINE_TITLES[name]} can run at {wh[0]}x{wh[1]} px "
+                         f"({_first_line(exc)}); expected {what}") from None
     n_rows = len(yolox_grid(wh)[1])
     if out.ndim != 3 or out.shape[0] != 1 or out.shape[1] != n_rows or out.shape[2] < 6:
         raise ValueError(f"{p}: output shape {out.shape} is not YOLOX's raw head layout (1, {n_rows}, 5 + classes) "
@@ -265,7 +363,21 @@ def load_yolox(path, input_wh_px=(416, 416), class_index: int = 0):
             or out[0, :, 4:].min() < 0 or out[0, :, 4:].max() > 1:
         raise ValueError(f"{p}: outputs are not YOLOX's raw head (log sizes and probabilities in [0, 1]); export "
                          "with decode_in_inference=False")
-    return net, YoloxModelInfo(str(p), wh, n_classes)
+    return net, YoloxModelInfo(str(p), wh, n_classes, name)
+
+
+_ENGINE_TITLES = {"opencv": "OpenCV's DNN module", "onnxruntime": "ONNX Runtime"}
+
+
+def _first_line(exc: BaseException) -> str:
+    """The gist of an engine's error in one line: OpenCV's "OpenCV(v) file.cpp:line: error: (-code:Kind) what"
+    keeps its kind; others their first non-empty line, shortened."""
+    text = str(exc)
+    if isinstance(exc, cv2.error):
+        first = next((ln for ln in text.splitlines() if "error:" in ln), text)
+        return first.split("error:", 1)[-1].split(")", 1)[0].split(":", 1)[-1].strip()
+    first = next((ln.strip() for ln in text.splitlines() if ln.strip()), type(exc).__name__)
+    return first if len(first) <= 160 else first[:157] + "..."
 
 
 class YoloxDetector:
@@ -283,22 +395,25 @@ class YoloxDetector:
         Boxes overlapping a better one by more than this IoU are suppressed, in (0, 1].
     class_index : int
         The person class.
+    engine : str
+        What runs the model (:data:`PERSON_ENGINES`).
+    threads : int
+        ONNX Runtime's threads (OpenCV's DNN module uses ``cv2.setNumThreads``).
     """
 
     def __init__(self, path, input_wh_px=(416, 416), min_score: float = 0.3, nms_iou: float = 0.45,
-                 class_index: int = 0) -> None:
+                 class_index: int = 0, engine: str = "auto", threads: int = 1) -> None:
         if not 0.0 <= min_score <= 1.0:
             raise ValueError(f"min_score must lie in [0, 1], got {min_score}")
         if not 0.0 < nms_iou <= 1.0:
             raise ValueError(f"nms_iou must lie in (0, 1], got {nms_iou}")
-        self.net, self.info = load_yolox(path, input_wh_px, class_index)
+        self.net, self.info = load_yolox(path, input_wh_px, class_index, engine, threads)
         self.min_score, self.nms_iou, self.class_index = float(min_score), float(nms_iou), int(class_index)
 
     def detect(self, frame: np.ndarray) -> PersonBoxes:
         """The people in one frame ((h, w, 3) BGR or (h, w) grey uint8): boxes in the frame's pixels."""
         blob, r = letterbox(frame, self.info.input_wh_px)
-        self.net.setInput(blob)
-        xyxy, score = decode_yolox(self.net.forward(), self.info.input_wh_px, self.class_index)
+        xyxy, score = decode_yolox(self.net.forward(blob), self.info.input_wh_px, self.class_index)
         keep = score >= self.min_score
         if not keep.any():
             return PersonBoxes.empty()
@@ -314,7 +429,7 @@ class YoloxDetector:
 
     def cost_ms(self, frame_wh_px: tuple[int, int], repeats: int = 5) -> float:
         """Median wall time [ms] of :meth:`detect` on a grey frame of ``(width, height)`` px, in this process
-        (OpenCV's current thread count)."""
+        (OpenCV's current thread count, or ONNX Runtime's ``threads``)."""
         frame = np.full((int(frame_wh_px[1]), int(frame_wh_px[0]), 3), 128, np.uint8)
         self.detect(frame)
         times = []

@@ -5,6 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planefuse.vision import BackgroundSubtractor, ForegroundParams, GainCompensator
 
@@ -173,3 +175,66 @@ def test_detection_evidence_prior_makes_one_frame_of_a_detected_person_a_cluster
             assert (S[centre] >= threshold) == present, (ref, m, S[centre])
     with pytest.raises(ValueError, match="detection_mass"):
         detection_evidence_prior(0.0, 2.0)
+
+
+def _reference_compensate(comp: GainCompensator, frame: np.ndarray) -> np.ndarray:
+    """GainCompensator.compensate's rule in numpy, element-wise (the form it had before its numba kernels): the
+    per-block median of frame / max(reference, 1) over the pixels that tell the gain, clipped, bilinear, divided."""
+    img = frame.astype(np.float32)
+    ref = comp.reference
+    ok = (ref > comp.DARK) & (ref < comp.SATURATED) & (img < comp.SATURATED)
+    if ok.ndim == 3:
+        ok = ok.all(axis=2)
+    if comp._valid is not None and np.count_nonzero(ok & comp._valid) >= comp.MIN_VALID * ok.size:
+        ok &= comp._valid
+    if ok.ndim < img.ndim:
+        ok = ok[..., None]
+    ratio = np.where(ok, img / np.maximum(ref, 1.0), np.nan)
+    h, w = ratio.shape[:2]
+    rows, cols = comp.blocks
+    flat = ratio.reshape(h * w, -1)
+    out = np.empty((rows, cols, flat.shape[1]), np.float32)
+    ys, xs = np.linspace(0, h, rows + 1).astype(int), np.linspace(0, w, cols + 1).astype(int)
+    for i in range(rows):
+        for j in range(cols):
+            blk = ratio[ys[i]:ys[i + 1], xs[j]:xs[j + 1]].reshape(-1, flat.shape[1])
+            good = np.isfinite(blk[:, 0])
+            if good.mean() >= 0.05:
+                out[i, j] = np.median(blk[good], axis=0)
+            else:
+                out[i, j] = [np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else 1.0 for c in flat.T]
+    gain = np.clip(out.reshape((rows, cols) + ratio.shape[2:]), 1.0 / comp.MAX_GAIN, comp.MAX_GAIN)
+    field = cv2.resize(gain, (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.clip(img / field.reshape(img.shape), 0, 255).astype(np.uint8)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), blocks=st.tuples(st.integers(1, 4), st.integers(1, 5)),
+       grey=st.booleans(), valid_share=st.sampled_from([None, 0.0, 0.02, 0.5, 1.0]), gain=st.floats(0.2, 5.0))
+def test_compensation_is_its_numpy_rule_bit_for_bit(seed, blocks, grey, valid_share, gain):
+    """Frames with dark, saturated and foreground pixels, a cold model (few valid pixels) or none, blocks with too few
+    telling pixels: the numba kernels give the numpy rule's bytes."""
+    rng = np.random.default_rng(seed)
+    shape = (37, 53) if grey else (37, 53, 3)
+    ref = rng.uniform(0, 255, shape).astype(np.float32)
+    ref[:, :7] = 5.0  # a dark band: those pixels say nothing
+    frame = np.clip(ref * gain + rng.normal(0, 4, shape), 0, 255).astype(np.uint8)
+    frame[20:30, 10:25] = 255  # saturated
+    comp = GainCompensator(blocks, 0.05)
+    comp.reference = ref
+    if valid_share is not None:
+        comp._valid = rng.random(shape[:2]) < valid_share
+    expected = _reference_compensate(comp, frame)
+    np.testing.assert_array_equal(comp.compensate(frame), expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(values=st.lists(st.floats(0, 300, width=32) | st.sampled_from([0.0, 1.0, 1.5]), min_size=1, max_size=3000))
+def test_the_kernels_median_is_numpys_bit_for_bit(values):
+    """Odd and even counts, ties, constant runs, a few values and thousands: exact_median is np.median (float32)."""
+    from planefuse.vision._gain import _MEDIAN_BINS, exact_median
+
+    a = np.array(values, np.float32)
+    buf = np.concatenate([a, np.full(5, np.nan, np.float32)])  # only the first n are read
+    got = exact_median(buf, len(a), np.empty(_MEDIAN_BINS, np.int64))
+    assert np.float32(got).tobytes() == np.float32(np.median(a)).tobytes()

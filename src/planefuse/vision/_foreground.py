@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from .._params import check_fields, require
 from ._fusion import quantise_foreground
+from ._gain import block_gain_medians, divide_by_gain
 from ._mean_background import MeanBackground
 from ._yolox import PERSON_ENGINES, PersonBoxes, YoloxDetector, check_input_size, fitted_input_size
 
@@ -728,22 +729,20 @@ class GainCompensator:
 
     def compensate(self, frame: np.ndarray) -> np.ndarray:
         """The frame (H, W[, C]) uint8 divided by its gain field, uint8."""
-        img = frame.astype(np.float32)
         if self.reference is None:
-            self.reference = img.copy()
+            self.reference = frame.astype(np.float32)
             return frame
-        ref = self.reference
-        ok = (ref > self.DARK) & (ref < self.SATURATED) & (img < self.SATURATED)
-        if ok.ndim == 3:
-            ok = ok.all(axis=2)
-        if self._valid is not None and np.count_nonzero(ok & self._valid) >= self.MIN_VALID * ok.size:
-            ok &= self._valid  # else the subtractor called (nearly) everything foreground: a cold model
-        if ok.ndim < img.ndim:
-            ok = ok[..., None]
-        ratio = np.where(ok, img / np.maximum(ref, 1.0), np.nan)
-        gain = np.clip(_block_medians(ratio, self.blocks), 1.0 / self.MAX_GAIN, self.MAX_GAIN)
-        field = cv2.resize(gain, (img.shape[1], img.shape[0]), interpolation=cv2.INTER_LINEAR)
-        return np.clip(img / field.reshape(img.shape), 0, 255).astype(np.uint8)
+        h, w = frame.shape[:2]
+        img = frame.reshape(h, w, -1)
+        ref = self.reference.reshape(h, w, -1)
+        rows, cols = self.blocks
+        ys, xs = np.linspace(0, h, rows + 1).astype(np.int64), np.linspace(0, w, cols + 1).astype(np.int64)
+        use_valid = self._valid is not None
+        valid = self._valid if use_valid else np.zeros((h, w), bool)
+        medians = block_gain_medians(img, ref, valid, use_valid, self.DARK, self.SATURATED, self.MIN_VALID, ys, xs)
+        gain = np.clip(medians, 1.0 / self.MAX_GAIN, self.MAX_GAIN)
+        field = cv2.resize(gain, (w, h), interpolation=cv2.INTER_LINEAR).reshape(h, w, -1)
+        return divide_by_gain(img, field).reshape(frame.shape)
 
     def learn(self, compensated: np.ndarray, background: np.ndarray, rate: float | None = None) -> None:
         """Update the reference with a compensated frame on its ``background`` (H, W) bool pixels (all pixels
@@ -754,29 +753,6 @@ class GainCompensator:
         w = w.reshape(w.shape + (1,) * (img.ndim - 2))
         self.reference += w * (img - self.reference)
         self._valid = background
-
-
-def _block_medians(ratio: np.ndarray, blocks: tuple[int, int]) -> np.ndarray:
-    """Per-block, per-channel nan-median of ``ratio`` (H, W[, C]) -> (rows, cols[, C]) float32; blocks with
-    fewer than 5 % valid pixels take the whole image's median (1 where it has none)."""
-    h, w = ratio.shape[:2]
-    rows, cols = blocks
-    chans = ratio.shape[2:]
-    flat = ratio.reshape(h * w, -1)
-    glob = None  # the whole image's median, computed only where a block needs it
-    out = np.empty((rows, cols, flat.shape[1]), np.float32)
-    ys, xs = np.linspace(0, h, rows + 1).astype(int), np.linspace(0, w, cols + 1).astype(int)
-    for i in range(rows):
-        for j in range(cols):
-            blk = ratio[ys[i]:ys[i + 1], xs[j]:xs[j + 1]].reshape(-1, flat.shape[1])
-            good = np.isfinite(blk[:, 0])
-            if good.mean() >= 0.05:
-                out[i, j] = np.median(blk[good], axis=0)
-                continue
-            if glob is None:
-                glob = np.array([np.median(c[np.isfinite(c)]) if np.isfinite(c).any() else 1.0 for c in flat.T])
-            out[i, j] = glob
-    return out.reshape((rows, cols) + chans)
 
 
 @functools.lru_cache(maxsize=4096)

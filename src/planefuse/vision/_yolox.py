@@ -46,7 +46,7 @@ PAD_LEVEL = 114.0
 #: A raw head's log-size outputs stay well inside this on any image; a decoded export's sizes are pixels.
 _MAX_RAW_LOG_SIZE = 12.0
 #: What runs the model: ``"auto"`` (ONNX Runtime where installed, else OpenCV), ``"opencv"`` (OpenCV's DNN
-#: module), ``"onnxruntime"`` (the ``onnxruntime`` and ``onnx`` packages: ``pip install 'planefuse[onnxruntime]'``).
+#: module), ``"onnxruntime"`` (the ``onnxruntime`` package: ``pip install 'planefuse[onnxruntime]'``).
 PERSON_ENGINES = ("auto", "opencv", "onnxruntime")
 
 
@@ -230,7 +230,7 @@ def _sha256(path: Path) -> str:
 
 def resolve_engine(engine: str) -> str:
     """The engine that runs a person model for the setting ``engine`` (:data:`PERSON_ENGINES`): ``"auto"`` is
-    ``"onnxruntime"`` where the ``onnxruntime`` and ``onnx`` packages are installed, else ``"opencv"``.
+    ``"onnxruntime"`` where the ``onnxruntime`` package is installed, else ``"opencv"``.
 
     Raises
     ------
@@ -239,11 +239,11 @@ def resolve_engine(engine: str) -> str:
     """
     if engine not in PERSON_ENGINES:
         raise ValueError(f"person engine must be one of {', '.join(PERSON_ENGINES)}, got {engine!r}")
-    has_ort = all(importlib.util.find_spec(m) is not None for m in ("onnxruntime", "onnx"))
+    has_ort = importlib.util.find_spec("onnxruntime") is not None
     if engine == "auto":
         return "onnxruntime" if has_ort else "opencv"
     if engine == "onnxruntime" and not has_ort:
-        raise ValueError("person engine 'onnxruntime' needs the onnxruntime and onnx packages: "
+        raise ValueError("person engine 'onnxruntime' needs the onnxruntime package: "
                          "pip install 'planefuse[onnxruntime]' (or person_engine: opencv)")
     return engine
 
@@ -268,43 +268,92 @@ class _OnnxRuntimeNet:
     name = "onnxruntime"
 
     def __init__(self, path: Path, input_wh_px: tuple[int, int], threads: int) -> None:
-        import onnx
         import onnxruntime
 
-        model = onnx.load(str(path))
-        _free_input_size(model, input_wh_px)
         options = onnxruntime.SessionOptions()
         options.intra_op_num_threads = max(1, int(threads))
         options.inter_op_num_threads = 1
         options.add_session_config_entry("session.intra_op.allow_spinning", "0")  # idle threads cost no CPU
-        options.log_severity_level = 3  # errors only: the checks below say what is wrong in one line
-        self._session = onnxruntime.InferenceSession(model.SerializeToString(), options,
-                                                     providers=["CPUExecutionProvider"])
+        options.log_severity_level = 3  # errors only: the checks of load_yolox say what is wrong in one line
+        model = _free_input_size(path.read_bytes(), input_wh_px)
+        self._session = onnxruntime.InferenceSession(model, options, providers=["CPUExecutionProvider"])
         self._input = self._session.get_inputs()[0].name
 
     def forward(self, blob: np.ndarray) -> np.ndarray:
         return np.asarray(self._session.run(None, {self._input: blob})[0])
 
 
-def _free_input_size(model, input_wh_px: tuple[int, int]) -> None:
-    """Make the height and width of ``model``'s (an ``onnx.ModelProto``) first input symbolic where they are fixed
-    to another size than ``input_wh_px`` (YOLOX's releases: 416 x 416), and drop the stored intermediate and output
-    shapes that followed from them; the runtime infers them from the input."""
-    graph = model.graph
-    init = {t.name for t in graph.initializer}
-    inputs = [i for i in graph.input if i.name not in init]
+def _free_input_size(model: bytes, input_wh_px: tuple[int, int]) -> bytes:
+    """The ONNX model ``model`` (serialised ``ModelProto``) with its first graph input's height and width made
+    symbolic where they are fixed to another size than ``input_wh_px`` (YOLOX's releases: 416 x 416), its outputs'
+    row counts too, and the stored intermediate shapes that followed from them dropped (the runtime infers them from
+    the input); ``model`` itself where nothing needs to change.
+
+    Read through :func:`_onnx_subset`'s few fields of ONNX's schema; the rest of the file (the nodes, the weights)
+    passes through as protobuf's unknown fields, byte for byte.
+    """
+    from google.protobuf.message import DecodeError
+
+    m = _onnx_subset()()
+    try:
+        m.ParseFromString(model)
+    except DecodeError:
+        raise ValueError("not a protobuf file") from None
+    g = m.graph
+    weights = {t.name for t in g.initializer}
+    inputs = [i for i in g.input if i.name not in weights]
     dims = inputs[0].type.tensor_type.shape.dim if inputs else []
-    if len(dims) != 4:
-        return  # another layout: the checks of load_yolox say so
     w, h = input_wh_px
-    if all(d.HasField("dim_value") for d in dims[2:]) and (dims[2].dim_value, dims[3].dim_value) == (h, w):
-        return
+    if len(dims) != 4 or ([d.dim_value if d.HasField("dim_value") else None for d in dims[2:]] == [h, w]):
+        return model  # another layout (load_yolox's checks say so), or already this canvas
     dims[2].dim_param, dims[3].dim_param = "height_px", "width_px"
-    for out in graph.output:  # (1, A, 5 + C): the rows A follow the canvas
+    for out in g.output:  # (1, A, 5 + C): the rows A follow the canvas
         out_dims = out.type.tensor_type.shape.dim
         if len(out_dims) > 1:
             out_dims[1].dim_param = "rows"
-    del graph.value_info[:]
+    del g.value_info[:]
+    return m.SerializeToString()
+
+
+@lru_cache(maxsize=1)
+def _onnx_subset():
+    """The message class of ONNX's ``ModelProto`` reduced to the fields :func:`_free_input_size` reads (the numbers
+    and types of onnx.proto: ModelProto.graph 7; GraphProto.initializer 5, input 11, output 12, value_info 13;
+    TensorProto.name 8; ValueInfoProto.name 1, type 2; TypeProto.tensor_type 1; TypeProto.Tensor.shape 2;
+    TensorShapeProto.dim 1; Dimension.dim_value 1 / dim_param 2, a oneof), built with protobuf (onnxruntime's own
+    dependency) rather than the onnx package, whose import costs about 0.7 s of CPU."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+
+    F = descriptor_pb2.FieldDescriptorProto
+    f = descriptor_pb2.FileDescriptorProto(name="planefuse_onnx_subset.proto", package="planefuse_onnx",
+                                           syntax="proto2")
+
+    def message(name, *fields, oneof=None):
+        msg = f.message_type.add(name=name)
+        if oneof:
+            msg.oneof_decl.add(name=oneof)
+        for number, fname, ftype, label, type_name in fields:
+            field = msg.field.add(name=fname, number=number, type=ftype, label=label)
+            if type_name:
+                field.type_name = f".planefuse_onnx.{type_name}"
+            if oneof:
+                field.oneof_index = 0
+
+    opt, rep = F.LABEL_OPTIONAL, F.LABEL_REPEATED
+    message("Dimension", (1, "dim_value", F.TYPE_INT64, opt, None), (2, "dim_param", F.TYPE_STRING, opt, None),
+            oneof="value")
+    message("Shape", (1, "dim", F.TYPE_MESSAGE, rep, "Dimension"))
+    message("Tensor", (2, "shape", F.TYPE_MESSAGE, opt, "Shape"))
+    message("Type", (1, "tensor_type", F.TYPE_MESSAGE, opt, "Tensor"))
+    message("ValueInfo", (1, "name", F.TYPE_STRING, opt, None), (2, "type", F.TYPE_MESSAGE, opt, "Type"))
+    message("Weights", (8, "name", F.TYPE_STRING, opt, None))
+    message("Graph", (5, "initializer", F.TYPE_MESSAGE, rep, "Weights"),
+            (11, "input", F.TYPE_MESSAGE, rep, "ValueInfo"), (12, "output", F.TYPE_MESSAGE, rep, "ValueInfo"),
+            (13, "value_info", F.TYPE_MESSAGE, rep, "ValueInfo"))
+    message("Model", (7, "graph", F.TYPE_MESSAGE, opt, "Graph"))
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(f)
+    return message_factory.GetMessageClass(pool.FindMessageTypeByName("planefuse_onnx.Model"))
 
 
 _ENGINES = {"opencv": _OpenCVNet, "onnxruntime": _OnnxRuntimeNet}

@@ -34,14 +34,15 @@ from ..pipeline import SystemParams, SystemRun, stack_for_recording
 from ..tracking import TrackerOutput
 from ._outputs import LiveOutputs, track_records
 from ._page import LivePage
-from ._sources import CameraSource
+from ._sources import PRESENTATION_KINDS, CameraSource, source_kind
 from ._sync import FrameSynchroniser, LiveInstant
 
 __all__ = ["LiveSettings", "LiveRun", "LiveSummary", "CLOCKS"]
 
 #: ``"arrival"``: every frame stands for when it arrived (``time.monotonic``, one clock for all cameras);
-#: ``"presentation"``: for the stream's own time stamp (MJPEG ``X-Timestamp``, a file's or RTSP stream's
-#: presentation time), for cameras whose clocks are one (synchronised by NTP/PTP, or a recording played back).
+#: ``"presentation"``: for the stream's own time stamp (MJPEG ``X-Timestamp``, a file's presentation time), for
+#: cameras whose clocks are one (synchronised by NTP/PTP, or a recording played back); refused for RTSP streams
+#: and devices (:data:`~planefuse.live.PRESENTATION_KINDS`).
 CLOCKS = ("arrival", "presentation")
 
 
@@ -212,6 +213,12 @@ class LiveRun:
                              + (f"streams given for unknown cameras {unknown}" if unknown else ""))
         if not params.cameras:
             raise ValueError("sensors.cameras.enabled is false: a live run fuses the cameras")
+        if settings.clock == "presentation":
+            unclocked = [n for n in names if source_kind(settings.cameras[n]) not in PRESENTATION_KINDS]
+            if unclocked:
+                raise ValueError(f"clock: presentation: cameras {unclocked} give no time stamps on a clock the cameras "
+                                 "share (RTSP through OpenCV: RTP times from each connection's first frame; a "
+                                 "device: none); use clock: arrival")
         self.start_s = time.monotonic()
         self.events: deque[str] = _kept()
         self._on_event = on_event

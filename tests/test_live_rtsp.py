@@ -22,7 +22,7 @@ from planefuse.pipeline import SystemParams, run_system
 from planefuse.sim import default_scene_config, simulate
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _rtsp_server import RTP_CLOCK_HZ, RtspServer, jpeg_scan, rtp_jpeg_payloads  # noqa: E402
+from _rtsp_server import RTP_CLOCK_HZ, RtspServer, jpeg_scan, rtp_jpeg_payloads
 
 PARAMS = SystemParams(laser=False, sound=False)
 

@@ -164,3 +164,17 @@ def test_cli_live_resumes_and_refuses_another_configuration(scene, tmp_path):
     assert fresh.exit_code == 0 and "resuming" not in fresh.output
     report = json.loads((tmp_path / "out" / "live" / "live_report.json").read_text())
     assert report["resumed_at_step"] == 0
+
+
+def test_a_resumed_synchroniser_refuses_frames_stamped_before_the_previous_session():
+    """With clock: presentation, a resumed run's streams must go on past its previous session's last instant (a
+    recording played again from its start is refused, its camera stopped with this error)."""
+    from planefuse.live import FrameSynchroniser
+
+    sync = FrameSynchroniser(["cam0"], 0.04, 5.0)
+    sync.after_s = 12.0
+    with pytest.raises(ValueError, match=r"camera 'cam0': frame stamped 0.04 s, not after 12.0 s where the resumed "
+                                         r"run's previous session ended"):
+        sync.put(0, np.zeros((2, 2)), 0.04, 100.0)
+    sync.put(0, np.zeros((2, 2)), 12.04, 100.1)
+    assert sync.t0 == 12.04

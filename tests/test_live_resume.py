@@ -128,7 +128,7 @@ def test_a_folder_of_another_configuration_is_refused_unless_fresh(scene, tmp_pa
     assert not (tmp_path / "tracks.csv").read_text().count("\n0,0.0,7")
     with pytest.raises(ValueError, match="being written by another planefuse run"):
         LiveRun(rec, PARAMS, st, out_dir=tmp_path)  # the first holds the folder's lock until its run ends
-    live.folder.close()
+    live.close()  # releases the folder (run() would have, at its end)
     other = replace(PARAMS, match_distance_m=0.7)
     with pytest.raises(ValueError, match="holds the results of another run"):
         LiveRun(rec, other, st, out_dir=tmp_path)

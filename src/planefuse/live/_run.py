@@ -438,9 +438,12 @@ class LiveRun:
         return took
 
     def close(self) -> None:
-        """Stop the live page (it keeps showing the last state after :meth:`run` until then)."""
+        """Stop the live page (it keeps showing the last state after :meth:`run` until then); release the output
+        folder where :meth:`run` did not."""
         if self.page is not None:
             self.page.stop()
+        if self.folder is not None:
+            self.folder.close()
 
     def _warming(self, inst: LiveInstant) -> None:
         if self._warm:

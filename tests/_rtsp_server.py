@@ -110,6 +110,9 @@ class RtspServer:
         How long a stalled camera stays silent before it resumes [s] (``inf``: never).
     down_s : float
         After a ``close_after`` close, how long that camera's stream is refused (DESCRIBE answered 503) [s].
+    loop : bool
+        Start again from the first frame after the last, the times going on (one frame period after the last):
+        an endless stream (benchmarks).
     seed : int
         Seeds the random RTP origins (sequence number, time stamp, SSRC) of the connections.
 
@@ -126,12 +129,12 @@ class RtspServer:
     def __init__(self, frames: Mapping[str, tuple[Sequence[float], Sequence[bytes]]], host: str = "127.0.0.1",
                  port: int = 0, transports: tuple[str, ...] = ("tcp", "udp"),
                  stall_after: Mapping[str, int] | None = None, close_after: Mapping[str, int] | None = None,
-                 stall_s: float = float("inf"), down_s: float = 0.0, seed: int = 0) -> None:
+                 stall_s: float = float("inf"), down_s: float = 0.0, loop: bool = False, seed: int = 0) -> None:
         self.frames = {k: (np.asarray(t, float), [rtp_jpeg_payloads(j) for j in jpgs])
                        for k, (t, jpgs) in frames.items()}
         self.host, self.port, self.transports = host, int(port), tuple(transports)
         self.stall_after, self.close_after = dict(stall_after or {}), dict(close_after or {})
-        self.stall_s, self.down_s = float(stall_s), float(down_s)
+        self.stall_s, self.down_s, self.loop = float(stall_s), float(down_s), bool(loop)
         self.down_until = {k: -np.inf for k in self.frames}
         self.refused = {k: 0 for k in self.frames}  # DESCRIBEs answered 503 while down
         self.rng = np.random.default_rng(seed)
@@ -299,23 +302,33 @@ class _Connection:
         else:
             self._reply(headers, "501 Not Implemented")
 
-    def _send(self, packet: bytes) -> None:
+    def _send(self, packets: list[bytes]) -> None:
+        """One frame's RTP packets: each a datagram (UDP), or all in one write on the connection (TCP: a write per
+        packet would wait for the GIL at each, delaying frames where the process is busy)."""
         if self.udp is not None:
-            self.udp.sendto(packet, self.udp_to)
+            for packet in packets:
+                self.udp.sendto(packet, self.udp_to)
             return
+        data = b"".join(struct.pack("!BBH", 0x24, self.channel, len(p)) + p for p in packets)
         with self.send_lock:
-            self.sock.sendall(struct.pack("!BBH", 0x24, self.channel, len(packet)) + packet)
+            self.sock.sendall(data)
 
     def _play(self, seq: int, ts0: int, ssrc: int) -> None:
         srv, name = self.server, self.camera
         times, frames = srv.frames[name]
+        n = len(times)
+        span = times[-1] - times[0] + (times[-1] - times[-2] if n > 1 else 1.0)
+
+        def time_of(k: int) -> float:  # the k-th frame sent over all loops
+            return float(times[k % n] + (k // n) * span)
+
         srv.connections[name] += 1
         i = srv.sent[name]  # a reconnecting client goes on where it stopped
-        if i >= len(times):
+        if i >= n and not srv.loop:
             return
-        start, t_first = time.monotonic(), times[i]
+        start, t_first = time.monotonic(), time_of(i)
         try:
-            while i < len(times) and not self.closed.is_set():
+            while (i < n or srv.loop) and not self.closed.is_set():
                 if name in srv.close_after and srv.sent[name] == srv.close_after[name]:
                     srv.close_after.pop(name)
                     srv.down_until[name] = time.monotonic() + srv.down_s
@@ -326,16 +339,18 @@ class _Connection:
                     srv.stall_after.pop(name)
                     if srv._stop.wait(None if np.isinf(srv.stall_s) else srv.stall_s):
                         return
-                    start, t_first = time.monotonic(), times[i]
-                wait = start + (times[i] - t_first) - time.monotonic()
+                    start, t_first = time.monotonic(), time_of(i)
+                wait = start + (time_of(i) - t_first) - time.monotonic()
                 if wait > 0 and srv._stop.wait(wait):
                     return
-                stamp = (ts0 + int(round((times[i] - times[0]) * RTP_CLOCK_HZ))) & 0xFFFFFFFF
-                payloads = frames[i]
+                stamp = (ts0 + int(round((time_of(i) - times[0]) * RTP_CLOCK_HZ))) & 0xFFFFFFFF
+                payloads = frames[i % n]
+                packets = []
                 for k, p in enumerate(payloads):
                     marker = 0x80 if k == len(payloads) - 1 else 0
-                    self._send(struct.pack("!BBHII", 0x80, marker | PAYLOAD_TYPE_JPEG, seq, stamp, ssrc) + p)
+                    packets.append(struct.pack("!BBHII", 0x80, marker | PAYLOAD_TYPE_JPEG, seq, stamp, ssrc) + p)
                     seq = (seq + 1) & 0xFFFF
+                self._send(packets)
                 srv.sent[name] += 1
                 i += 1
         except OSError:

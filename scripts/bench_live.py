@@ -9,6 +9,8 @@ thread. Latency: an output step's emission less the arrival of the newest frame 
 
     python scripts/bench_live.py --duration-s 40                   # the table: 2 and 4 cameras, 5 Hz and full rate
     python scripts/bench_live.py --soak-s 600 --cameras 4 --rate 5  # the soak (RSS, latency per minute)
+    python scripts/bench_live.py --source rtsp --cameras 4         # RTSP streams (tests/_rtsp_server.py, RTP/JPEG
+                                                                   # over TCP) read through OpenCV's FFmpeg
 """
 
 from __future__ import annotations
@@ -24,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 
-def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float, page: bool = False) -> dict:
+def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float, page: bool = False,
+        source: str = "mjpeg") -> dict:
     from planefuse.cli._run import set_threads
     from planefuse.io import Recording
     from planefuse.live import LiveRun, LiveSettings, MjpegServer, recording_jpeg_frames
@@ -39,7 +42,13 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float,
     rec = Recording(rec.duration_s, camera_streams={n: rec.camera(n) for n in names},
                     planes_heights_m=rec.planes_heights_m, room_xy_m=rec.room_xy_m)
     frames = recording_jpeg_frames(rec)
-    srv = MjpegServer(frames, loop=True).start()
+    if source == "rtsp":  # the loopback RTSP server of the tests (test-only code, not a runtime dependency)
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+        from _rtsp_server import RtspServer
+
+        srv = RtspServer(frames, loop=True).start()
+    else:
+        srv = MjpegServer(frames, loop=True).start()
     params = SystemParams(laser=False, sound=False,
                           camera_params=replace(CameraParams(), max_rate_hz=5.0 if rate == "5" else None))
     live = LiveRun(rec, params, LiveSettings(cameras={n: srv.url(n) for n in names}, serve=page, port=0))
@@ -62,7 +71,7 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float,
         if w:
             minutes.append({"minute": m, "n": len(w), "p50_ms": float(np.percentile(w, 50) * 1e3),
                             "p95_ms": float(np.percentile(w, 95) * 1e3)})
-    return {"load_avg_1min_end": os.getloadavg()[0], "cpu_s": cpu_s, "wall_s": wall, "cpu_share": cpu_s / wall,
+    return {"source": source, "load_avg_1min_end": os.getloadavg()[0], "cpu_s": cpu_s, "wall_s": wall, "cpu_share": cpu_s / wall,
             "cameras": n_cameras, "rate": rate, "duration_s": duration_s, "outputs": summary.outputs,
             "instants": summary.instants, "p50_ms": summary.latency_ms(50), "p95_ms": summary.latency_ms(95),
             "max_ms": summary.latency_ms(100), "step_p50_ms": summary.step_latency_ms(50),
@@ -81,17 +90,19 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="write the results here")
     ap.add_argument("--page", action="store_true", help="serve the live page (no browser connected)")
     ap.add_argument("--figure", type=Path, default=None, help="soak: RSS and latency over time (PNG)")
+    ap.add_argument("--source", choices=["mjpeg", "rtsp"], default="mjpeg", help="how the frames are streamed")
     ap.add_argument("--_one", nargs=2, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args._one is not None:  # a child process: one configuration
-        res = one(int(args._one[0]), args._one[1], args.soak_s or args.duration_s, args.seed, args.scene_s, args.page)
+        res = one(int(args._one[0]), args._one[1], args.soak_s or args.duration_s, args.seed, args.scene_s, args.page,
+                  args.source)
         print("RESULT " + json.dumps(res))
         return
     results = []
     for n in args.cameras:
         for rate in args.rate:
             cmd = [sys.executable, __file__, "--_one", str(n), rate, "--duration-s", str(args.duration_s),
-                   "--seed", str(args.seed), "--scene-s", str(args.scene_s)]
+                   "--seed", str(args.seed), "--scene-s", str(args.scene_s), "--source", args.source]
             if args.soak_s:
                 cmd += ["--soak-s", str(args.soak_s)]
             if args.page:
@@ -101,7 +112,7 @@ def main() -> None:
             results.append(res)
             used = [h["used"] for h in res["health"]]
             dropped = [h["dropped"] for h in res["health"]]
-            print(f"{n} cameras, {rate:>4} Hz: p50 {res['p50_ms']:.0f} ms, p95 {res['p95_ms']:.0f} ms, "
+            print(f"{args.source}: {n} cameras, {rate:>4} Hz: p50 {res['p50_ms']:.0f} ms, p95 {res['p95_ms']:.0f} ms, "
                   f"max {res['max_ms']:.0f} ms; instants {res['instants']}, outputs {res['outputs']}; used per camera "
                   f"{used}, dropped {dropped}; RSS {res['rss_mib'][0][1]:.0f} -> {res['rss_mib'][-1][1]:.0f} MiB",
                   flush=True)

@@ -268,6 +268,10 @@ def test_ctrl_c_ends_the_run_cleanly_with_outputs_flushed(scene, tmp_path):
     rows = (tmp_path / "tracks.csv").read_text().splitlines()
     assert len(rows) - 1 == sum(len(o.tracks) for o in outs)
     assert json.loads((tmp_path / "live_report.json").read_text())["interrupted"] is True
+    # the folder is left resumable (tests/test_live_resume.py): the state after the flush, checkpointed
+    state = json.loads((tmp_path / "run_state.json").read_text())
+    assert state["status"] == "interrupted" and state["n_outputs"] == len(outs)
+    assert (tmp_path / "checkpoint.npz").is_file() and not (tmp_path / ".planefuse.lock").exists()
 
 
 @pytest.fixture(scope="module")

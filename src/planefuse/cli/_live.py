@@ -26,16 +26,22 @@ def live(
                                      "until Ctrl-C or every source has ended)."),
     threads: int = typer.Option(None, "--threads", min=1, help="Threads of OpenCV and numba (--threads 1: one "
                                 "core)."),
+    fresh: bool = typer.Option(False, "--fresh", help="Start afresh in an output folder holding a live run of this "
+                               "configuration (default: resume it) or another run's results."),
+    force: bool = typer.Option(False, "--force", help="Write into an output folder holding another run's results "
+                               "(replaced) or files planefuse did not write (kept)."),
 ) -> None:
     """Read the configured cameras as they stream (RTSP, HTTP MJPEG, local devices, video files played at their
     rate), feed their frames to the whole system as they arrive, write the tracks as they come (tracks.csv in
     the output folder, JSON lines) and show them on a live page. Frames the system cannot keep up with are
     dropped, the oldest first, and counted per camera; a stream that stalls or closes is retried with back-off
     and unobserved meanwhile. Ctrl-C ends the run with every output flushed (live_report.json: per camera
-    frames used, skipped, dropped, reconnects; latency)."""
+    frames used, skipped, dropped, reconnects; latency). Run again on the same output folder, it resumes: track
+    identities and output steps go on, tracks.csv and tracks_mot.txt are appended to; a folder holding another
+    run's results is refused unless --fresh/--force says so."""
     from dataclasses import replace
 
-    from ..config import ConfigError, load_config
+    from ..config import ConfigError, config_hash, load_config
     from ..io import read_recording
     from ..live import LiveRun, load_live_config
     from ._run import set_threads
@@ -65,7 +71,8 @@ def live(
     jsonl = tracks_jsonl if tracks_jsonl is not None else lcfg.tracks_jsonl
     try:
         run = LiveRun(rec, cfg.system_params(), settings, out_dir=out_dir, jsonl=jsonl,
-                      on_event=lambda m: err.print(f"[dim]live:[/dim] {escape(m)}", highlight=False))
+                      on_event=lambda m: err.print(f"[dim]live:[/dim] {escape(m)}", highlight=False),
+                      resume=not fresh, force=force, config_key=config_hash(cfg))
     except (ValueError, ImportError, OSError) as exc:
         exit_with_error(str(exc), 1)
     try:

@@ -49,6 +49,7 @@ class LiveConfig(BaseModel):
     page_rate_hz: float = _DEFAULTS.page_rate_hz
     trail_s: float = _DEFAULTS.trail_s
     page_width_px: int = _DEFAULTS.page_width_px
+    checkpoint_steps: int = _DEFAULTS.checkpoint_steps
     #: ``"-"``: tracks as JSON lines on standard output; a path: in that file; null: none
     tracks_jsonl: str | None = None
     #: the output folder (tracks.csv, tracks_mot.txt, live_report.json); null: ``live/`` in the run

@@ -34,18 +34,20 @@ class LiveOutputs:
     Parameters
     ----------
     out_dir : path or None
-        Folder of ``tracks.csv`` and ``tracks_mot.txt`` (the offline run's formats, docs/outputs.md; created, and
-        existing ones replaced) and, at the end, ``live_report.json``. None: no folder.
+        Folder of ``tracks.csv`` and ``tracks_mot.txt`` (the offline run's formats, docs/outputs.md; created) and,
+        at the end, ``live_report.json``. None: no folder.
     jsonl : str, path or None
         ``"-"``: JSON lines on standard output; a path: JSON lines in that file; None: none. A line per output
         step: ``{"step", "time_s", "latency_s", "tracks": [track_records...]}``.
+    append : bool
+        Append to the files (a resumed run, :class:`~planefuse.live.LiveFolder`) instead of replacing them.
     person_radius_m : float
         The footprint radius of the MOTChallenge rows [m] (the run's ``tracking.cluster.person_radius_m``, as the
         recording run writes them; None: :class:`~planefuse.tracking.ClusterParams`' default).
     """
 
     def __init__(self, out_dir: str | Path | None = None, jsonl: str | Path | None = None, *,
-                 person_radius_m: float | None = None) -> None:
+                 person_radius_m: float | None = None, append: bool = False) -> None:
         self.person_radius_m = float(ClusterParams().person_radius_m if person_radius_m is None else person_radius_m)
         self.out_dir = None if out_dir is None else Path(out_dir)
         self._csv_file: IO | None = None
@@ -54,16 +56,19 @@ class LiveOutputs:
         self._own_jsonl = False
         if self.out_dir is not None:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            self._csv_file = open(self.out_dir / "tracks.csv", "w", newline="")
+            path = self.out_dir / "tracks.csv"
+            header = not (append and path.is_file() and path.stat().st_size > 0)
+            self._csv_file = open(path, "a" if append else "w", newline="")
             self._csv = csv.writer(self._csv_file)
-            self._csv.writerow(TRACKS_CSV_COLUMNS)
+            if header:
+                self._csv.writerow(TRACKS_CSV_COLUMNS)
             self._csv_file.flush()
-            self._mot_file = open(self.out_dir / "tracks_mot.txt", "w")
+            self._mot_file = open(self.out_dir / "tracks_mot.txt", "a" if append else "w")
         if jsonl == "-":
             self._jsonl = sys.stdout
         elif jsonl is not None:
             Path(jsonl).parent.mkdir(parents=True, exist_ok=True)
-            self._jsonl, self._own_jsonl = open(jsonl, "w"), True
+            self._jsonl, self._own_jsonl = open(jsonl, "a" if append else "w"), True
 
     def write(self, step: int, out: TrackerOutput, latency_s: float | None) -> None:
         """Append output step ``step`` (its tracks) and flush."""

@@ -34,14 +34,16 @@ from ..pipeline import SystemParams, SystemRun, stack_for_recording
 from ..tracking import TrackerOutput
 from ._outputs import LiveOutputs, track_records
 from ._page import LivePage
-from ._sources import CameraSource
+from ._resume import LiveFolder, live_key
+from ._sources import PRESENTATION_KINDS, CameraSource, source_kind
 from ._sync import FrameSynchroniser, LiveInstant
 
 __all__ = ["LiveSettings", "LiveRun", "LiveSummary", "CLOCKS"]
 
 #: ``"arrival"``: every frame stands for when it arrived (``time.monotonic``, one clock for all cameras);
-#: ``"presentation"``: for the stream's own time stamp (MJPEG ``X-Timestamp``, a file's or RTSP stream's
-#: presentation time), for cameras whose clocks are one (synchronised by NTP/PTP, or a recording played back).
+#: ``"presentation"``: for the stream's own time stamp (MJPEG ``X-Timestamp``, a file's presentation time), for
+#: cameras whose clocks are one (synchronised by NTP/PTP, or a recording played back); refused for RTSP streams
+#: and devices (:data:`~planefuse.live.PRESENTATION_KINDS`).
 CLOCKS = ("arrival", "presentation")
 
 
@@ -77,6 +79,10 @@ class LiveSettings:
         Length of the tracks' trails on the page [s].
     page_width_px : int
         Width of the camera images on the page [px].
+    checkpoint_steps : int
+        With an output folder, the tracker's state is saved every this many output steps (and at the end) for
+        the next session to resume from (:class:`~planefuse.live.LiveFolder`; 50: 10 s at 5 Hz, a write of a
+        few MB).
     """
 
     cameras: Mapping[str, str | int] = field(default_factory=dict)
@@ -92,11 +98,12 @@ class LiveSettings:
     page_rate_hz: float = 5.0
     trail_s: float = 5.0
     page_width_px: int = 320
+    checkpoint_steps: int = 50
 
     def __post_init__(self) -> None:
         if self.clock not in CLOCKS:
             raise ValueError(f"LiveSettings.clock must be one of {CLOCKS}, got {self.clock!r}")
-        for name in ("queue_frames", "page_width_px"):
+        for name in ("queue_frames", "page_width_px", "checkpoint_steps"):
             v = getattr(self, name)
             if not (isinstance(v, int) and v >= 1):
                 raise ValueError(f"LiveSettings.{name} must be an integer >= 1, got {v!r}")
@@ -181,9 +188,15 @@ class LiveRun:
         What to run (the camera rate ``camera_params.max_rate_hz`` is the live instants' rate; None: every frame).
     settings : LiveSettings
     out_dir : path, optional
-        Where ``tracks.csv`` and ``live_report.json`` go.
+        Where ``tracks.csv``, ``tracks_mot.txt``, ``live_report.json`` and the checkpoint go: a folder holding a
+        live run of the same configuration, recording and clock is resumed (:class:`~planefuse.live.LiveFolder`).
     jsonl : str or path, optional
-        ``"-"`` (standard output) or a file for the tracks as JSON lines.
+        ``"-"`` (standard output) or a file for the tracks as JSON lines (appended to when the run resumes).
+    resume, force : bool
+        As ``planefuse run``'s ``--fresh`` (``resume=False``: start afresh) and ``--force`` treat the folder.
+    config_key : str
+        What identifies the configuration for resuming (:func:`planefuse.config.config_hash`; "": a hash of
+        ``params``).
     on_event : callable, optional
         ``on_event(message)`` for every announcement (sources' states, warm-up, the end).
     on_output : callable, optional
@@ -193,13 +206,16 @@ class LiveRun:
     ------
     ValueError
         A camera of the recording without a stream in ``settings.cameras``, or a stream for a camera the
-        recording does not calibrate; the system's own refusals (:class:`~planefuse.pipeline.SystemRun`).
+        recording does not calibrate; ``clock: presentation`` with a stream that has no shared clock; the folder
+        refused (another run's results, files planefuse did not write, another run writing there); the system's
+        own refusals (:class:`~planefuse.pipeline.SystemRun`).
     """
 
     def __init__(self, rec: Recording, params: SystemParams, settings: LiveSettings, *,
                  out_dir: str | Path | None = None, jsonl: str | Path | None = None,
                  on_event: Callable[[str], None] | None = None,
-                 on_output: Callable[[TrackerOutput, float], None] | None = None) -> None:
+                 on_output: Callable[[TrackerOutput, float], None] | None = None, resume: bool = True,
+                 force: bool = False, config_key: str = "") -> None:
         names = [c.name for c in rec.cameras]
         if not names:
             raise ValueError("the recording calibrates no camera: a live run needs cameras")
@@ -212,6 +228,12 @@ class LiveRun:
                              + (f"streams given for unknown cameras {unknown}" if unknown else ""))
         if not params.cameras:
             raise ValueError("sensors.cameras.enabled is false: a live run fuses the cameras")
+        if settings.clock == "presentation":
+            unclocked = [n for n in names if source_kind(settings.cameras[n]) not in PRESENTATION_KINDS]
+            if unclocked:
+                raise ValueError(f"clock: presentation: cameras {unclocked} give no time stamps on a clock the cameras "
+                                 "share (RTSP through OpenCV: RTP times from each connection's first frame; a "
+                                 "device: none); use clock: arrival")
         self.start_s = time.monotonic()
         self.events: deque[str] = _kept()
         self._on_event = on_event
@@ -236,8 +258,19 @@ class LiveRun:
             self.sources.append(src)
         self.sync.finished = lambda: not any(s.running for s in self.sources)
         self.system = SystemRun(rec, params, self.stack, camera_frames=self._frames())
+        self.resumed_at_step = 0
         self.tolerance_s = self.system.tracker.params.merge_tolerance_s
-        self.outputs = LiveOutputs(out_dir, jsonl, person_radius_m=params.tracking.cluster.person_radius_m)
+        self.folder = None if out_dir is None else LiveFolder(out_dir, live_key(rec, params, settings.clock, config_key),
+                                                               resume=resume, force=force, protected=rec.root)
+        try:
+            if self.folder is not None and self.folder.resumed:
+                self._resume()
+            self.outputs = LiveOutputs(out_dir, jsonl, person_radius_m=params.tracking.cluster.person_radius_m,
+                                       append=self.folder is not None and self.folder.resumed)
+        except BaseException:
+            if self.folder is not None:
+                self.folder.close()
+            raise
         self.on_output = on_output
         self.page = LivePage(settings.host, settings.port) if settings.serve else None
         self.summary = LiveSummary(events=self.events)
@@ -253,8 +286,25 @@ class LiveRun:
         self._lock = threading.Lock()
 
     def clock(self) -> float:
-        """The run's clock [s]: ``time.monotonic()`` since the run was made."""
+        """The run's clock [s]: ``time.monotonic()`` since the run was made (a resumed run's goes on from the previous
+        session's, :class:`~planefuse.live.LiveFolder`)."""
         return time.monotonic() - self.start_s
+
+    def _resume(self) -> None:
+        """Continue the folder's previous session: its tracker's state restored (steps and identities moved on past
+        every row written), the clock going on from its own (the time between the sessions unobserved: the first
+        instant's prediction spans it), frames stamped before its last output refused."""
+        folder, tracker = self.folder, self.system.tracker
+        tracker.load_state_dict(folder.tracker_state(tracker.state_dict()))
+        self.resumed_at_step = tracker.n_outputs
+        self.start_s -= folder.clock_s
+        last = [t for t in (tracker.bof.time_s, tracker.tracker.time_s) if t is not None]
+        if last:
+            self.sync.after_s = max(last)
+        self.announce(f"resuming {folder.out_dir} at step {folder.next_step} (track identities from "
+                      f"{tracker.tracker.state_dict()['next_id']}; run clock {folder.clock_s:.1f} s, the time since the "
+                      "previous session unobserved)" + ("" if folder.checkpoint is not None else
+                                                         "; no checkpoint: filter and tracks start afresh"))
 
     def announce(self, message: str) -> None:
         """Record ``message`` and pass it to ``on_event``."""
@@ -350,12 +400,17 @@ class LiveRun:
                 for out in self.system.tracker.flush():
                     self._emit(step, out)
                     step += 1
+                if self.folder is not None:  # what the next session continues from
+                    self.folder.save_checkpoint(self.system.tracker.state_dict(), self.system.n_outputs, self.clock(),
+                                                "interrupted" if self.summary.interrupted else "ended")
             finally:
                 now = self.clock()
                 self.summary.health = [s.health.as_dict(now) for s in self.sources]
                 self.announce(f"ended: {self.summary.outputs} output steps from {self.summary.instants} instants; "
                               + ", ".join(f"{h['name']} dropped {h['dropped']}" for h in self.summary.health))
-                self.outputs.close(self.summary.as_dict())
+                self.outputs.close({**self.summary.as_dict(), "resumed_at_step": self.resumed_at_step})
+                if self.folder is not None:
+                    self.folder.close()
                 self._publish_final()
         return self.summary
 
@@ -383,9 +438,12 @@ class LiveRun:
         return took
 
     def close(self) -> None:
-        """Stop the live page (it keeps showing the last state after :meth:`run` until then)."""
+        """Stop the live page (it keeps showing the last state after :meth:`run` until then); release the output
+        folder where :meth:`run` did not."""
         if self.page is not None:
             self.page.stop()
+        if self.folder is not None:
+            self.folder.close()
 
     def _warming(self, inst: LiveInstant) -> None:
         if self._warm:
@@ -414,6 +472,9 @@ class LiveRun:
         if not s.rss_mib or now - s.rss_mib[-1][0] >= 1.0:
             s.rss_mib.append((round(now, 3), round(_rss_mib(), 2)))
         self.outputs.write(step, out, latency)
+        if self.folder is not None and (step + 1) % self.settings.checkpoint_steps == 0:
+            # the tracker's state is complete while an output is handled
+            self.folder.save_checkpoint(self.system.tracker.state_dict(), step + 1, now)
         if self.on_output is not None:
             self.on_output(out, latency)
         self._update_trails(out)

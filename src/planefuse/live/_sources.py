@@ -14,6 +14,7 @@ Every transition is reported (:attr:`LiveSource.on_event`) and counted (:class:`
 from __future__ import annotations
 
 import http.client
+import sys
 import threading
 import time
 from collections import deque
@@ -25,7 +26,8 @@ from urllib.parse import urlsplit
 import cv2
 import numpy as np
 
-__all__ = ["CameraSource", "LiveSource", "SourceHealth", "camera_reader", "mjpeg_frames", "SOURCE_STATES"]
+__all__ = ["CameraSource", "LiveSource", "SourceHealth", "camera_reader", "device_path", "mjpeg_frames",
+           "source_kind", "PRESENTATION_KINDS", "SOURCE_KINDS", "SOURCE_STATES"]
 
 #: A source's states: opening its stream, delivering, waiting to retry after a failure (no frame for ``stall_s``,
 #: closed, refused), finished (a file's end), stopped with an error (not retried), stopped by the run.
@@ -278,15 +280,57 @@ def mjpeg_frames(url: str, timeout_s: float) -> Iterator[tuple[bytes, float | No
         conn.close()
 
 
+#: What a camera's stream is (:func:`source_kind`): an HTTP(S) MJPEG stream, a video file played at its own rate, a
+#: local device, or another URL opened by OpenCV's FFmpeg (RTSP).
+SOURCE_KINDS = ("mjpeg", "file", "device", "ffmpeg")
+
+#: The kinds whose frames carry a presentation time on a clock the cameras can share (``clock: presentation``):
+#: MJPEG's ``X-Timestamp`` (the server's clock) and a file's own times (a recording played back). OpenCV gives an
+#: RTSP stream's RTP times counted from each connection's first frame, whatever the stream's RTP origin
+#: (tests/test_live_rtsp.py), and a device's frames none.
+PRESENTATION_KINDS = ("mjpeg", "file")
+
+
+def source_kind(source: str | int) -> str:
+    """One of :data:`SOURCE_KINDS`: ``http(s)://`` is MJPEG; an int or ``/dev/video...`` a local device; a path or
+    ``file://`` URL a video file; any other URL (``rtsp://``, ``rtmp://``, ...) goes to OpenCV's FFmpeg."""
+    if isinstance(source, int):
+        return "device"
+    if source.startswith(("http://", "https://")):
+        return "mjpeg"
+    if source.startswith("/dev/video"):
+        return "device"
+    if source.startswith("file://") or "://" not in source:
+        return "file"
+    return "ffmpeg"
+
+
+def device_path(source: str | int) -> Path | None:
+    """The device node of a local device source on Linux (``/dev/videoN`` for index N; the path itself), None
+    elsewhere (an index is then OpenCV's to resolve)."""
+    if isinstance(source, str):
+        return Path(source)
+    return Path(f"/dev/video{int(source)}") if sys.platform.startswith("linux") else None
+
+
 def camera_reader(source: str | int, timeout_s: float) -> Callable[[], Iterator[tuple[np.ndarray, float | None]]]:
     """A function that opens ``source`` and iterates its frames ``(image (H, W, 3) uint8 BGR, presentation_s)``.
 
-    ``source``: ``http(s)://`` an MJPEG stream (:func:`mjpeg_frames`, presentation time from ``X-Timestamp``);
-    ``rtsp://`` (or any other URL OpenCV's FFmpeg opens) through ``cv2.VideoCapture`` (presentation time
-    ``CAP_PROP_POS_MSEC``); an int or ``/dev/videoN``: a local device (no presentation time); a path or
-    ``file://`` URL: a video file played at its own rate (its frames' times; ends at its end).
+    By :func:`source_kind`: ``http(s)://`` an MJPEG stream (:func:`mjpeg_frames`, presentation time from
+    ``X-Timestamp``); a path or ``file://`` URL: a video file played at its own rate (its frames' times; ends at its
+    end); an int or ``/dev/videoN``: a local device; ``rtsp://`` (or any other URL OpenCV's FFmpeg opens) through
+    ``cv2.VideoCapture(url, CAP_FFMPEG)`` with open and read time-outs of ``timeout_s`` [s]. Devices and FFmpeg
+    URLs give no presentation time (None; :data:`PRESENTATION_KINDS`).
+
+    RTSP: OpenCV asks FFmpeg for RTP over the RTSP connection first (``rtsp_flags=prefer_tcp``) and falls back to
+    UDP where the camera refuses; setting the environment variable ``OPENCV_FFMPEG_CAPTURE_OPTIONS`` (for any
+    option) replaces that default with FFmpeg's (UDP first), unless it says ``rtsp_transport;tcp``.
+
+    A device whose node does not exist when it is first opened raises ``ValueError`` (not retried: a wrong name);
+    one that disappears later (unplugged) is retried as a stream that failed.
     """
-    if isinstance(source, str) and source.startswith(("http://", "https://")):
+    kind = source_kind(source)
+    if kind == "mjpeg":
         def read_mjpeg():
             for data, pts in mjpeg_frames(source, timeout_s):
                 img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
@@ -294,8 +338,7 @@ def camera_reader(source: str | int, timeout_s: float) -> Callable[[], Iterator[
                     raise ConnectionError("an MJPEG part is not a decodable JPEG")
                 yield img, pts
         return read_mjpeg
-    if isinstance(source, str) and (source.startswith("file://") or "://" not in source) \
-            and not source.startswith("/dev/video"):
+    if kind == "file":
         path = Path(source[len("file://"):] if source.startswith("file://") else source)
 
         def read_file():
@@ -319,23 +362,29 @@ def camera_reader(source: str | int, timeout_s: float) -> Callable[[], Iterator[
                 cap.release()
         return read_file
 
+    opened = []  # whether the source was ever opened (a device missing from the start is a wrong name)
+
     def read_capture():
-        if isinstance(source, int) or (isinstance(source, str) and source.startswith("/dev/video")):
+        if kind == "device":
+            node = device_path(source)
+            if node is not None and not node.exists():
+                if not opened:
+                    raise ValueError(f"device {source!r}: {node} does not exist (no such camera on this machine)")
+                raise ConnectionError(f"device {node} is gone")
             cap = cv2.VideoCapture(source)
-            device = True
         else:
             ms = int(timeout_s * 1e3)
             cap = cv2.VideoCapture(source, cv2.CAP_FFMPEG,
                                    [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms])
-            device = False
         try:
             if not cap.isOpened():
                 raise ConnectionError(f"OpenCV cannot open {source!r}")
+            opened.append(True)
             while True:
                 ok, img = cap.read()
                 if not ok or img is None:
                     raise ConnectionError("no frame (stream ended or timed out)")
-                yield img, None if device else float(cap.get(cv2.CAP_PROP_POS_MSEC)) / 1e3
+                yield img, None
         finally:
             cap.release()
     return read_capture
@@ -359,9 +408,7 @@ class CameraSource(LiveSource):
 
     def __init__(self, name: str, source: str | int, width_px: int, height_px: int, sink: Callable,
                  clock: Callable[[], float], **kwargs) -> None:
-        is_file = isinstance(source, str) and (source.startswith("file://") or "://" not in source) \
-            and not source.startswith("/dev/video")
-        kwargs.setdefault("retry", not is_file)
+        kwargs.setdefault("retry", source_kind(source) != "file")
         super().__init__(name, sink, clock, **kwargs)
         self.source, self.width_px, self.height_px = source, int(width_px), int(height_px)
         self._reader = camera_reader(source, self.stall_s)

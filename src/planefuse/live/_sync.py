@@ -121,6 +121,8 @@ class FrameSynchroniser:
         self._seq = [0] * n
         self._last_stamp = [-math.inf] * n
         self._emitted_slot = -1
+        #: frames stamped at or before this [s] are refused (a resumed run: its previous session's last instant)
+        self.after_s = -math.inf
         self._cond = threading.Condition()
         self._closed = False
         self.finished: Callable[[], bool] = lambda: False
@@ -139,8 +141,11 @@ class FrameSynchroniser:
         Raises
         ------
         ValueError
-            Stamps that do not increase (the stream's presentation times went back).
+            Stamps that do not increase (the stream's presentation times went back), or not after :attr:`after_s`.
         """
+        if not stamp_s > self.after_s:
+            raise ValueError(f"camera {self.names[camera]!r}: frame stamped {stamp_s!r} s, not after {self.after_s!r} s "
+                             "where the resumed run's previous session ended (its time stamps must go on)")
         with self._cond:
             seq = self._seq[camera]
             self._seq[camera] += 1

@@ -116,3 +116,34 @@ def test_registered_boxes_change_the_occupancy_only_through_their_bumps(recordin
     za, zb = (zarr.open_group(tmp_path / d / "occupancy.zarr", mode="r")["occupancy"][:] for d in ("on", "off"))
     assert not np.array_equal(za, zb)
     assert (za >= zb - 1e-6).mean() > 0.99  # the bumps only add evidence for a person
+
+
+@pytest.mark.parametrize("engine", ["opencv", "onnxruntime"])
+def test_check_prints_the_models_checksum_engine_and_cost(recording_dir, model, tmp_path, engine):
+    """`planefuse check` with a person model: its SHA-256 (hashlib's, of the file), the engine that runs it and its
+    measured cost per frame, in the info lines."""
+    import hashlib
+
+    import yaml
+    from typer.testing import CliRunner
+
+    from planefuse.cli._app import app
+    from planefuse.config import example_yaml
+
+    if engine == "onnxruntime":
+        pytest.importorskip("onnxruntime", reason="onnxruntime (the dev extra) is not installed")
+    cfg = yaml.safe_load(example_yaml(str(recording_dir)))
+    cfg.setdefault("sensors", {}).setdefault("cameras", {}).update(
+        person_detector="yolox", person_model=model, person_engine=engine, person_input_px=[SIDE, SIDE])
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    res = CliRunner().invoke(app, ["check", str(path), "--log-json"])
+    assert res.exit_code == 0, res.output
+    found = [i["message"] for i in json.loads(res.output)["issues"] if i["subject"] == "sensors.cameras.person_model"]
+    digest = hashlib.sha256(open(model, "rb").read()).hexdigest()
+    assert len(found) == 1 and found[0].startswith(f"{model}: sha256 {digest}, 1 classes, run by {engine}, ")
+    assert f" ms per frame on one core at {SIDE} x {SIDE} px" in found[0]
+    # the table folds the long path and checksum over lines instead of cutting them
+    res = CliRunner().invoke(app, ["check", str(path)])
+    assert res.exit_code == 0 and "…" not in res.output
+    assert digest in "".join(ch for ch in res.output if ch.isalnum())

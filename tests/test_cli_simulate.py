@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 
 import numpy as np
@@ -72,4 +73,7 @@ def test_planefuse_check_reads_a_simulated_recording(default_out, tmp_path):
     # A stream the configuration needs disappears: check names it.
     (tmp_path / "scene/imu/cam2_imu.csv").unlink()
     res = runner.invoke(app, ["check", str(cfg)], terminal_width=200)
-    assert res.exit_code == 1 and "missing stream of imu 'cam2_imu'" in " ".join(res.output.split())
+    assert res.exit_code == 1 and "1 error(s)" in res.output
+    res = runner.invoke(app, ["check", str(cfg), "--log-json"])
+    issues = json.loads(res.output)["issues"]
+    assert res.exit_code == 1 and any("missing stream of imu 'cam2_imu'" in i["message"] for i in issues)

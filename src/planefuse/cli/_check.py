@@ -68,8 +68,9 @@ def check(
         print(_report_json(report))
     else:
         table = Table(title=escape(f"planefuse check {config}"))
-        for col in ("level", "subject", "finding"):
-            table.add_column(col, overflow="fold")  # a long path or checksum wraps, never cut
+        table.add_column("level")
+        table.add_column("subject")
+        table.add_column("finding", overflow="fold")  # a long path or checksum wraps, never cut
         style = {"error": "bold red", "warning": "yellow", "info": "green"}
         for it in report.issues:
             table.add_row(f"[{style[it.level]}]{it.level}[/]", escape(it.subject), escape(it.message))

@@ -326,6 +326,23 @@ def test_auto_is_onnxruntime_where_installed_else_opencv(monkeypatch):
         ForegroundParams(person_detector="yolox", person_model="m.onnx", person_engine="tensorrt")
 
 
+def test_config_refuses_onnxruntime_where_it_is_not_installed_at_its_field(tmp_path, monkeypatch):
+    from planefuse.config import ConfigError, load_config
+    import planefuse.vision._yolox as yolox
+
+    real = yolox.importlib.util.find_spec
+    monkeypatch.setattr(yolox.importlib.util, "find_spec", lambda m, *a: None if m == "onnxruntime" else real(m, *a))
+    constant_model(tmp_path / "yolox.onnx", raw_rows())
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text("recording: rec\nsensors:\n  cameras:\n    person_detector: yolox\n    person_model: yolox.onnx\n"
+                   "    person_engine: onnxruntime\n    person_input_px: [64, 64]\n")
+    with pytest.raises(ConfigError, match=r"run\.yaml:6: sensors\.cameras\.person_engine: person engine 'onnxruntime' "
+                                          r"needs the onnxruntime package: pip install 'planefuse\[onnxruntime\]'"):
+        load_config(cfg)
+    cfg.write_text(cfg.read_text().replace("onnxruntime\n", "auto\n"))
+    assert load_config(cfg).sensors.cameras.person_engine == "auto"  # auto falls back to OpenCV
+
+
 def _one_box_model(tmp_path) -> str:
     rows = raw_rows()
     # centre (28, 28), 16 x 32 canvas px; frames of 64 x 64 px are not resized

@@ -214,6 +214,14 @@ def load_config(path: Path | str, *, resolve_paths: bool = True) -> RunConfig:
                                                  _line_of(root, loc))])
     cameras = cfg.sensors.cameras
     if cameras.enabled and cameras.person_detector == "yolox":
+        from ..vision import resolve_engine
+
+        try:  # an engine that is not installed: said at its own field
+            resolve_engine(cameras.person_engine)
+        except ValueError as err:
+            loc = ("sensors", "cameras", "person_engine")
+            raise ConfigError(path, [ConfigIssue(".".join(loc), str(err), _expected(_field_info(loc)),
+                                                 _line_of(root, loc))]) from None
         loc = ("sensors", "cameras", "person_model")
         problem = _person_model_problem(cameras.person_model, cameras.person_input_px or (416, 416),
                                         cameras.person_engine)

@@ -16,7 +16,7 @@ from planefuse.outputs import OutputSettings, OutputWriter, read_table
 from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
 from planefuse.sim import default_scene_config, simulate
 
-from test_vision_yolox import SIDE, constant_model, raw_rows, set_row
+from test_vision_yolox import SIDE, constant_model, pooled_model, raw_rows, set_row
 
 pytest.importorskip("onnx", reason="the onnx package (dev extra) builds the test model")
 
@@ -142,8 +142,32 @@ def test_check_prints_the_models_checksum_engine_and_cost(recording_dir, model, 
     found = [i["message"] for i in json.loads(res.output)["issues"] if i["subject"] == "sensors.cameras.person_model"]
     digest = hashlib.sha256(open(model, "rb").read()).hexdigest()
     assert len(found) == 1 and found[0].startswith(f"{model}: sha256 {digest}, 1 classes, run by {engine}, ")
-    assert f" ms per frame on one core at {SIDE} x {SIDE} px" in found[0]
+    w, h = (read_recording(recording_dir).cameras[0].intrinsics.width_px,
+            read_recording(recording_dir).cameras[0].intrinsics.height_px)
+    assert found[0].endswith(f" ms per {w} x {h} frame at a {SIDE} x {SIDE} px canvas")
     # the table folds the long path and checksum over lines instead of cutting them
     res = CliRunner().invoke(app, ["check", str(path)])
     assert res.exit_code == 0 and "…" not in res.output
     assert digest in "".join(ch for ch in res.output if ch.isalnum())
+
+
+def test_check_measures_the_cost_at_the_canvas_fitted_to_the_cameras(recording_dir, tmp_path):
+    """person_input_px null: check times the model at the canvas the run will fit to the recording's frames."""
+    import yaml
+    from typer.testing import CliRunner
+
+    from planefuse.cli._app import app
+    from planefuse.config import example_yaml
+    from planefuse.vision import fitted_input_size
+
+    cfg = yaml.safe_load(example_yaml(str(recording_dir)))
+    cfg.setdefault("sensors", {}).setdefault("cameras", {}).update(
+        person_detector="yolox", person_model=pooled_model(tmp_path / "any_size.onnx"), person_engine="opencv")
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    res = CliRunner().invoke(app, ["check", str(path), "--log-json"])
+    assert res.exit_code == 0, res.output
+    found = [i["message"] for i in json.loads(res.output)["issues"] if i["subject"] == "sensors.cameras.person_model"]
+    cam = read_recording(recording_dir).cameras[0].intrinsics
+    cw, ch = fitted_input_size((cam.width_px, cam.height_px))
+    assert found[0].endswith(f" ms per {cam.width_px} x {cam.height_px} frame at a {cw} x {ch} px canvas")

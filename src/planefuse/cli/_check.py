@@ -51,7 +51,7 @@ def check(
     report, rec = check_run_config(cfg)
     for message in chosen:
         report.add("info", "configuration", message)
-    _check_person_model(cfg, report)
+    _check_person_model(cfg, report, rec)
     if figures is not None and rec is not None and cfg.sensors.cameras.enabled and rec.camera_streams:
         from ..pipeline import stack_for_recording
 
@@ -80,30 +80,35 @@ def check(
     raise typer.Exit(0 if report.ok else 1)
 
 
-def _check_person_model(cfg: RunConfig, report: CheckReport) -> None:
-    """The person detector's model (loaded and checked by :func:`load_config` already): its checksum and its cost
-    per frame on one core, measured here."""
+def _check_person_model(cfg: RunConfig, report: CheckReport, rec=None) -> None:
+    """The person detector's model (loaded and checked by :func:`load_config` already): its checksum, its engine and
+    its cost per frame on one core, measured here at the canvas each of ``rec``'s cameras will use (the configured
+    one, or the one fitted to its frames; 416 x 416 without a recording)."""
     cams = cfg.sensors.cameras
     if not cams.enabled or cams.person_detector != "yolox":
         return
     import cv2
 
-    from ..vision import YoloxDetector
+    from ..vision import YoloxDetector, fitted_input_size
 
+    frame_sizes = sorted({(c.intrinsics.width_px, c.intrinsics.height_px) for c in rec.cameras}) if rec else []
+    canvases = {}  # canvas -> a frame size that uses it
+    for wh in frame_sizes or [(416, 416)]:
+        canvases.setdefault(tuple(cams.person_input_px or fitted_input_size(wh)), wh)
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)
     try:
-        wh = tuple(cams.person_input_px or (416, 416))
-        det = YoloxDetector(cams.person_model, wh, engine=cams.person_engine, threads=1)
-        ms = det.cost_ms(wh)
+        costs = []
+        for canvas, frame_wh in canvases.items():
+            det = YoloxDetector(cams.person_model, canvas, engine=cams.person_engine, threads=1)
+            costs.append(f"{det.cost_ms(frame_wh):.1f} ms per {frame_wh[0]} x {frame_wh[1]} frame at a {canvas[0]} x "
+                         f"{canvas[1]} px canvas")
     finally:
         cv2.setNumThreads(threads)
     info = det.info
     report.add("info", "sensors.cameras.person_model",
-               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, run by {info.engine}, {ms:.1f} ms per "
-               f"frame on one core at "
-               f"{wh[0]} x {wh[1]} px (measured now; person_input_px null fits each camera's frames: their own size, "
-               "or a longer side of 416 px)")
+               f"{info.path}: sha256 {info.sha256}, {info.n_classes} classes, run by {info.engine}, on one core "
+               f"(measured now): {'; '.join(costs)}")
 
 
 def _write_figures(rec, stack, folder: Path, frame: int, report: CheckReport) -> None:

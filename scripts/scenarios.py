@@ -111,8 +111,10 @@ def _tracker_variants(sweep: str | None) -> dict:
     return out
 
 
-def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[dict]:
-    """Run the system once for ``case`` and score every tracker on its clusters (runs on a dask worker)."""
+def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: bool = False) -> list[dict]:
+    """Run the system once for ``case`` and score every tracker on its clusters (runs on a dask worker); with
+    ``stitch``, every tracker with appearance also after the offline stitching (``planefuse.tracking.StitchParams``'s
+    defaults, as ``models.detection.stitch`` runs it), as a row ``<tracker>+stitching``."""
     from planefuse.eval import system_metrics
     from planefuse.pipeline import run_system
     from planefuse.sim import scenario_config, simulate
@@ -168,13 +170,21 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
                 k += 1
             tracks.append(tracker.step(o.clusters))
         tracker_ms = 1e3 * (time.perf_counter() - t0) / max(len(outs), 1)
-        m = system_metrics(rec, times, dets, [(t.time_s, t.ids, t.xy_m) for t in tracks], result.report,
-                           result.elapsed_s, params.match_distance_m)
-        rows.append({"scenario": case.scenario, "seed": case.seed,
-                     "split": "tuning" if case.seed in TUNING_SEEDS else "held-out",
-                     "filter": "BOF" if case.use_filter else "none", "modalities": case.modalities,
-                     "tracker": name, **{k: m[k] for k in KEYS}, "run_cpu_s": run_cpu_s,
-                     "tracker_ms_per_step": tracker_ms, "duration_s": case.duration_s})
+        variants = [(name, [(t.time_s, t.ids, t.xy_m) for t in tracks])]
+        if stitch and observer is not None:
+            from planefuse.tracking import StitchParams, fill_gaps, relabel_tracks, stitch_identities
+
+            sp = StitchParams(enabled=True)
+            stitched = relabel_tracks(tracks, stitch_identities(tracks, tracker.appearance_by_id, sp))
+            variants.append((f"{name}+stitching", stitched if sp.max_fill_gap_s is None
+                             else fill_gaps(stitched, sp.max_fill_gap_s)))
+        for label, frames_ in variants:
+            m = system_metrics(rec, times, dets, frames_, result.report, result.elapsed_s, params.match_distance_m)
+            rows.append({"scenario": case.scenario, "seed": case.seed,
+                         "split": "tuning" if case.seed in TUNING_SEEDS else "held-out",
+                         "filter": "BOF" if case.use_filter else "none", "modalities": case.modalities,
+                         "tracker": label, **{k: m[k] for k in KEYS}, "run_cpu_s": run_cpu_s,
+                         "tracker_ms_per_step": tracker_ms, "duration_s": case.duration_s})
     return rows
 
 
@@ -254,6 +264,9 @@ def main() -> None:
                          "noise (default: position and acceleration noise, gate) or births (birth exclusion, "
                          "coasting tracks reported), appearance (the tracks' appearance: weight, re-identification) "
                          "or with-appearance (the Kalman tracker without and with the recommended appearance)")
+    ap.add_argument("--stitch", action="store_true",
+                    help="also score every tracker with appearance after the offline stitching (a row "
+                         "<tracker>+stitching; docs/identities.md)")
     ap.add_argument("--from-csv", type=Path, default=None, help="re-summarise the rows of an earlier run")
     ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
     ap.add_argument("--n-workers", type=int, default=2)
@@ -292,7 +305,8 @@ def main() -> None:
     rows: list[dict] = []
     with batch_client(args.scheduler, None if args.scheduler else args.n_workers) as client, \
             open(args.out / f"{_stem(args)}.csv", "w", newline="") as f:
-        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, pure=False)
+        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, stitch=args.stitch,
+                             pure=False)
         writer = None
         for done, (future, case_rows) in enumerate(as_completed(futures, with_results=True), 1):
             if writer is None:  # rows are written as runs finish: an interrupted evaluation keeps them

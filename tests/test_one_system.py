@@ -173,6 +173,7 @@ CHANGED = {
     "models.detection.reid_max_appearance_distance": 0.2,
     "models.detection.stitch": True,
     "models.detection.stitch_max_gap_s": 3.0,
+    "models.detection.stitch_fill_gap_s": 2.0,
     "models.detection.match_distance_m": 1.0,
     "outputs.zarr": False,
     "outputs.chunk_steps": 7,

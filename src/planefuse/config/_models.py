@@ -622,6 +622,11 @@ class DetectionModelConfig(_Model):
         description="Longest gap between a tracklet's end and the start of the one that continues it (stitching)",
         unit="s", expected="> 0", library="system.stitch.max_gap_s",
     )
+    stitch_fill_gap_s: float | None = _field(
+        description="After the stitching, place each identity on the steps of a gap of at most this long between "
+        "two of its reports, on the straight line between them (offline); null = no filling",
+        unit="s", expected="null or > 0", library="system.stitch.max_fill_gap_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

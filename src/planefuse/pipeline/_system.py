@@ -16,7 +16,8 @@ from ..grid import PlaneStack, cells_filled_by_occluders, check_occluder_boxes
 from ..io import Recording
 from ..laser import LaserSensorModel
 from ..tracking import (AppearanceObserver, AppearanceParams, EvidenceTracker, StitchParams, TrackerOutput,
-                        TrackingParams, relabel_tracks, stitch_identities)
+                        TrackingParams, fill_track_gaps, relabel_tracks,
+                        stitch_identities)
 from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
@@ -691,7 +692,10 @@ def run_system(
     if params.stitch.enabled:  # the offline pass: the outputs' track identities joined across gaps
         result.stitched = run.stitch([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs])
         frames = relabel_tracks([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs], result.stitched)
-        result.outputs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outputs, frames)]
+        tracks = [replace(o.tracks, ids=ids) for o, (_, ids, _) in zip(outputs, frames)]
+        if params.stitch.max_fill_gap_s is not None:  # the gaps within one identity: the person was there, unseen
+            tracks = fill_track_gaps(tracks, params.stitch.max_fill_gap_s)
+        result.outputs = [replace(o, tracks=tr) for o, tr in zip(outputs, tracks)]
     return result
 
 

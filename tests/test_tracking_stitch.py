@@ -1,0 +1,134 @@
+"""Offline stitching: the tracklets' links chosen together (u-track's assignment with a new person's cost), their
+cost as documented, and the gaps within one identity filled on the straight line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planefuse.tracking import (StitchParams, TrackAppearance, Tracks, fill_gaps, fill_track_gaps, link_costs,
+                                relabel_tracks, stitch_identities)
+
+
+def _app(weights) -> TrackAppearance:
+    """A one-camera model whose two body parts have the histogram ``weights`` (4 bins, normalised here)."""
+    h = np.asarray(weights, float)
+    return TrackAppearance(np.tile(h / h.sum(), (1, 2, 1)), np.ones(1))
+
+
+def _two_ends_two_starts():
+    """Tracklets 1 and 2 end at t = 1 s at x = 0 and x = 3 m; 3 starts at x = 1.2 m and 4 at x = -1.4 m at t = 2 s,
+    all in one colour. 3 is the nearest start to 1's end, but 4 is reachable from 1 alone and 3 from both."""
+    return [(0.0, [1, 2], [[0.0, 0.0], [3.0, 0.0]]), (1.0, [1, 2], [[0.0, 0.0], [3.0, 0.0]]),
+            (2.0, [3, 4], [[1.2, 0.0], [-1.4, 0.0]]), (3.0, [3, 4], [[1.2, 0.0], [-1.4, 0.0]])]
+
+
+def test_links_chosen_together_where_the_cheapest_link_first_is_wrong():
+    frames = _two_ends_two_starts()
+    app = {i: _app([1, 0, 0, 0]) for i in (1, 2, 3, 4)}
+    ids, cost = link_costs(frames, app)
+    # reach 1 m + 1.5 m/s x 1 s = 2.5 m: 1 -> 3 (1.2 m) and 1 -> 4 (1.4 m), 2 -> 3 (1.8 m); 2 -> 4 (4.4 m) too far
+    assert ids == [1, 2, 3, 4]
+    assert np.isfinite(cost[0, 2]) and np.isfinite(cost[0, 3]) and np.isfinite(cost[1, 2])
+    assert np.isinf(cost[1, 3])
+    # taking the cheapest link first (1 -> 3) leaves 2 and 4 unlinked; together both people are continued
+    assert cost[0, 2] < cost[0, 3] and cost[0, 2] < cost[1, 2]
+    assert stitch_identities(frames, app) == {4: 1, 3: 2}
+
+
+def test_a_link_costs_as_documented():
+    # c = w (d - d0) + (r / R)^2 + gap / max_gap: d = 0.25 (Hellinger of two 4-bin histograms), r = 1.2 m, R = 2.5 m
+    frames = _two_ends_two_starts()
+    p, q = np.array([0.5, 0.5, 0, 0]), np.array([0.5, 0.25, 0.25, 0])
+    app = {1: _app(p), 2: _app(p), 3: _app(q), 4: _app(p)}
+    d = np.sqrt(1 - np.sum(np.sqrt(p * q)))
+    params = StitchParams(appearance_weight=10.0, appearance_reference_distance=0.2, max_gap_s=4.0)
+    _, cost = link_costs(frames, app, params)
+    assert cost[0, 2] == pytest.approx(10.0 * (d - 0.2) + (1.2 / 2.5) ** 2 + 1.0 / 4.0)
+
+
+def test_a_link_is_taken_only_where_cheaper_than_a_new_person():
+    # one end, one start, colours 0.38 apart (within the 0.4 gate): a link costing c is taken iff c < new_person_cost
+    frames = [(0.0, [1], [[0.0, 0.0]]), (1.0, [1], [[0.0, 0.0]]), (2.0, [2], [[0.5, 0.0]])]
+    p, q = np.array([1.0, 0, 0, 0]), np.array([0.0, 1, 0, 0])
+    w = 0.73  # Hellinger distance 0.38 between the mixtures
+    app = {1: _app(p), 2: _app(w * p + (1 - w) * q)}
+    _, cost = link_costs(frames, app)
+    c = float(cost[0, 1])
+    assert 0 < c < StitchParams().new_person_cost
+    assert stitch_identities(frames, app) == {2: 1}
+    assert stitch_identities(frames, app, StitchParams(new_person_cost=0.99 * c)) == {}
+    assert stitch_identities(frames, app, StitchParams(new_person_cost=1.01 * c)) == {2: 1}
+    # beyond the appearance gate: never, whatever a new person costs
+    assert stitch_identities(frames, app, StitchParams(max_appearance_distance=0.3, new_person_cost=1e9)) == {}
+
+
+def test_chains_take_the_first_identity_and_overlapping_tracklets_are_never_joined():
+    frames = [(0.0, [1, 9], [[0.0, 0.0], [5.0, 5.0]]), (1.0, [2, 9], [[0.5, 0.0], [5.0, 5.0]]),
+              (2.0, [3, 9], [[1.0, 0.0], [5.0, 5.0]])]
+    app = {i: _app([1, 0, 0, 0]) for i in (1, 2, 3, 9)}
+    mapping = stitch_identities(frames, app, StitchParams(max_gap_s=1.5))
+    assert mapping == {2: 1, 3: 1}
+    assert [ids.tolist() for _, ids, _ in relabel_tracks(frames, mapping)] == [[1, 9], [1, 9], [1, 9]]
+
+
+def test_bad_stitching_parameters_are_refused():
+    with pytest.raises(ValueError, match="new_person_cost"):
+        StitchParams(new_person_cost=-1.0)
+    with pytest.raises(ValueError, match="max_fill_gap_s"):
+        StitchParams(max_fill_gap_s=0.0)
+    with pytest.raises(ValueError, match="time order"):
+        stitch_identities([(1.0, [1], [[0.0, 0.0]]), (0.0, [2], [[0.0, 0.0]])])
+
+
+# -- gaps within one identity ----------------------------------------------------------------------------------------
+def test_fill_gaps_places_the_identity_on_the_straight_line_within_the_longest_gap():
+    frames = [(0.0, [1, 2], [[0.0, 0.0], [5.0, 5.0]]), (1.0, [2], [[5.0, 5.0]]), (2.0, [], np.zeros((0, 2))),
+              (3.0, [1, 2], [[3.0, 6.0], [5.0, 5.0]]), (9.0, [1], [[0.0, 0.0]]), (10.0, [], np.zeros((0, 2))),
+              (11.0, [1], [[0.0, 0.0]])]
+    out = fill_gaps(frames, max_gap_s=3.0)
+    assert [ids.tolist() for _, ids, _ in out] == [[1, 2], [2, 1], [1, 2], [1, 2], [1], [1], [1]]
+    np.testing.assert_allclose(out[1][2][1], [1.0, 2.0])
+    np.testing.assert_allclose(out[2][2], [[2.0, 4.0], [5.0, 5.0]])
+    # 2 is reported at 0 s and 1 s (no step between), the 3 -> 9 s gap is longer than 3 s: nothing there
+    assert fill_gaps(frames, max_gap_s=2.5)[1][1].tolist() == [2]
+    with pytest.raises(ValueError, match="twice"):
+        fill_gaps([(0.0, [1, 1], [[0.0, 0.0], [1.0, 1.0]])], 1.0)
+    with pytest.raises(ValueError, match="max_gap_s"):
+        fill_gaps(frames, 0.0)
+
+
+def test_fill_track_gaps_marks_the_added_entries_unseen():
+    def tracks(t, ids, xy):
+        n = len(ids)
+        return Tracks(t, np.array(ids, np.int64), np.array(xy, float).reshape(-1, 2), np.zeros((n, 2)),
+                      np.full(n, 1.7), np.ones(n), np.zeros(n, np.int64))
+
+    got = fill_track_gaps([tracks(0.0, [4], [[0.0, 0.0]]), tracks(0.5, [], []), tracks(1.0, [], []),
+                           tracks(1.5, [4], [[3.0, 0.0]])], max_gap_s=2.0)
+    mid = got[2]
+    assert mid.ids.tolist() == [4]
+    np.testing.assert_allclose(mid.xy_m, [[2.0, 0.0]])
+    np.testing.assert_allclose(mid.velocity_m_s, [[2.0, 0.0]])
+    assert np.isnan(mid.height_m[0]) and mid.confidence[0] == 0.0 and mid.misses.tolist() == [2]
+    assert got[0] is not None and got[0].height_m.tolist() == [1.7]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 3), st.floats(-5, 5), st.floats(-5, 5)), min_size=1, max_size=30),
+       st.floats(0.2, 6.0))
+def test_fill_gaps_keeps_every_report_and_adds_only_points_between_two_of_them(reports, max_gap_s):
+    # reports: (identity, x, y) at steps 0, 1, 2, ... (0.5 s apart), at most one identity per step here
+    frames = [(0.5 * k, [i], [[x, y]]) for k, (i, x, y) in enumerate(reports)]
+    out = fill_gaps(frames, max_gap_s)
+    for (t, ids, xy), (t2, ids2, xy2) in zip(frames, out):
+        assert t2 == t and ids2[:1].tolist() == ids and np.array_equal(xy2[:1], np.asarray(xy, float))
+        for i, q in zip(ids2[1:], xy2[1:]):
+            steps = [k for k, r in enumerate(reports) if r[0] == i]
+            k = int(round(t / 0.5))
+            k0, k1 = max(s for s in steps if s < k), min(s for s in steps if s > k)
+            assert 0.5 * (k1 - k0) <= max_gap_s + 1e-9
+            a, b = np.array(reports[k0][1:]), np.array(reports[k1][1:])
+            np.testing.assert_allclose(q, a + (b - a) * (k - k0) / (k1 - k0), atol=1e-9)

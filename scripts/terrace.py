@@ -114,10 +114,9 @@ _CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
 #: The tracks' appearance (docs/identities.md; chosen on frames 0-1499 and simulated seeds 1-3): in association and
 #: re-identification (online), then also the offline stitching of the tracklets.
 _APPEARANCE = {"models": {"detection": {"appearance_weight": 16.0, "reid_max_s": 5.0}}}
-#: The offline pass: the library's global tracklet association, and each identity's gaps up to 4 s filled on the
-#: straight line (chosen on frames 0-1499, cold starts at 0, 500, 1000 every 5th and at 0 every 10th: mean IDF1 /
-#: MOTA 0.884 / 0.773 against 0.874 / 0.760 without filling; planefuse.tracking.StitchParams).
-_STITCH = {"models": {"detection": {"stitch": True, "stitch_fill_gap_s": 4.0}}}
+#: The offline pass: the library's global tracklet association, then terrace.yaml's (the real-video profile's) gap
+#: filling and smoothing (docs/identities.md).
+_STITCH = {"models": {"detection": {"stitch": True}}}
 #: The person detector's rows: ``--person-model`` fills the model's path (``detector_rows``). "det": the tuned system
 #: with the detector at the library's settings (its boxes as evidence of free space, docs/cameras.md); "detonly": the
 #: detector alone, its boxes the generative model's silhouettes (no background subtraction; the person's cylinder

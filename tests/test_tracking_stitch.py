@@ -1,5 +1,5 @@
 """Offline stitching: the tracklets' links chosen together (u-track's assignment with a new person's cost), their
-cost as documented, and the gaps within one identity filled on the straight line."""
+cost as documented, the gaps within one identity filled on the straight line, and its positions smoothed in time."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planefuse.tracking import (StitchParams, TrackAppearance, Tracks, fill_gaps, fill_track_gaps, link_costs,
-                                relabel_tracks, stitch_identities)
+                                relabel_tracks, smooth_positions, smooth_track_positions, stitch_identities)
 
 
 def _app(weights) -> TrackAppearance:
@@ -132,3 +132,41 @@ def test_fill_gaps_keeps_every_report_and_adds_only_points_between_two_of_them(r
             assert 0.5 * (k1 - k0) <= max_gap_s + 1e-9
             a, b = np.array(reports[k0][1:]), np.array(reports[k1][1:])
             np.testing.assert_allclose(q, a + (b - a) * (k - k0) / (k1 - k0), atol=1e-9)
+
+
+# -- smoothing in time -----------------------------------------------------------------------------------------------
+def test_smoothing_is_the_gaussian_weighted_mean_of_the_identity_s_own_positions_within_three_sigma():
+    # identity 1 at t = 0, 1, 2, 5 s; identity 2 beside it (never mixed in); sigma 1 s: t = 5 is beyond 3 sigma of 0, 1
+    frames = [(0.0, [1, 2], [[0.0, 0.0], [9.0, 9.0]]), (1.0, [1, 2], [[1.0, 3.0], [-9.0, 9.0]]),
+              (2.0, [1], [[4.0, 0.0]]), (5.0, [1], [[7.0, 7.0]])]
+    out = smooth_positions(frames, sigma_s=1.0)
+    w = np.exp(-0.5 * np.array([1.0, 0.0, 1.0]))  # around t = 1: the points at 0, 1, 2 s
+    expected = (w[0] * np.array([0.0, 0.0]) + w[1] * np.array([1.0, 3.0]) + w[2] * np.array([4.0, 0.0])) / w.sum()
+    np.testing.assert_allclose(out[1][2][0], expected)
+    w5 = np.exp(-0.5 * np.array([9.0, 0.0]))  # around t = 5: t = 2 (3 sigma away) and itself
+    np.testing.assert_allclose(out[3][2][0], (w5[0] * np.array([4.0, 0.0]) + w5[1] * np.array([7.0, 7.0])) / w5.sum())
+    e = np.exp(-0.5)  # identity 2 at t = 0: its own two positions alone (9 and -9 in x), 1 s apart
+    np.testing.assert_allclose(out[0][2][1], [(9.0 - 9.0 * e) / (1.0 + e), 9.0])
+    assert [ids.tolist() for _, ids, _ in out] == [[1, 2], [1, 2], [1], [1]]
+    with pytest.raises(ValueError, match="sigma_s"):
+        smooth_positions(frames, 0.0)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(-3, 3), st.floats(-3, 3), st.floats(-2, 2), st.floats(-2, 2), st.floats(0.1, 1.0))
+def test_smoothing_leaves_a_walk_at_constant_speed_where_the_kernel_is_whole(x0, y0, vx, vy, sigma_s):
+    dt = 0.2
+    t = dt * np.arange(41)
+    frames = [(float(tk), [7], [[x0 + vx * tk, y0 + vy * tk]]) for tk in t]
+    out = smooth_positions(frames, sigma_s)
+    inner = (t >= t[0] + 3 * sigma_s + dt) & (t <= t[-1] - 3 * sigma_s - dt)
+    for k in np.flatnonzero(inner):
+        np.testing.assert_allclose(out[k][2][0], frames[k][2][0], atol=1e-9)
+
+
+def test_smooth_track_positions_changes_the_positions_alone():
+    tr = [Tracks(float(k), np.array([3], np.int64), np.array([[float(k % 2), 0.0]]), np.ones((1, 2)),
+                 np.array([1.8]), np.array([0.9]), np.array([0], np.int64)) for k in range(5)]
+    out = smooth_track_positions(tr, 1.0)
+    assert all(o.velocity_m_s.tolist() == [[1.0, 1.0]] and o.height_m.tolist() == [1.8] for o in out)
+    assert 0.0 < out[2].xy_m[0, 0] < 1.0

@@ -627,6 +627,11 @@ class DetectionModelConfig(_Model):
         "two of its reports, on the straight line between them (offline); null = no filling",
         unit="s", expected="null or > 0", library="system.stitch.max_fill_gap_s",
     )
+    stitch_smooth_s: float | None = _field(
+        description="After the stitching and filling, each identity's positions smoothed in time by a Gaussian of "
+        "this standard deviation (offline); null = as reported",
+        unit="s", expected="null or > 0", library="system.stitch.smooth_sigma_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

@@ -17,7 +17,7 @@ from ..io import Recording
 from ..laser import LaserSensorModel
 from ..tracking import (AppearanceObserver, AppearanceParams, EvidenceTracker, StitchParams, TrackerOutput,
                         TrackingParams, fill_track_gaps, relabel_tracks,
-                        stitch_identities)
+                        smooth_track_positions, stitch_identities)
 from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
@@ -695,6 +695,8 @@ def run_system(
         tracks = [replace(o.tracks, ids=ids) for o, (_, ids, _) in zip(outputs, frames)]
         if params.stitch.max_fill_gap_s is not None:  # the gaps within one identity: the person was there, unseen
             tracks = fill_track_gaps(tracks, params.stitch.max_fill_gap_s)
+        if params.stitch.smooth_sigma_s is not None:
+            tracks = smooth_track_positions(tracks, params.stitch.smooth_sigma_s)
         result.outputs = [replace(o, tracks=tr) for o, tr in zip(outputs, tracks)]
     return result
 

@@ -118,7 +118,8 @@ def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: 
     from planefuse.eval import system_metrics
     from planefuse.pipeline import run_system
     from planefuse.sim import scenario_config, simulate
-    from planefuse.tracking import MultiPersonTracker, velocity_correlation_time_s, velocity_prior_variance_m2_s2
+    from planefuse.tracking import (MultiPersonTracker, StitchParams, TrackViews, fill_gaps, stitch_tracks,
+                                    velocity_correlation_time_s, velocity_prior_variance_m2_s2)
 
     scene = scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s)
     rec = simulate(scene)
@@ -162,6 +163,8 @@ def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: 
                                           [rec.camera(c.name).ignore_mask for c in rec.cameras],
                                           occluder_boxes_m=params.occluder_boxes_m)
             tracker.observer = observer
+            if stitch and StitchParams().split_window_s is not None:
+                tracker.view_log = TrackViews()  # what the offline splitting reads
         t0 = time.perf_counter()
         tracks, k = [], 0
         for o in outs:
@@ -172,10 +175,8 @@ def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: 
         tracker_ms = 1e3 * (time.perf_counter() - t0) / max(len(outs), 1)
         variants = [(name, [(t.time_s, t.ids, t.xy_m) for t in tracks])]
         if stitch and observer is not None:
-            from planefuse.tracking import StitchParams, fill_gaps, relabel_tracks, stitch_identities
-
             sp = StitchParams(enabled=True)
-            stitched = relabel_tracks(tracks, stitch_identities(tracks, tracker.appearance_by_id, sp))
+            _, stitched = stitch_tracks(tracks, tracker.appearance_by_id, tracker.view_log, sp)
             variants.append((f"{name}+stitching", stitched if sp.max_fill_gap_s is None
                              else fill_gaps(stitched, sp.max_fill_gap_s)))
         for label, frames_ in variants:

@@ -175,6 +175,7 @@ CHANGED = {
     "models.detection.stitch_max_gap_s": 3.0,
     "models.detection.stitch_fill_gap_s": 2.0,
     "models.detection.stitch_smooth_s": 0.5,
+    "models.detection.stitch_split_s": 3.0,
     "models.detection.match_distance_m": 1.0,
     "outputs.zarr": False,
     "outputs.chunk_steps": 7,

@@ -1,5 +1,6 @@
 """Offline stitching: the tracklets' links chosen together (u-track's assignment with a new person's cost), their
-cost as documented, the gaps within one identity filled on the straight line, and its positions smoothed in time."""
+cost as documented, tracklets cut where their colours change (the tracker's exchanges undone), the gaps within one
+identity filled on the straight line, and its positions smoothed in time."""
 
 from __future__ import annotations
 
@@ -8,8 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planefuse.tracking import (StitchParams, TrackAppearance, Tracks, fill_gaps, fill_track_gaps, link_costs,
-                                relabel_tracks, smooth_positions, smooth_track_positions, stitch_identities)
+from planefuse.tracking import (StitchParams, TrackAppearance, Tracks, TrackViews, ViewDescriptors, fill_gaps,
+                                fill_track_gaps, link_costs, relabel_tracks, smooth_positions, smooth_track_positions,
+                                split_times, split_tracklets, stitch_identities, stitch_tracks)
 
 
 def _app(weights) -> TrackAppearance:
@@ -170,3 +172,61 @@ def test_smooth_track_positions_changes_the_positions_alone():
     out = smooth_track_positions(tr, 1.0)
     assert all(o.velocity_m_s.tolist() == [[1.0, 1.0]] and o.height_m.tolist() == [1.8] for o in out)
     assert 0.0 < out[2].xy_m[0, 0] < 1.0
+
+
+# -- cutting tracklets where their colours change --------------------------------------------------------------------
+def _views_of(track_colours: dict[int, list[int]], dt: float = 0.2, rng=None) -> TrackViews:
+    """A view log: track ``i`` took, at steps 0, 1, ... (``dt`` apart), one view per step of the colour (a bin
+    index of 4) listed, in two cameras, with small seeded noise."""
+    rng = rng if rng is not None else np.random.default_rng(0)
+    views = TrackViews()
+    n = max(len(c) for c in track_colours.values())
+    for k in range(n):
+        for i, colours in sorted(track_colours.items()):
+            if k < len(colours):
+                h = np.full((2, 2, 4), 0.02) + rng.uniform(0, 0.02, (2, 2, 4))
+                h[:, :, colours[k]] += 1.0
+                views.add(k * dt, i, ViewDescriptors(h[None] / h.sum(-1, keepdims=True)[None], np.ones((1, 2), bool)),
+                          0)
+    return views
+
+
+def test_a_tracklet_is_cut_where_its_views_change_colour_and_nowhere_else():
+    views = _views_of({1: [0] * 20 + [2] * 20, 2: [1] * 40, 3: [0] * 6 + [2] * 3})
+    cuts = split_times(views, window_s=2.0, min_distance=0.35, min_views=5)
+    assert cuts[1] == [pytest.approx(20 * 0.2)]  # the first view of the new colours
+    assert cuts[2] == []
+    assert cuts[3] == []  # 3 views after the change: fewer than min_views
+    assert split_times(views, window_s=2.0, min_distance=0.99, min_views=5)[1] == []
+    with pytest.raises(ValueError, match="window_s"):
+        split_times(views, 0.0, 0.35, 5)
+
+
+def test_two_people_exchanged_by_the_tracker_get_their_own_identities_back():
+    # A walks along y = 0 in colour 0, B along y = 1 in colour 2 (0.5 m/s); at t = 4 s the tracker exchanged them:
+    # track 1 follows A then B, track 2 B then A
+    dt, n, swap = 0.2, 40, 20
+    t = dt * np.arange(n)
+    a_xy = np.stack([0.5 * t, np.zeros(n)], axis=1)
+    b_xy = np.stack([0.5 * t, np.ones(n)], axis=1)
+    frames = [(float(t[k]), [1, 2], [a_xy[k], b_xy[k]] if k < swap else [b_xy[k], a_xy[k]]) for k in range(n)]
+    views = _views_of({1: [0] * swap + [2] * (n - swap), 2: [2] * swap + [0] * (n - swap)})
+    params = StitchParams(split_window_s=2.0, slack_m=1.5)
+    _, out = stitch_tracks(frames, {}, views, params)
+    person_a = {int(ids[np.argmin(np.abs(xy[:, 1]))]) for _, ids, xy in out}
+    person_b = {int(ids[np.argmax(xy[:, 1])]) for _, ids, xy in out}
+    assert len(person_a) == 1 and len(person_b) == 1 and person_a != person_b
+    # without the cutting the exchange stays
+    _, kept = stitch_tracks(frames, {}, views, StitchParams(split_window_s=None, slack_m=1.5))
+    assert len({int(ids[np.argmin(np.abs(xy[:, 1]))]) for _, ids, xy in kept}) == 2
+
+
+def test_a_cut_that_nobody_takes_over_is_undone():
+    # one person whose colours change (a new side, another light) and nobody else: one identity throughout
+    frames = [(0.2 * k, [4], [[0.1 * k, 0.0]]) for k in range(40)]
+    views = _views_of({4: [0] * 20 + [2] * 20})
+    assert split_times(views, 2.0, 0.35, 5)[4]  # it is cut...
+    mapping, out = stitch_tracks(frames, {}, views, StitchParams(split_window_s=2.0))
+    assert {int(i) for _, ids, _ in out for i in ids} == {4}  # ...and joined again
+    cut, _, pieces = split_tracklets(frames, views, {4: [4.0]})
+    assert pieces == {4: [4, 5]} and [int(ids[0]) for _, ids, _ in cut] == [4] * 20 + [5] * 20

@@ -632,6 +632,11 @@ class DetectionModelConfig(_Model):
         "this standard deviation (offline); null = as reported",
         unit="s", expected="null or > 0", library="system.stitch.smooth_sigma_s",
     )
+    stitch_split_s: float | None = _field(
+        description="Before the stitching joins tracklets, each is cut where the colours of the views it took change "
+        "(two people exchanged by the tracker): the span of views compared on each side (offline); null = no cutting",
+        unit="s", expected="null or > 0", library="system.stitch.split_window_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

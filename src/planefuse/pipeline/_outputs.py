@@ -131,10 +131,9 @@ def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, de
     smoothed where ``stitch.max_fill_gap_s`` and ``stitch.smooth_sigma_s`` are set), write them to ``tracks_stitched.csv`` (step,
     time_s, track_id, x_m, y_m) and return ``{"stitched_identities": n}`` with, where the run is scored, the
     stitched tracks' ``stitched`` scores (MOTA, IDF1, identity switches)."""
-    from ..tracking import fill_gaps, relabel_tracks, smooth_positions
+    from ..tracking import fill_gaps, smooth_positions
 
-    mapping = run.stitch(tracks)
-    stitched = relabel_tracks(tracks, mapping)
+    mapping, stitched = run.stitch(tracks)
     if run.params.stitch.max_fill_gap_s is not None:  # the gaps within one identity, on the straight line
         stitched = fill_gaps(stitched, run.params.stitch.max_fill_gap_s)
     if run.params.stitch.smooth_sigma_s is not None:  # each identity's positions smoothed in time

@@ -230,3 +230,27 @@ def test_a_cut_that_nobody_takes_over_is_undone():
     assert {int(i) for _, ids, _ in out for i in ids} == {4}  # ...and joined again
     cut, _, pieces = split_tracklets(frames, views, {4: [4.0]})
     assert pieces == {4: [4, 5]} and [int(ids[0]) for _, ids, _ in cut] == [4] * 20 + [5] * 20
+
+
+def test_a_run_into_a_folder_writes_the_stitched_tracks_a_run_in_memory_returns(tmp_path):
+    # the offline pass with every step (cutting, association, filling, smoothing): tracks_stitched.csv, made from
+    # the tables read back, holds exactly the tracks run_system gives
+    from dataclasses import replace
+
+    from planefuse.outputs import OutputSettings
+    from planefuse.pipeline import RunPlan, SystemParams, run_system, run_to_folder
+    from planefuse.sim import default_scene_config, simulate
+
+    rec = simulate(default_scene_config(duration_s=3.0, seed=2))
+    base = SystemParams(laser=False, sound=False)
+    params = replace(base, tracking=replace(base.tracking, tracker=replace(
+        base.tracking.tracker, appearance_weight=8.0, reid_max_s=5.0)), stitch=StitchParams(
+        enabled=True, max_fill_gap_s=1.0, smooth_sigma_s=0.3, split_window_s=1.0))
+    settings = OutputSettings(zarr=False, figures=False, animation="none", report=False)
+    run_to_folder(rec, RunPlan(params, tmp_path / "run", settings), progress_mode="quiet")
+    rows = np.loadtxt(tmp_path / "run" / "tracks_stitched.csv", delimiter=",", skiprows=1, ndmin=2)
+    result = run_system(rec, params)
+    expected = [(k, o.time_s, i, q) for k, o in enumerate(result.outputs) for i, q in zip(o.tracks.ids, o.tracks.xy_m)]
+    assert len(rows) == len(expected) > 0
+    np.testing.assert_array_equal(rows[:, [0, 2]], [[k, i] for k, _, i, _ in expected])
+    np.testing.assert_allclose(rows[:, 3:5], [q for *_, q in expected], rtol=0, atol=1e-12)

@@ -140,7 +140,7 @@ def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, de
         stitched = smooth_positions(stitched, run.params.stitch.smooth_sigma_s)
     rows = ["step,time_s,track_id,x_m,y_m"]
     for k, (t, ids, xy) in enumerate(stitched):
-        rows += [f"{k},{t!r},{int(i)},{q[0]!r},{q[1]!r}" for i, q in zip(ids, xy)]
+        rows += [f"{k},{float(t)!r},{int(i)},{float(q[0])!r},{float(q[1])!r}" for i, q in zip(ids, xy)]
     atomic_write_text(out.out_dir / "tracks_stitched.csv", "\n".join(rows) + "\n")
     extra: dict = {"stitched_identities": len(mapping)}
     if _can_score(rec, times):

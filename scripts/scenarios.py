@@ -118,8 +118,8 @@ def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: 
     from planefuse.eval import system_metrics
     from planefuse.pipeline import run_system
     from planefuse.sim import scenario_config, simulate
-    from planefuse.tracking import (MultiPersonTracker, StitchParams, TrackViews, fill_gaps, stitch_tracks,
-                                    velocity_correlation_time_s, velocity_prior_variance_m2_s2)
+    from planefuse.tracking import (MultiPersonTracker, StitchParams, TrackViews, fill_gaps, smooth_positions,
+                                    stitch_tracks, velocity_correlation_time_s, velocity_prior_variance_m2_s2)
 
     scene = scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s)
     rec = simulate(scene)
@@ -177,8 +177,11 @@ def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: 
         if stitch and observer is not None:
             sp = StitchParams(enabled=True)
             _, stitched = stitch_tracks(tracks, tracker.appearance_by_id, tracker.view_log, sp)
-            variants.append((f"{name}+stitching", stitched if sp.max_fill_gap_s is None
-                             else fill_gaps(stitched, sp.max_fill_gap_s)))
+            if sp.max_fill_gap_s is not None:
+                stitched = fill_gaps(stitched, sp.max_fill_gap_s)
+            if sp.smooth_sigma_s is not None:
+                stitched = smooth_positions(stitched, sp.smooth_sigma_s)
+            variants.append((f"{name}+stitching", stitched))
         for label, frames_ in variants:
             m = system_metrics(rec, times, dets, frames_, result.report, result.elapsed_s, params.match_distance_m)
             rows.append({"scenario": case.scenario, "seed": case.seed,

@@ -226,7 +226,7 @@ def test_a_cut_that_nobody_takes_over_is_undone():
     frames = [(0.2 * k, [4], [[0.1 * k, 0.0]]) for k in range(40)]
     views = _views_of({4: [0] * 20 + [2] * 20})
     assert split_times(views, 2.0, 0.35, 5)[4]  # it is cut...
-    mapping, out = stitch_tracks(frames, {}, views, StitchParams(split_window_s=2.0))
+    _, out = stitch_tracks(frames, {}, views, StitchParams(split_window_s=2.0))
     assert {int(i) for _, ids, _ in out for i in ids} == {4}  # ...and joined again
     cut, _, pieces = split_tracklets(frames, views, {4: [4.0]})
     assert pieces == {4: [4, 5]} and [int(ids[0]) for _, ids, _ in cut] == [4] * 20 + [5] * 20

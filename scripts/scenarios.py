@@ -111,12 +111,15 @@ def _tracker_variants(sweep: str | None) -> dict:
     return out
 
 
-def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[dict]:
-    """Run the system once for ``case`` and score every tracker on its clusters (runs on a dask worker)."""
+def score_case(case: Case, trackers: dict, previous_source: str | None, stitch: bool = False) -> list[dict]:
+    """Run the system once for ``case`` and score every tracker on its clusters (runs on a dask worker); with
+    ``stitch``, every tracker with appearance also after the offline stitching (``planefuse.tracking.StitchParams``'s
+    defaults, as ``models.detection.stitch`` runs it), as a row ``<tracker>+stitching``."""
     from planefuse.eval import system_metrics
     from planefuse.pipeline import run_system
     from planefuse.sim import scenario_config, simulate
-    from planefuse.tracking import MultiPersonTracker, velocity_correlation_time_s, velocity_prior_variance_m2_s2
+    from planefuse.tracking import (MultiPersonTracker, StitchParams, TrackViews, fill_gaps, smooth_positions,
+                                    stitch_tracks, velocity_correlation_time_s, velocity_prior_variance_m2_s2)
 
     scene = scenario_config(case.scenario, seed=case.seed, duration_s=case.duration_s)
     rec = simulate(scene)
@@ -160,6 +163,8 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
                                           [rec.camera(c.name).ignore_mask for c in rec.cameras],
                                           occluder_boxes_m=params.occluder_boxes_m)
             tracker.observer = observer
+            if stitch and StitchParams().split_window_s is not None:
+                tracker.view_log = TrackViews()  # what the offline splitting reads
         t0 = time.perf_counter()
         tracks, k = [], 0
         for o in outs:
@@ -168,13 +173,22 @@ def score_case(case: Case, trackers: dict, previous_source: str | None) -> list[
                 k += 1
             tracks.append(tracker.step(o.clusters))
         tracker_ms = 1e3 * (time.perf_counter() - t0) / max(len(outs), 1)
-        m = system_metrics(rec, times, dets, [(t.time_s, t.ids, t.xy_m) for t in tracks], result.report,
-                           result.elapsed_s, params.match_distance_m)
-        rows.append({"scenario": case.scenario, "seed": case.seed,
-                     "split": "tuning" if case.seed in TUNING_SEEDS else "held-out",
-                     "filter": "BOF" if case.use_filter else "none", "modalities": case.modalities,
-                     "tracker": name, **{k: m[k] for k in KEYS}, "run_cpu_s": run_cpu_s,
-                     "tracker_ms_per_step": tracker_ms, "duration_s": case.duration_s})
+        variants = [(name, [(t.time_s, t.ids, t.xy_m) for t in tracks])]
+        if stitch and observer is not None:
+            sp = StitchParams(enabled=True)
+            _, stitched = stitch_tracks(tracks, tracker.appearance_by_id, tracker.view_log, sp)
+            if sp.max_fill_gap_s is not None:
+                stitched = fill_gaps(stitched, sp.max_fill_gap_s)
+            if sp.smooth_sigma_s is not None:
+                stitched = smooth_positions(stitched, sp.smooth_sigma_s)
+            variants.append((f"{name}+stitching", stitched))
+        for label, frames_ in variants:
+            m = system_metrics(rec, times, dets, frames_, result.report, result.elapsed_s, params.match_distance_m)
+            rows.append({"scenario": case.scenario, "seed": case.seed,
+                         "split": "tuning" if case.seed in TUNING_SEEDS else "held-out",
+                         "filter": "BOF" if case.use_filter else "none", "modalities": case.modalities,
+                         "tracker": label, **{k: m[k] for k in KEYS}, "run_cpu_s": run_cpu_s,
+                         "tracker_ms_per_step": tracker_ms, "duration_s": case.duration_s})
     return rows
 
 
@@ -254,6 +268,9 @@ def main() -> None:
                          "noise (default: position and acceleration noise, gate) or births (birth exclusion, "
                          "coasting tracks reported), appearance (the tracks' appearance: weight, re-identification) "
                          "or with-appearance (the Kalman tracker without and with the recommended appearance)")
+    ap.add_argument("--stitch", action="store_true",
+                    help="also score every tracker with appearance after the offline stitching (a row "
+                         "<tracker>+stitching; docs/identities.md)")
     ap.add_argument("--from-csv", type=Path, default=None, help="re-summarise the rows of an earlier run")
     ap.add_argument("--trackers", default=None, help="comma-separated tracker names to keep in the summary")
     ap.add_argument("--n-workers", type=int, default=2)
@@ -292,7 +309,8 @@ def main() -> None:
     rows: list[dict] = []
     with batch_client(args.scheduler, None if args.scheduler else args.n_workers) as client, \
             open(args.out / f"{_stem(args)}.csv", "w", newline="") as f:
-        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, pure=False)
+        futures = client.map(score_case, cases, trackers=trackers, previous_source=prev, stitch=args.stitch,
+                             pure=False)
         writer = None
         for done, (future, case_rows) in enumerate(as_completed(futures, with_results=True), 1):
             if writer is None:  # rows are written as runs finish: an interrupted evaluation keeps them

@@ -114,6 +114,8 @@ _CELL_ROW = _changes({"sensors": {"cameras": _CELL}}, _CELL_THRESHOLD)
 #: The tracks' appearance (docs/identities.md; chosen on frames 0-1499 and simulated seeds 1-3): in association and
 #: re-identification (online), then also the offline stitching of the tracklets.
 _APPEARANCE = {"models": {"detection": {"appearance_weight": 16.0, "reid_max_s": 5.0}}}
+#: The offline pass: the library's global tracklet association, then terrace.yaml's (the real-video profile's) gap
+#: filling and smoothing (docs/identities.md).
 _STITCH = {"models": {"detection": {"stitch": True}}}
 #: The person detector's rows: ``--person-model`` fills the model's path (``detector_rows``). "det": the tuned system
 #: with the detector at the library's settings (its boxes as evidence of free space, docs/cameras.md); "detonly": the

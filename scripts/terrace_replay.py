@@ -96,13 +96,7 @@ def replay(rec, stack, times, foregrounds, sensor, params, frames=None) -> tuple
         outs.extend(tracker.push(Evidence(t, "cameras", sensor.log_odds_from_marginals(q, prior))))
     outs.extend(tracker.flush())
     if params.stitch.enabled:  # the offline pass over the run's tracks, as run_system does
-        from dataclasses import replace
-
-        from planefuse.tracking import relabel_tracks
-
-        frames = [(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outs]
-        frames = relabel_tracks(frames, run.stitch(frames))
-        outs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outs, frames)]
+        _, outs = run.stitch_outputs(outs)
     return outs, detections
 
 

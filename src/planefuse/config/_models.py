@@ -628,6 +628,21 @@ class DetectionModelConfig(_Model):
         description="Longest gap between a tracklet's end and the start of the one that continues it (stitching)",
         unit="s", expected="> 0", library="system.stitch.max_gap_s",
     )
+    stitch_fill_gap_s: float | None = _field(
+        description="After the stitching, place each identity on the steps of a gap of at most this long between "
+        "two of its reports, on the straight line between them (offline); null = no filling",
+        unit="s", expected="null or > 0", library="system.stitch.max_fill_gap_s",
+    )
+    stitch_smooth_s: float | None = _field(
+        description="After the stitching and filling, each identity's positions smoothed in time by a Gaussian of "
+        "this standard deviation (offline); null = as reported",
+        unit="s", expected="null or > 0", library="system.stitch.smooth_sigma_s",
+    )
+    stitch_split_s: float | None = _field(
+        description="Before the stitching joins tracklets, each is cut where the colours of the views it took change "
+        "(two people exchanged by the tracker): the span of views compared on each side (offline); null = no cutting",
+        unit="s", expected="null or > 0", library="system.stitch.split_window_s",
+    )
     match_distance_m: float = _field(
         description="Evaluation: largest distance of a correct detection or track from the truth", unit="m",
         expected="> 0", library="system.match_distance_m",

@@ -127,16 +127,20 @@ def _steps_from_tables(out: OutputWriter):
 
 def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, det_xy, tracks,
                     elapsed_s: float) -> dict:
-    """Stitch a finished run's tracks (:meth:`SystemRun.stitch`), write them to ``tracks_stitched.csv`` (step,
+    """Stitch a finished run's tracks (:meth:`SystemRun.stitch`; their gaps filled and their positions
+    smoothed where ``stitch.max_fill_gap_s`` and ``stitch.smooth_sigma_s`` are set), write them to ``tracks_stitched.csv`` (step,
     time_s, track_id, x_m, y_m) and return ``{"stitched_identities": n}`` with, where the run is scored, the
     stitched tracks' ``stitched`` scores (MOTA, IDF1, identity switches)."""
-    from ..tracking import relabel_tracks
+    from ..tracking import fill_gaps, smooth_positions
 
-    mapping = run.stitch(tracks)
-    stitched = relabel_tracks(tracks, mapping)
+    mapping, stitched = run.stitch(tracks)
+    if run.params.stitch.max_fill_gap_s is not None:  # the gaps within one identity, on the straight line
+        stitched = fill_gaps(stitched, run.params.stitch.max_fill_gap_s)
+    if run.params.stitch.smooth_sigma_s is not None:  # each identity's positions smoothed in time
+        stitched = smooth_positions(stitched, run.params.stitch.smooth_sigma_s)
     rows = ["step,time_s,track_id,x_m,y_m"]
     for k, (t, ids, xy) in enumerate(stitched):
-        rows += [f"{k},{t!r},{int(i)},{q[0]!r},{q[1]!r}" for i, q in zip(ids, xy)]
+        rows += [f"{k},{float(t)!r},{int(i)},{float(q[0])!r},{float(q[1])!r}" for i, q in zip(ids, xy)]
     atomic_write_text(out.out_dir / "tracks_stitched.csv", "\n".join(rows) + "\n")
     extra: dict = {"stitched_identities": len(mapping)}
     if _can_score(rec, times):

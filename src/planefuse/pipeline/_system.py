@@ -16,7 +16,8 @@ from ..grid import PlaneStack, cells_filled_by_occluders, check_occluder_boxes
 from ..io import Recording
 from ..laser import LaserSensorModel
 from ..tracking import (AppearanceObserver, AppearanceParams, EvidenceTracker, StitchParams, TrackerOutput,
-                        TrackingParams, relabel_tracks, stitch_identities)
+                        TrackingParams, fill_track_gaps,
+                        TrackViews, smooth_track_positions, stitch_tracks)
 from ..vision import CameraParams
 from ._streams import (EvidenceSource, MergedEvidence, ModalityReport, camera_source, consumed_from_state,
                        laser_sources, sound_sources)
@@ -562,6 +563,8 @@ class SystemRun:
                   else None)
         self.tracker = EvidenceTracker(self.stack, tp, static_cells=static)
         self.tracker.tracker.observer = self.appearance
+        if self.appearance is not None and params.stitch.enabled and params.stitch.split_window_s is not None:
+            self.tracker.tracker.view_log = TrackViews()  # what the offline splitting reads
         if checkpoint is not None:
             self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
         self.resumed_at_step = self.tracker.n_outputs
@@ -640,11 +643,28 @@ class SystemRun:
         names = [c.name for c in self.rec.cameras]
         return {str(i): v for i, v in self.tracker.tracker.appearance_summary(self.params.appearance, names).items()}
 
-    def stitch(self, frames) -> dict[int, int]:
+    def stitch(self, frames) -> tuple[dict[int, int], list[tuple[float, np.ndarray, np.ndarray]]]:
         """The offline stitching of this run's reported tracks ``frames`` ((time_s, ids, xy_m) per step, in time
-        order) with its tracks' appearance models: identity -> the identity it continues
-        (:func:`planefuse.tracking.stitch_identities`, ``params.stitch``)."""
-        return stitch_identities(frames, self.tracker.tracker.appearance_by_id, self.params.stitch)
+        order; ``params.stitch``): where ``split_window_s`` is set, the tracklets first cut where their views'
+        colours change (:func:`planefuse.tracking.split_times`, the pieces numbered above every identity), then
+        joined by :func:`planefuse.tracking.stitch_identities` with the tracks' appearance models. Returns the joins
+        (identity or piece -> the identity it takes) and ``frames`` relabelled (each step's entries in order)."""
+        tracker = self.tracker.tracker
+        return stitch_tracks(frames, tracker.appearance_by_id, tracker.view_log, self.params.stitch)
+
+    def stitch_outputs(self, outputs: list[TrackerOutput]) -> tuple[dict[int, int], list[TrackerOutput]]:
+        """The offline pass over this run's finished ``outputs`` (``params.stitch``; docs/identities.md): the
+        identities joined (:meth:`stitch`), then each identity's gaps filled and its positions smoothed where
+        ``max_fill_gap_s`` and ``smooth_sigma_s`` are set. Returns the joins (identity -> the identity it takes) and
+        the outputs with the tracks changed (the rest as they were)."""
+        p = self.params.stitch
+        mapping, frames = self.stitch([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs])
+        tracks = [replace(o.tracks, ids=ids) for o, (_, ids, _) in zip(outputs, frames)]
+        if p.max_fill_gap_s is not None:  # the gaps within one identity: the person was there, unseen
+            tracks = fill_track_gaps(tracks, p.max_fill_gap_s)
+        if p.smooth_sigma_s is not None:
+            tracks = smooth_track_positions(tracks, p.smooth_sigma_s)
+        return mapping, [replace(o, tracks=tr) for o, tr in zip(outputs, tracks)]
 
     def state_dict(self) -> StateDict:
         """The run's state as arrays (:mod:`planefuse._state`); complete while an output is handled."""
@@ -689,9 +709,7 @@ def run_system(
     result = SystemResult(run.stack, outputs, run.report, time.perf_counter() - t0,
                           track_appearance=run.track_appearance())
     if params.stitch.enabled:  # the offline pass: the outputs' track identities joined across gaps
-        result.stitched = run.stitch([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs])
-        frames = relabel_tracks([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs], result.stitched)
-        result.outputs = [replace(o, tracks=replace(o.tracks, ids=ids)) for o, (_, ids, _) in zip(outputs, frames)]
+        result.stitched, result.outputs = run.stitch_outputs(outputs)
     return result
 
 

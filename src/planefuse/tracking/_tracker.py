@@ -146,6 +146,7 @@ from scipy.optimize import linear_sum_assignment
 from .._params import check_fields
 from .._state import StateDict, float_or_none, get, optional_float
 from ._appearance import TrackAppearance, ViewDescriptors
+from ._split import TrackViews
 from ._bof import BOFParams, velocity_grid_m_s
 from ._clustering import Clusters
 
@@ -398,6 +399,8 @@ class MultiPersonTracker:
         #: ``observer(time_s, xy_m (N, 2), occluders_xy_m (M, 2)) -> ViewDescriptors``: the appearance of a step's
         #: clusters (:class:`planefuse.tracking.AppearanceObserver`), asked where ``params.uses_appearance``
         self.observer = None
+        #: every view a track takes, kept where the offline splitting asks for it (:class:`TrackViews`; None: not kept)
+        self.view_log: TrackViews | None = None
         #: confirmed tracks ended less than ``reid_max_s`` ago: re-identification candidates (step 9)
         self.lost: list[_Track] = []
         #: each identity's latest appearance model (the outputs' summary, offline stitching)
@@ -602,6 +605,8 @@ class MultiPersonTracker:
         if tr.app is None:
             tr.app = TrackAppearance(np.zeros(self._views.hist.shape[1:]), np.zeros(self._views.hist.shape[1]))
         tr.app.update(self._views, ci, p.appearance_update_rate, p.appearance_update_max_distance)
+        if self.view_log is not None and self._views.valid[ci].any():
+            self.view_log.add(self.time_s, tr.id, self._views, ci)
         tr.last_seen_s, tr.last_xy = float(self.time_s), tr.x[:2].copy()
         if tr.confirmed:
             self.appearance_by_id[tr.id] = tr.app

@@ -139,7 +139,7 @@ def test_free_space_where_the_camera_sees_the_ground_outside_every_box():
     stack = PlaneStack.from_extent((0.1, 1.0), (-3.05, 2.95), (-1.05, 4.95), 0.1)
     lk = lookups_from_cameras([cam], stack)[0]
     box = drawn_box(cam, (0.0, 2.0), 1.7, width_px=40.0)
-    params = BoxEvidenceParams(free_log_odds=-1.5)
+    params = BoxEvidenceParams(log_odds=0.0, free_log_odds=-1.5)
     L = box_evidence([cam], [PersonBoxes(box[None], np.ones(1))], stack, params, lookups=[lk])
     seen = lk.visible[0]
     pix = lk.pixel_index[0]
@@ -164,11 +164,18 @@ def test_free_space_where_the_camera_sees_the_ground_outside_every_box():
         BoxEvidenceParams(free_log_odds=0.5)
 
 
-def test_each_detectors_default_free_space_evidence():
-    """The documented defaults: YOLOX's boxes give -3 of free space, HOG's none; a set value is kept."""
-    assert BoxEvidenceParams().for_detector("yolox").free_log_odds == -3.0
-    assert BoxEvidenceParams().for_detector("hog").free_log_odds == 0.0
-    assert BoxEvidenceParams().for_detector(None).free_log_odds == 0.0
-    assert BoxEvidenceParams(free_log_odds=-1.0).for_detector("yolox").free_log_odds == -1.0
-    with pytest.raises(ValueError, match="resolve free_log_odds"):
+def test_each_detectors_default_box_evidence():
+    """The documented defaults: YOLOX's boxes give foot points of log-odds 1 and -3 of free space, HOG's neither;
+    a set value is kept; unresolved parameters are refused."""
+    yolox = BoxEvidenceParams().for_detector("yolox")
+    assert (yolox.log_odds, yolox.free_log_odds) == (1.0, -3.0) and yolox.active
+    for other in ("hog", None):
+        p = BoxEvidenceParams().for_detector(other)
+        assert (p.log_odds, p.free_log_odds) == (0.0, 0.0) and not p.active
+    kept = BoxEvidenceParams(log_odds=0.0, free_log_odds=-1.0).for_detector("yolox")
+    assert (kept.log_odds, kept.free_log_odds) == (0.0, -1.0)
+    with pytest.raises(ValueError, match="resolve log_odds and free_log_odds"):
         box_evidence([camera()], [None], PlaneStack.from_extent((0.1,), (0, 1), (0, 1), 0.1), BoxEvidenceParams())
+    with pytest.raises(ValueError, match="resolve log_odds and free_log_odds"):
+        box_evidence([camera()], [None], PlaneStack.from_extent((0.1,), (0, 1), (0, 1), 0.1),
+                     BoxEvidenceParams(free_log_odds=0.0))

@@ -265,10 +265,11 @@ class CameraSensorConfig(_Model):
         "planes as evidence, box_free_log_odds)", expected="null or in [0, 1]",
         library="system.camera_params.foreground.person_likelihood",
     )
-    box_log_odds: float = _field(
+    box_log_odds: float | None = _field(
         description="With person_detector: peak log-odds each box adds around its foot point on the ground, on every "
-        "plane up to the head (one view places a person; docs/cameras.md); 0 = boxes not registered",
-        expected=">= 0", library="system.camera_params.boxes.log_odds",
+        "plane up to the head (one view places a person; docs/detector.md); 0 = no foot points; null = the "
+        "detector's default (yolox 1, chosen on the EPFL terrace's tuning frames; hog 0)",
+        expected="null or >= 0", library="system.camera_params.boxes.log_odds",
     )
     box_foot_std_frac: float = _field(
         description="With box_log_odds: standard deviation of a box's foot pixel in each image direction, as a share "

@@ -29,8 +29,7 @@ import numpy as np
 from .._state import StateDict, sub_state, with_prefix
 from ..io import Recording
 from ..outputs import atomic_open, atomic_write_json, out_dir_problem, remove_stale_temporaries
-from ..outputs._lock import OutputLock
-from ..outputs._writer import CHECKPOINT_FILE, STATE_FILE
+from ..outputs._writer import CHECKPOINT_FILE, STATE_FILE, open_locked
 from ..pipeline import RunPlan, SystemParams, resume_key
 
 __all__ = ["LiveFolder", "live_key", "LIVE_FILES"]
@@ -91,17 +90,7 @@ class LiveFolder:
         if problem is not None:
             raise ValueError(problem)
         self.out_dir, self.key = Path(out_dir), key
-        try:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ValueError(f"out_dir {self.out_dir}: cannot create the folder ({exc.strerror or exc})") from None
-        self._lock = OutputLock(self.out_dir)
-        self._lock.acquire()
-        try:
-            self._open(resume)
-        except BaseException:
-            self._lock.release()
-            raise
+        self._lock = open_locked(self.out_dir, lambda: self._open(resume))
 
     def _open(self, resume: bool) -> None:
         remove_stale_temporaries(self.out_dir)

@@ -145,6 +145,24 @@ def out_dir_problem(out_dir: Path | str, *, config_hash: str, resume: bool = Tru
     return None
 
 
+def open_locked(out_dir: Path, open_fn: Callable[[], None]) -> OutputLock:
+    """Create ``out_dir``, take its lock (:class:`OutputLock`) before anything in it is read or changed, and call
+    ``open_fn()`` holding it; returns the lock, released again where the creation or ``open_fn`` fails."""
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"out_dir {out_dir}: cannot create the folder ({exc.strerror or exc})") from None
+    lock = OutputLock(out_dir)
+    lock.acquire()
+    try:
+        open_fn()
+    except BaseException:
+        lock.release()
+        raise
+    return lock
+
+
 def mot_rows(steps, ids, xy_m, confidence, person_radius_m: float) -> np.ndarray:
     """MOTChallenge rows ``frame, id, bb_left, bb_top, bb_width, bb_height, conf, x, y, z`` on the floor plan.
 
@@ -297,17 +315,7 @@ class OutputWriter:
         self.config_text = config_text
         self.person_radius_m = float(person_radius_m)
         self.metrics: dict[str, Any] = {}
-        self._lock = OutputLock(self.out_dir)
-        try:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ValueError(f"out_dir {self.out_dir}: cannot create the folder ({exc.strerror or exc})") from None
-        self._lock.acquire()  # before anything in the folder is read or changed
-        try:
-            self._open(resume)
-        except BaseException:
-            self._lock.release()
-            raise
+        self._lock = open_locked(self.out_dir, lambda: self._open(resume))
 
     def _open(self, resume: bool) -> None:
         remove_stale_temporaries(self.out_dir)

@@ -235,7 +235,7 @@ def resolve_engine(engine: str) -> str:
     Raises
     ------
     ValueError
-        ``engine`` is not one of :data:`PERSON_ENGINES`, or ``"onnxruntime"`` without its packages.
+        ``engine`` is not one of :data:`PERSON_ENGINES`, or ``"onnxruntime"`` without its package.
     """
     if engine not in PERSON_ENGINES:
         raise ValueError(f"person engine must be one of {', '.join(PERSON_ENGINES)}, got {engine!r}")

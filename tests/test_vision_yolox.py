@@ -154,6 +154,20 @@ def test_missing_and_non_onnx_files_are_one_line_errors(tmp_path, engine):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("damage", ["empty", "zeros", "truncated"])
+def test_a_damaged_model_file_is_a_one_line_error(tmp_path, engine, damage):
+    """An empty file, zeros, a model cut in half: one line naming the file and what was expected, from each engine."""
+    good = open(pooled_model(tmp_path / "good.onnx"), "rb").read()
+    data = {"empty": b"", "zeros": bytes(1000), "truncated": good[: len(good) // 2]}[damage]
+    bad = tmp_path / "bad.onnx"
+    bad.write_bytes(data)
+    with pytest.raises(ValueError, match=r"bad\.onnx: not an ONNX model that .* can run at 64x64 px \(.+\); expected a "
+                                         r"YOLOX ONNX export") as err:
+        load_yolox(bad, (SIDE, SIDE), engine=engine)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 def test_an_output_that_is_not_yoloxs_layout_is_refused(tmp_path, engine):
     path = constant_model(tmp_path / "m.onnx", raw_rows())
     with pytest.raises(ValueError, match=r"m\.onnx: output shape \(1, 84, 6\) is not YOLOX's raw head layout "

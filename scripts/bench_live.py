@@ -71,7 +71,8 @@ def one(n_cameras: int, rate: str, duration_s: float, seed: int, scene_s: float,
         if w:
             minutes.append({"minute": m, "n": len(w), "p50_ms": float(np.percentile(w, 50) * 1e3),
                             "p95_ms": float(np.percentile(w, 95) * 1e3)})
-    return {"source": source, "load_avg_1min_end": os.getloadavg()[0], "cpu_s": cpu_s, "wall_s": wall, "cpu_share": cpu_s / wall,
+    return {"source": source, "load_avg_1min_end": os.getloadavg()[0], "cpu_s": cpu_s, "wall_s": wall,
+            "cpu_share": cpu_s / wall,
             "cameras": n_cameras, "rate": rate, "duration_s": duration_s, "outputs": summary.outputs,
             "instants": summary.instants, "p50_ms": summary.latency_ms(50), "p95_ms": summary.latency_ms(95),
             "max_ms": summary.latency_ms(100), "step_p50_ms": summary.step_latency_ms(50),

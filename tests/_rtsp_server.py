@@ -8,8 +8,8 @@ RTP/AVP/TCP) or over UDP (RTP/AVP to the client's port), whichever the client's 
 
 ``rtsp://HOST:PORT/<camera>`` streams that camera's frames paced at their times from PLAY, each with the RTP time
 stamp of its time (90 kHz, from a random origin per connection). Faults as :class:`planefuse.live.MjpegServer`'s:
-``stall_after`` frames then silence (connection open), ``close_after`` frames then the connection closes and the stream is refused
-for ``down_s`` (a client that reconnects later gets the frames from where it stopped).
+``stall_after`` frames then silence (connection open), ``close_after`` frames then the connection closes and the
+stream is refused for ``down_s`` (a client that reconnects later gets the frames from where it stopped).
 """
 
 from __future__ import annotations

@@ -153,7 +153,8 @@ def test_cli_live_resumes_and_refuses_another_configuration(scene, tmp_path):
     try:
         first = CliRunner().invoke(app, live)
         second = CliRunner().invoke(app, live)
-        (tmp_path / "run.yaml").write_text((tmp_path / "run.yaml").read_text() + "models:\n  filter:\n    output_period_s: 0.4\n")
+        run_yaml = tmp_path / "run.yaml"
+        run_yaml.write_text(run_yaml.read_text() + "models:\n  filter:\n    output_period_s: 0.4\n")
         refused = CliRunner().invoke(app, live)
         fresh = CliRunner().invoke(app, [*live, "--fresh"])
     finally:

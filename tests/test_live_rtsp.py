@@ -36,7 +36,8 @@ def scene():
 def _read(url: str, n: int, timeout_s: float = 1.0) -> list[tuple[np.ndarray, float]]:
     """The first ``n`` frames of ``url`` through OpenCV's FFmpeg, each with its CAP_PROP_POS_MSEC [ms]."""
     ms = int(timeout_s * 1e3)
-    cap = cv2.VideoCapture(url, cv2.CAP_FFMPEG, [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms])
+    cap = cv2.VideoCapture(url, cv2.CAP_FFMPEG,
+                           [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, ms, cv2.CAP_PROP_READ_TIMEOUT_MSEC, ms])
     out = []
     try:
         assert cap.isOpened()

@@ -237,7 +237,7 @@ class CameraSensorConfig(_Model):
     person_engine: Literal["auto", "opencv", "onnxruntime"] = _field(
         description="With person_detector yolox: what runs the model: 'onnxruntime' (pip install "
         "'planefuse[onnxruntime]'; about half the cost on one core), 'opencv' (OpenCV's DNN module, always there), "
-        "'auto' = onnxruntime where installed, else opencv (run.json says which ran)",
+        "'auto' = onnxruntime where installed, else opencv (metrics.json says which ran)",
         expected="'auto', 'opencv' or 'onnxruntime'", library="system.camera_params.foreground.person_engine",
     )
     person_input_px: tuple[int, int] | None = _field(

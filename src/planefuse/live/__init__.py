@@ -17,7 +17,8 @@ from ._sources import (PRESENTATION_KINDS, SOURCE_KINDS, SOURCE_STATES, CameraSo
                        camera_reader, device_path, mjpeg_frames, source_kind)
 from ._sync import FrameSynchroniser, LiveFrame, LiveInstant
 
-__all__ = ["CLOCKS", "LIVE_FILES", "LiveFolder", "live_key", "PRESENTATION_KINDS", "SOURCE_KINDS", "SOURCE_STATES", "CameraSource", "FrameSynchroniser",
+__all__ = ["CLOCKS", "LIVE_FILES", "LiveFolder", "live_key", "PRESENTATION_KINDS", "SOURCE_KINDS", "SOURCE_STATES",
+           "CameraSource", "FrameSynchroniser",
            "LiveConfig", "LiveFrame", "LiveInstant", "LiveOutputs", "LivePage", "LiveRun", "LiveSettings", "LiveSource",
            "LiveSummary", "MjpegServer", "SourceHealth", "TRACKS_CSV_COLUMNS", "camera_reader", "device_path",
            "load_live_config", "mjpeg_frames", "recording_jpeg_frames", "source_kind", "track_records"]

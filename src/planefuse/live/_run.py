@@ -260,8 +260,10 @@ class LiveRun:
         self.system = SystemRun(rec, params, self.stack, camera_frames=self._frames())
         self.resumed_at_step = 0
         self.tolerance_s = self.system.tracker.params.merge_tolerance_s
-        self.folder = None if out_dir is None else LiveFolder(out_dir, live_key(rec, params, settings.clock, config_key),
-                                                               resume=resume, force=force, protected=rec.root)
+        self.folder = None
+        if out_dir is not None:
+            self.folder = LiveFolder(out_dir, live_key(rec, params, settings.clock, config_key), resume=resume,
+                                     force=force, protected=rec.root)
         try:
             if self.folder is not None and self.folder.resumed:
                 self._resume()
@@ -302,8 +304,8 @@ class LiveRun:
         if last:
             self.sync.after_s = max(last)
         self.announce(f"resuming {folder.out_dir} at step {folder.next_step} (track identities from "
-                      f"{tracker.tracker.state_dict()['next_id']}; run clock {folder.clock_s:.1f} s, the time since the "
-                      "previous session unobserved)" + ("" if folder.checkpoint is not None else
+                      f"{tracker.tracker.state_dict()['next_id']}; run clock {folder.clock_s:.1f} s, the time since "
+                      "the previous session unobserved)" + ("" if folder.checkpoint is not None else
                                                          "; no checkpoint: filter and tracks start afresh"))
 
     def announce(self, message: str) -> None:

@@ -144,8 +144,9 @@ class FrameSynchroniser:
             Stamps that do not increase (the stream's presentation times went back), or not after :attr:`after_s`.
         """
         if not stamp_s > self.after_s:
-            raise ValueError(f"camera {self.names[camera]!r}: frame stamped {stamp_s!r} s, not after {self.after_s!r} s "
-                             "where the resumed run's previous session ended (its time stamps must go on)")
+            raise ValueError(f"camera {self.names[camera]!r}: frame stamped {stamp_s!r} s, not after "
+                             f"{self.after_s!r} s where the resumed run's previous session ended (its time stamps "
+                             "must go on)")
         with self._cond:
             seq = self._seq[camera]
             self._seq[camera] += 1

@@ -128,9 +128,9 @@ def _steps_from_tables(out: OutputWriter):
 def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, det_xy, tracks,
                     elapsed_s: float) -> dict:
     """Stitch a finished run's tracks (:meth:`SystemRun.stitch`; their gaps filled and their positions
-    smoothed where ``stitch.max_fill_gap_s`` and ``stitch.smooth_sigma_s`` are set), write them to ``tracks_stitched.csv`` (step,
-    time_s, track_id, x_m, y_m) and return ``{"stitched_identities": n}`` with, where the run is scored, the
-    stitched tracks' ``stitched`` scores (MOTA, IDF1, identity switches)."""
+    smoothed where ``stitch.max_fill_gap_s`` and ``stitch.smooth_sigma_s`` are set), write them to
+    ``tracks_stitched.csv`` (step, time_s, track_id, x_m, y_m) and return ``{"stitched_identities": n}`` with,
+    where the run is scored, the stitched tracks' ``stitched`` scores (MOTA, IDF1, identity switches)."""
     from ..tracking import fill_gaps, smooth_positions
 
     mapping, stitched = run.stitch(tracks)

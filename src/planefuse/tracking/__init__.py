@@ -25,8 +25,8 @@ from ._clustering import (ClusterParams, Clusters, cluster_occupancy, column_log
                           velocity_variance_m2_s2)
 from ._pipeline import EvidenceTracker, TrackerOutput, TrackingParams, track_evidence
 from ._split import TrackViews, split_times, split_tracklets, stitch_tracks
-from ._stitch import (StitchParams, chain_links, fill_gaps, fill_track_gaps, link_costs, relabel_tracks, smooth_positions,
-                      smooth_track_positions, stitch_identities, tracklet_links)
+from ._stitch import (StitchParams, chain_links, fill_gaps, fill_track_gaps, link_costs, relabel_tracks,
+                      smooth_positions, smooth_track_positions, stitch_identities, tracklet_links)
 from ._synthetic import evidence_from_people
 from ._tracker import (MultiPersonTracker, TrackerParams, Tracks, cluster_measurements, velocity_correlation_time_s,
                        velocity_prior_variance_m2_s2)

@@ -179,10 +179,10 @@ class ForegroundParams:
         downloads it from the YOLOX project's releases, planefuse never downloads anything).
     person_engine : str
         ``"yolox"``: what runs the model (:data:`~planefuse.vision.PERSON_ENGINES`): ``"auto"`` ONNX Runtime where
-        its packages are installed (``pip install 'planefuse[onnxruntime]'``), else OpenCV's DNN module;
+        its package is installed (``pip install 'planefuse[onnxruntime]'``), else OpenCV's DNN module;
         ``"opencv"``; ``"onnxruntime"``. Their boxes agree to float rounding (tests/test_vision_yolox.py); ONNX
-        Runtime costs about half on one core (5.8 against 11.2 ms per terrace frame at the fitted 384 x 288 canvas,
-        docs/benchmarks.md). A run's ``run.json`` says which ran.
+        Runtime costs about half on one core (5.2 against 11.0 ms per terrace frame at the fitted 384 x 288 canvas,
+        docs/benchmarks.md). A run's ``metrics.json`` (``person_engine``) says which ran.
     person_input_px : (int, int) or None
         ``"yolox"``: canvas (width, height) [px] the frame is letterboxed into, multiples of 32. None: fitted to the
         frame (:func:`~planefuse.vision.fitted_input_size`: its own size, or reduced to a longer side of 416 px, the

@@ -15,6 +15,7 @@ from planefuse.io import read_recording
 from planefuse.outputs import OutputSettings, OutputWriter, read_table
 from planefuse.pipeline import RunPlan, SystemParams, run_to_folder
 from planefuse.sim import default_scene_config, simulate
+from planefuse.vision import resolve_engine
 
 from test_vision_yolox import SIDE, constant_model, pooled_model, raw_rows, set_row
 
@@ -171,3 +172,29 @@ def test_check_measures_the_cost_at_the_canvas_fitted_to_the_cameras(recording_d
     cam = read_recording(recording_dir).cameras[0].intrinsics
     cw, ch = fitted_input_size((cam.width_px, cam.height_px))
     assert found[0].endswith(f" ms per {cam.width_px} x {cam.height_px} frame at a {cw} x {ch} px canvas")
+
+
+def test_a_replaced_model_or_another_engine_is_another_run_not_resumed(recording_dir, model, tmp_path):
+    """The resume key holds the model file's checksum and the engine that runs it: a folder written with one model
+    is refused (one line) for a run with a model replaced at the same path, or run by another engine."""
+    import shutil
+
+    rec = read_recording(recording_dir)
+    path = tmp_path / "model.onnx"
+    shutil.copy(model, path)
+    params = _params(str(path))
+    out = tmp_path / "out"
+    _run(rec, out, params)
+    _run(rec, out, params)  # the same run again: resumed from its finished state, not refused
+    cams = params.camera_params
+    other_engine = replace(params, camera_params=replace(cams, foreground=replace(
+        cams.foreground, person_engine="opencv" if resolve_engine("auto") == "onnxruntime" else "auto")))
+    if resolve_engine(other_engine.camera_params.foreground.person_engine) != resolve_engine("auto"):
+        with pytest.raises(ValueError, match="holds the results of another run"):
+            _run(rec, out, other_engine)
+    rows = raw_rows()
+    set_row(rows, 8, 3, 3, (0.5, 0.5, math.log(2.0), math.log(4.0)), 0.8, 1.0)  # another model, same path
+    constant_model(path, rows)
+    with pytest.raises(ValueError, match=r"^out_dir .* holds the results of another run \(a different configuration, "
+                                         r"recording or person model"):
+        _run(rec, out, params)

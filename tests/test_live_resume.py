@@ -121,8 +121,8 @@ def test_a_folder_of_another_configuration_is_refused_unless_fresh(scene, tmp_pa
     (tmp_path / "run_state.json").write_text(json.dumps({"status": "ended", "kind": "live", "config_hash": "x"}))
     (tmp_path / "tracks.csv").write_text("step,time_s,track_id,x_m,y_m,vx_m_s,vy_m_s\n0,0.0,7,1,1,0,0\n")
     st = LiveSettings(cameras={c.name: 0 for c in rec.cameras}, serve=False)
-    with pytest.raises(ValueError, match=r"^out_dir .* holds the results of another run \(a different configuration "
-                                         r"or recording, ended\): choose another folder, or pass --fresh"):
+    with pytest.raises(ValueError, match=r"^out_dir .* holds the results of another run \(a different configuration, "
+                                         r"recording or person model, ended\): choose another folder, or pass --fresh"):
         LiveRun(rec, PARAMS, st, out_dir=tmp_path)
     live = LiveRun(rec, PARAMS, st, out_dir=tmp_path, resume=False)  # --fresh: the old files deleted
     assert not (tmp_path / "tracks.csv").read_text().count("\n0,0.0,7")

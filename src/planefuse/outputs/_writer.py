@@ -140,7 +140,8 @@ def out_dir_problem(out_dir: Path | str, *, config_hash: str, resume: bool = Tru
         return (f"out_dir {out} holds files planefuse did not write ({shown}): choose an empty folder, or pass "
                 "--force to write beside them (they are kept)")
     if resume and isinstance(state, dict) and state.get("config_hash") != config_hash:
-        return (f"out_dir {out} holds the results of another run (a different configuration or recording, "
+        return (f"out_dir {out} holds the results of another run (a different configuration, recording or person "
+                f"model, "
                 f"{state.get('status', '?')}): choose another folder, or pass --fresh (or --force) to replace them")
     return None
 

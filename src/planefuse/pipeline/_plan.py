@@ -83,7 +83,14 @@ def recording_fingerprint(rec: Recording) -> str:
 
 
 def resume_key(plan: RunPlan, rec: Recording) -> str:
-    """The key of a run of ``plan`` on ``rec`` (16 hex digits): its configuration's key and the recording's
-    fingerprint; output options that do not change results (figures, report, out_dir, ...) are not in it."""
+    """The key of a run of ``plan`` on ``rec`` (16 hex digits): its configuration's key, the recording's
+    fingerprint and, with a YOLOX person detector, the model file's SHA-256 and the engine that runs it (a model
+    replaced at the same path, or ``person_engine: auto`` finding another engine installed, is another run);
+    output options that do not change results (figures, report, out_dir, ...) are not in it."""
     key = plan.config_key or hashlib.sha256(params_text(plan.params).encode()).hexdigest()
+    fg = plan.params.camera_params.foreground
+    if fg.person_detector == "yolox" and fg.person_model is not None:
+        from ..vision import model_sha256, resolve_engine
+
+        key += f"\nperson model {model_sha256(fg.person_model)} run by {resolve_engine(fg.person_engine)}"
     return hashlib.sha256((key + "\n" + recording_fingerprint(rec)).encode()).hexdigest()[:16]

@@ -26,7 +26,7 @@ from ._fusion import CameraFusion, FusionParams, log_odds_table, max_log_ratio, 
 from ._generative import GenerativeCameraSensor, GenerativeSensorParams, detection_evidence_prior
 from ._boxes import BoxEvidenceParams, box_evidence, box_feet
 from ._yolox import (PERSON_ENGINES, PersonBoxes, YoloxDetector, YoloxModelInfo, decode_yolox, fitted_input_size,
-                     letterbox, load_yolox, resolve_engine)
+                     letterbox, load_yolox, model_sha256, resolve_engine)
 from ._persons import PersonParams, ground_detections_from_log_odds, person_score_map
 from ._pipeline import (CameraFrontEnd, CameraParams, CameraReport, camera_detections, camera_foregrounds,
                         frame_is_dead, lookups_from_cameras, subtraction_window)
@@ -80,5 +80,6 @@ __all__ = [
     "letterbox",
     "fitted_input_size",
     "load_yolox",
+    "model_sha256",
     "resolve_engine",
 ]

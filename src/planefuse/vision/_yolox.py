@@ -37,7 +37,7 @@ import cv2
 import numpy as np
 
 __all__ = ["PERSON_ENGINES", "YOLOX_STRIDES", "PersonBoxes", "YoloxDetector", "YoloxModelInfo", "decode_yolox",
-           "fitted_input_size", "letterbox", "load_yolox", "resolve_engine", "yolox_grid"]
+           "fitted_input_size", "letterbox", "load_yolox", "model_sha256", "resolve_engine", "yolox_grid"]
 
 #: Strides [px] of YOLOX's three output grids, finest first (the order of the output rows).
 YOLOX_STRIDES = (8, 16, 32)
@@ -97,7 +97,7 @@ class YoloxModelInfo:
     @property
     def sha256(self) -> str:
         """Hex digest of the file's bytes, read when asked (``planefuse check`` prints it; a run does not need it)."""
-        return _sha256(Path(self.path))
+        return model_sha256(self.path)
 
 
 def check_input_size(input_wh_px) -> tuple[int, int]:
@@ -220,7 +220,8 @@ def decode_yolox(raw: np.ndarray, input_wh_px: tuple[int, int], class_index: int
     return np.concatenate([centre - half, centre + half], axis=1), out[:, 4] * out[:, 5 + class_index]
 
 
-def _sha256(path: Path) -> str:
+def model_sha256(path) -> str:
+    """Hex SHA-256 of a model file's bytes."""
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):

@@ -107,8 +107,8 @@ class CameraParams:
     boxes : BoxEvidenceParams
         The person detector's boxes (``foreground.person_detector``) as evidence on every plane, added to the sensor
         model's (:func:`planefuse.vision.box_evidence`): free space where a camera sees the ground outside every box
-        (``free_log_odds``; YOLOX's default -3), and optionally each box's foot point with its body up to the head
-        (``log_odds`` > 0). docs/detector.md.
+        (``free_log_odds``; YOLOX's default -3), and each box's foot point with its body up to the head
+        (``log_odds``; YOLOX's default 1). docs/detector.md.
     frame_stride : int
         Process every ``frame_stride``-th synchronised camera instant of a recording, from the first
         (:func:`planefuse.vision.camera_instants`); the others are not read. 1 = every frame. The background

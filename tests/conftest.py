@@ -1,4 +1,4 @@
-"""Shared fixtures: seeded RNG, real-data location, random cameras.
+"""Shared fixtures: seeded RNG, real-data location, random cameras, a small simulated recording.
 
 Real data: every test that reads ``../shared/data`` goes through :func:`shared_data`, which fails a test not
 marked ``realdata`` (so ``-m "not realdata"`` really excludes real data) and skips with a reason where the
@@ -9,6 +9,7 @@ failure: a CI machine without ``../shared`` must not turn the real-data tests in
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +68,22 @@ def edit_laser_npz(rec: Path, edit) -> Path:
     edit(arrays)
     np.savez(p, **arrays)
     return p
+
+
+@pytest.fixture(scope="module")
+def recording_dir(tmp_path_factory) -> Path:
+    """A 1 s simulated recording (the default scene, seed 2, JPEG frames), once per module; a module that needs
+    another defines its own ``recording_dir``."""
+    from planefuse.sim import default_scene_config, simulate
+
+    d = tmp_path_factory.mktemp("rec") / "scene"
+    simulate(default_scene_config(duration_s=1.0, seed=2)).write(d, image_format="jpg")
+    return d
+
+
+@pytest.fixture
+def rec_copy(recording_dir, tmp_path) -> Path:
+    """A copy of ``recording_dir`` the test may damage."""
+    d = tmp_path / "rec"
+    shutil.copytree(recording_dir, d)
+    return d

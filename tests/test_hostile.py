@@ -3,7 +3,6 @@ bad frames, geometry, grid sizes and output folders are clear errors; the run st
 
 import json
 import re
-import shutil
 import sys
 import tracemalloc
 import warnings
@@ -24,7 +23,6 @@ from planefuse.io import image_file_problem, read_recording
 from planefuse.io._paths import check_name, resolve_all_inside, resolve_inside
 from planefuse.outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, out_dir_problem
 from planefuse.pipeline import RunPlan, SystemParams, _system, filter_memory_bytes, run_to_folder, stack_for_recording
-from planefuse.sim import default_scene_config, simulate
 
 
 @pytest.mark.parametrize("rel", ["../../../../etc/passwd", "/etc/passwd", "a/../../x", "C:\\x", ""])
@@ -51,20 +49,6 @@ def test_camera_name_that_would_escape_the_output_folder_is_refused(name):
 
 
 # -- recordings, configurations and output folders ---------------------------------------------------
-@pytest.fixture(scope="module")
-def recording_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rec") / "scene"
-    simulate(default_scene_config(duration_s=1.0, seed=2)).write(d, image_format="jpg")
-    return d
-
-
-@pytest.fixture
-def rec_copy(recording_dir, tmp_path):
-    d = tmp_path / "rec"
-    shutil.copytree(recording_dir, d)
-    return d
-
-
 def _config(tmp: Path, rec: Path, **planes) -> Path:
     cfg = yaml.safe_load(example_yaml(str(rec)))
     cfg["planes"].update(planes)

@@ -8,7 +8,6 @@ import errno
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -26,23 +25,8 @@ from planefuse.grid import PlaneStack
 from planefuse.outputs import OutputWriter
 from planefuse.outputs._lock import LOCK_FILE, OutputLock, lock_holder
 from planefuse.pipeline import SystemParams, _system, check_memory, filter_memory_bytes, writer_buffered_steps
-from planefuse.sim import default_scene_config, simulate
 
 SRC = Path(__file__).resolve().parents[1] / "src"
-
-
-@pytest.fixture(scope="module")
-def recording_dir(tmp_path_factory):
-    d = tmp_path_factory.mktemp("rec39") / "scene"
-    simulate(default_scene_config(duration_s=1.0, seed=2)).write(d, image_format="jpg")
-    return d
-
-
-@pytest.fixture
-def rec_copy(recording_dir, tmp_path):
-    d = tmp_path / "rec"
-    shutil.copytree(recording_dir, d)
-    return d
 
 
 def _config(tmp: Path, rec: Path, **outputs) -> Path:

@@ -13,6 +13,7 @@ import shutil
 import signal
 import subprocess
 import threading
+from pathlib import Path
 from types import SimpleNamespace
 
 import cv2
@@ -365,18 +366,27 @@ def test_wrong_frame_size_stops_the_source_with_an_error(scene):
                for h in summary.health)
 
 
+def serve_live_config(scene, folder: Path) -> MjpegServer:
+    """``scene``'s recording written into ``folder/rec``, a run configuration (``folder/run.yaml``, outputs in
+    ``folder/out``) and a live configuration (``folder/live.yaml``) whose cameras are the returned server's streams
+    of the scene's frames (started; the caller stops it)."""
+    from planefuse.io import write_recording
+
+    rec, frames = scene
+    write_recording(rec, folder / "rec", masks=False)
+    (folder / "run.yaml").write_text(f"recording: {folder / 'rec'}\noutputs:\n  out_dir: {folder / 'out'}\n")
+    srv = MjpegServer(frames).start()
+    cams = ", ".join(f"{n}: '{srv.url(n)}'" for n in frames)
+    (folder / "live.yaml").write_text(f"run: run.yaml\ncameras: {{{cams}}}\n")
+    return srv
+
+
 def test_cli_live_writes_tracks_as_it_goes(scene, tmp_path):
     from typer.testing import CliRunner
 
     from planefuse.cli import app
-    from planefuse.io import write_recording
 
-    rec, frames = scene
-    write_recording(rec, tmp_path / "rec", masks=False)
-    (tmp_path / "run.yaml").write_text(f"recording: {tmp_path / 'rec'}\noutputs:\n  out_dir: {tmp_path / 'out'}\n")
-    srv = MjpegServer(frames).start()
-    cams = ", ".join(f"{n}: '{srv.url(n)}'" for n in frames)
-    (tmp_path / "live.yaml").write_text(f"run: run.yaml\ncameras: {{{cams}}}\n")
+    srv = serve_live_config(scene, tmp_path)
     try:
         res = CliRunner().invoke(app, ["live", str(tmp_path / "live.yaml"), "--no-page", "--duration-s", "3",
                                        "--tracks-jsonl", str(tmp_path / "t.jsonl")])

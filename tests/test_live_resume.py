@@ -141,14 +141,9 @@ def test_cli_live_resumes_and_refuses_another_configuration(scene, tmp_path):
     from typer.testing import CliRunner
 
     from planefuse.cli import app
-    from planefuse.io import write_recording
+    from test_live import serve_live_config
 
-    rec, frames = scene
-    write_recording(rec, tmp_path / "rec", masks=False)
-    (tmp_path / "run.yaml").write_text(f"recording: {tmp_path / 'rec'}\noutputs:\n  out_dir: {tmp_path / 'out'}\n")
-    srv = MjpegServer(frames).start()
-    cams = ", ".join(f"{n}: '{srv.url(n)}'" for n in frames)
-    (tmp_path / "live.yaml").write_text(f"run: run.yaml\ncameras: {{{cams}}}\n")
+    srv = serve_live_config(scene, tmp_path)
     live = ["live", str(tmp_path / "live.yaml"), "--no-page", "--duration-s", "1.5"]
     try:
         first = CliRunner().invoke(app, live)

@@ -41,6 +41,16 @@ def _through_file(state: dict) -> dict:
         return {k: z[k] for k in z.files}
 
 
+def _outputs_and_state_at(run, step: int) -> tuple[list, dict]:
+    """Every output of ``run`` and its state (through a file) taken after its ``step``-th output."""
+    outputs, state = [], None
+    for out in run.outputs():
+        outputs.append(out)
+        if len(outputs) == step:
+            state = _through_file(run.state_dict())
+    return outputs, state
+
+
 # -- the filter and tracker ------------------------------------------------------------------------------------
 def _messages(seed: int, n: int = 60):
     """Two people seen by a 25 Hz and a 10 Hz sensor, arriving up to 0.08 s late and out of order."""
@@ -268,11 +278,7 @@ def test_system_run_resumes_exactly_and_skips_the_past(sim, frame_stride, max_ra
         monkeypatch.setattr(SystemRun, "_tracked_xy", lambda self, t: asked.append(original(self, t)) or asked[-1])
     params = replace(base, camera_params=cp)
     run = SystemRun(sim, params)
-    ref, state = [], None
-    for out in run.outputs():
-        ref.append(out)
-        if len(ref) == 6:
-            state = _through_file(run.state_dict())
+    ref, state = _outputs_and_state_at(run, 6)
     total = run.evidence.n_computed
     resumed = SystemRun(sim, params, checkpoint=state)
     assert resumed.resumed_at_step == 6
@@ -306,11 +312,7 @@ def test_system_run_with_appearance_resumes_exactly(sim):
     params = replace(base, tracking=replace(base.tracking, tracker=replace(
         base.tracking.tracker, appearance_weight=16.0, reid_max_s=5.0)))
     run = SystemRun(sim, params)
-    ref, state = [], None
-    for out in run.outputs():
-        ref.append(out)
-        if len(ref) == 6:
-            state = _through_file(run.state_dict())
+    ref, state = _outputs_and_state_at(run, 6)
     resumed = SystemRun(sim, params, checkpoint=state)
     got = list(resumed.outputs())
     assert len(got) == len(ref) - 6

@@ -27,6 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import terrace as T  # noqa: E402
+from person_boxes import frames_of  # noqa: E402
 
 from planefuse.calib import load_epfl_boxes  # noqa: E402
 from planefuse.vision import ForegroundParams, PersonBoxes, box_feet  # noqa: E402
@@ -35,18 +36,10 @@ from planefuse.vision._foreground import PersonDetector  # noqa: E402
 
 def detector_boxes(video: Path, model: Path, frames: np.ndarray) -> dict[int, PersonBoxes]:
     """The boxes a YOLOX model finds in ``frames`` of ``video`` at the library's settings, by frame."""
-    import cv2
-
     det = PersonDetector(ForegroundParams(person_detector="yolox", person_model=str(model)))
-    cap = cv2.VideoCapture(str(video))
-    wanted, out, f = set(int(x) for x in frames), {}, 0
-    while len(out) < len(wanted):
-        ok, frame = cap.read()
-        if not ok:
-            raise ValueError(f"{video}: ends before frame {max(wanted)}")
-        if f in wanted:
-            out[f] = det.detect(frame)
-        f += 1
+    out = {f: det.detect(frame) for f, frame in frames_of(video, [int(x) for x in frames])}
+    if len(out) < len(frames):
+        raise ValueError(f"{video}: ends before frame {max(frames)}")
     return out
 
 

@@ -244,7 +244,8 @@ def _frame_of(time_s: float) -> int:
 
 def score(truth: TerraceTruth, frames, detections, tracks=None) -> dict:
     """MODA/MODP/precision/recall at 0.5 and 1.0 m (ignored people neither missed nor false), and, with
-    ``tracks`` ((ids, xy) per frame), MOTA, IDF1 and ID switches at 0.5 m (hypotheses on ignored people dropped)."""
+    ``tracks`` ((ids, xy) per frame), MOTA, IDF1 and ID switches at 0.5 m (hypotheses on ignored people dropped),
+    and IDF1's labelled upper bounds (:func:`planefuse.eval.tracking_metrics`' ``identity_bounds``)."""
     frames = [int(f) for f in frames]
     out = {"n_frames": len(frames), "n_people": int(sum(len(truth.xy_m[f]) for f in frames)),
            "detections_per_frame": float(np.mean([len(d) for d in detections]))}
@@ -265,8 +266,10 @@ def score(truth: TerraceTruth, frames, detections, tracks=None) -> dict:
                 ids, xy = ids[keep], xy[keep]
             gt_frames.append((f / FPS, truth.ids[f], truth.xy_m[f]))
             hyp_frames.append((f / FPS, ids, xy))
-        mot = tracking_metrics(gt_frames, hyp_frames, match_distance_m=0.5, switch_events=True)
+        mot = tracking_metrics(gt_frames, hyp_frames, match_distance_m=0.5, switch_events=True,
+                               identity_bounds=True)
         out.update(mota=mot["mota"], idf1=mot["idf1"], id_switches=int(mot["num_switches"]),
+                   idf1_max_tracklets=mot["idf1_max_tracklets"], idf1_max_detections=mot["idf1_max_detections"],
                    track_false_positives=int(mot["num_false_positives"]), track_misses=int(mot["num_misses"]),
                    switch_events=mot["switch_events"])
     return out
@@ -353,11 +356,13 @@ GENERATIVE = GenerativeParams(sigma=0.005, prior=0.003)
 
 def markdown(rows: list[dict]) -> str:
     head = ("| front end | planes (m) | filter | sensor model | MODA 0.5 m | MODP 0.5 m | precision | recall "
-            "| MODA 1.0 m | MOTA | IDF1 | ID switches | detections/frame |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+            "| MODA 1.0 m | MOTA | IDF1 | ID switches | IDF1 bound: whole tracks / positions (labelled) "
+            "| detections/frame |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
     for r in rows:
         s = r["scores"]
-        mot = (f"{s['mota']:.3f} | {s['idf1']:.3f} | {s['id_switches']}" if "mota" in s else "- | - | -")
+        mot = (f"{s['mota']:.3f} | {s['idf1']:.3f} | {s['id_switches']} "
+               f"| {s['idf1_max_tracklets']:.3f} / {s['idf1_max_detections']:.3f}" if "mota" in s else "- | - | - | -")
         lines.append(f"| {r['front_end']} | {r['planes']} | {r['filter']} | {r['sensor_model']} | {s['moda@0.5']:.3f} "
                      f"| {s['modp@0.5']:.3f} | {s['precision@0.5']:.2f} | {s['recall@0.5']:.2f} | {s['moda@1.0']:.3f} "
                      f"| {mot} | {s['detections_per_frame']:.1f} |")

@@ -21,6 +21,8 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import yaml
+from scipy.stats import mannwhitneyu
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import terrace as T  # noqa: E402
@@ -37,6 +39,11 @@ def main(argv=None) -> int:
     ap.add_argument("--last", type=int, default=1500)
     ap.add_argument("--step", type=int, default=5)
     ap.add_argument("--within-s", type=float, default=5.0, help="largest time between two compared descriptions")
+    ap.add_argument("--near-m", type=float, default=None,
+                    help="compare only descriptions at most this far apart on the ground [m] (same person or not): "
+                         "what the tracker must tell apart, with the background behind both alike; default: all")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="an AppearanceParams field changed, e.g. value_bins=8 (tuning; repeatable)")
     args = ap.parse_args(argv)
     pom_root = args.data / "epfl_pom" / "EPFL-Terrace"
     if not (args.data / "epfl_video" / "terrace1-c0.mp4").is_file() or not pom_root.is_dir():
@@ -45,7 +52,7 @@ def main(argv=None) -> int:
     frames = np.arange(args.first, args.last, args.step)
     truth = T.terrace_truth(pom_root, frames)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-appearance-"))
-    params = AppearanceParams()
+    params = AppearanceParams(**{k: yaml.safe_load(v) for k, v in (a.split("=", 1) for a in args.set)})
     desc = {}
     try:
         rec = read_recording(T.import_terrace(tmp, args.data, frames, None))
@@ -57,7 +64,7 @@ def main(argv=None) -> int:
                 continue
             v = describe_positions(imgs, cams, truth.xy_m[f], params, masks, truth.ignore_xy_m[f])
             for i, pid in enumerate(truth.ids[f]):
-                desc[(f, int(pid))] = (v.hist[i], v.valid[i])
+                desc[(f, int(pid))] = (v.hist[i], v.valid[i], truth.xy_m[f][i])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     keys = sorted(desc)
@@ -66,17 +73,22 @@ def main(argv=None) -> int:
         for g, q in keys[a + 1:]:
             if not 0 < g - f <= args.within_s * T.FPS:
                 continue
-            (hf, vf), (hg, vg) = desc[(f, p)], desc[(g, q)]
+            (hf, vf, xf), (hg, vg, xg) = desc[(f, p)], desc[(g, q)]
+            if args.near_m is not None and np.hypot(*(xf - xg)) > args.near_m:
+                continue
             both = vf & vg
             if both.any():
                 (same if p == q else other).append(float(np.mean(descriptor_distance(hf[both], hg[both]))))
     same, other = np.array(same), np.array(other)
-    taken = np.mean([v.mean() for _, v in desc.values()])
+    taken = np.mean([v.mean() for _, v, _ in desc.values()])
     print(f"frames {args.first}-{args.last - 1} every {args.step}: views taken {taken:.2f} of the people's views in "
           "c0 and c1")
     q = (10, 25, 50, 75, 90)
     print(f"same person   ({len(same)} pairs): distance quantiles {q}: {np.percentile(same, q).round(3).tolist()}")
     print(f"other person  ({len(other)} pairs): distance quantiles {q}: {np.percentile(other, q).round(3).tolist()}")
+    # the chance that another person's description is farther than the same person's (area under the ROC curve)
+    auc = mannwhitneyu(other, same).statistic / (len(same) * len(other))
+    print(f"AUC (other person farther than the same person): {auc:.3f}")
     bins = np.linspace(0, 1, 21)
     hs, _ = np.histogram(same, bins, density=True)
     ho, _ = np.histogram(other, bins, density=True)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planefuse.eval import tracking_metrics
 from planefuse.tracking import Tracks
@@ -60,3 +62,43 @@ def test_bad_input_raises():
         tracking_metrics(_gt(), [], match_distance_m=0)
     with pytest.raises(ValueError, match="time_s, ids, xy_m"):
         tracking_metrics([object()], [])
+
+
+def test_identity_bounds_tell_a_swap_from_a_fragment():
+    # the swap: no joining of whole tracks undoes it (each track is half one person, half the other), a labelling
+    # of each position does
+    swap = [(t, [1, 2] if i < 10 else [2, 1], xy) for i, (t, _, xy) in enumerate(_gt())]
+    m = tracking_metrics(_gt(), swap, identity_bounds=True)
+    assert m["idf1"] == pytest.approx(0.5)
+    assert m["idf1_max_tracklets"] == pytest.approx(2 * (10 + 10) / 80)
+    assert m["idf1_max_detections"] == pytest.approx(1.0)
+    # the fragment: person 10's track ends and track 3 takes over; joining tracks 1 and 3 would give 1.0
+    frag = [(t, [1 if i < 10 else 3, 2], xy) for i, (t, _, xy) in enumerate(_gt())]
+    m = tracking_metrics(_gt(), frag, identity_bounds=True)
+    assert m["idf1"] == pytest.approx(2 * (10 + 20) / 80)
+    assert m["idf1_max_tracklets"] == pytest.approx(1.0)
+    # a false track adds to the hypotheses, not to what can be matched; a missed person to the objects
+    fp = [(t, [1, 2, 7], np.vstack([xy, [[50.0, 50.0]]])) for t, _, xy in _gt()]
+    m = tracking_metrics(_gt(), fp, identity_bounds=True)
+    assert m["idf1_max_detections"] == pytest.approx(2 * 40 / (40 + 60))
+    assert m["idf1_max_tracklets"] == pytest.approx(m["idf1"])
+    assert "idf1_max_tracklets" not in tracking_metrics(_gt(), fp)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_identity_bounds_bound_idf1(seed):
+    # random tracks: noisy copies of the people with ids shuffled at random instants, false tracks, misses
+    rng = np.random.default_rng(seed)
+    hyp, ids = [], np.array([1, 2])
+    for t, _, xy in _gt():
+        if rng.random() < 0.2:
+            ids = rng.permutation(np.append(ids, rng.integers(3, 9)))[:2]
+        keep = rng.random(2) < 0.85
+        pts = np.asarray(xy) + rng.normal(0, 0.3, (2, 2))
+        extra = rng.random() < 0.2
+        hyp.append((t, np.append(ids[keep], [99] if extra else []),
+                    np.vstack([pts[keep]] + ([rng.uniform(-1, 3, (1, 2))] if extra else []))))
+    m = tracking_metrics(_gt(), hyp, identity_bounds=True)
+    assert m["idf1"] <= m["idf1_max_tracklets"] + 1e-12
+    assert 0.0 <= m["idf1_max_detections"] <= 1.0

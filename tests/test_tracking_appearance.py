@@ -315,6 +315,8 @@ def test_a_run_with_appearance_and_stitching_explains_its_identities(tmp_path):
     saved = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert saved["track_appearance"] and all("views" in v for v in saved["track_appearance"].values())
     assert isinstance(saved["id_switch_events"], dict) and len(saved["id_switch_events"]) == saved["id_switches"]
+    # the labelled bounds: no joining of whole tracks beats the first, the run's own IDF1 stays under it
+    assert saved["idf1"] <= saved["idf1_max_tracklets"] + 1e-12 and 0 < saved["idf1_max_detections"] <= 1
     assert set(saved["stitched"]) == {"mota", "idf1", "id_switches"}
     assert (tmp_path / "run" / "tracks_stitched.csv").read_text().startswith("step,time_s,track_id,x_m,y_m")
 

@@ -103,11 +103,13 @@ def system_metrics(rec, times_s: np.ndarray, detections_xy_m: Sequence[np.ndarra
     gt_frames = [_present(float(t), gt.person_ids, gt.xy_m[gt.index_at(t)]) for t in times_s[keep]]
     det = detection_scores(((g[2], detections_xy_m[i]) for g, i in zip(gt_frames, keep)), match_distance_m)
     mot = tracking_metrics(gt_frames, [tracks[i] for i in keep], match_distance_m=match_distance_m,
-                           switch_events=True)
+                           switch_events=True, identity_bounds=True)
     m = {
         "moda": det.moda, "modp": det.modp, "precision": det.precision, "recall": det.recall,
         "mota": mot["mota"], "motp_m": mot.get("motp_m", float("nan")), "idf1": mot["idf1"],
         "id_switches": int(mot.get("num_switches", 0)), "n_eval_steps": len(keep),
+        # what perfect identities would give these positions: whole tracks joined / every position labelled
+        "idf1_max_tracklets": mot["idf1_max_tracklets"], "idf1_max_detections": mot["idf1_max_detections"],
         # each switch, explainable: when, which person, from which track to which
         "id_switch_events": {f"{t:.2f} s, person {o}": f"track {p} -> {h}" for t, o, p, h in mot["switch_events"]},
         "n_people": int(len(gt.person_ids)), **run_counts(rec, times_s, tracks, report, elapsed_s),

@@ -57,6 +57,7 @@ def tracking_metrics(
     match_distance_m: float = 0.5,
     time_tolerance_s: float = 1e-3,
     switch_events: bool = False,
+    identity_bounds: bool = False,
 ) -> dict[str, float]:
     """MOTA, MOTP, IDF1, identity switches and friends for people tracked on the ground plane.
 
@@ -77,6 +78,14 @@ def tracking_metrics(
     switch_events : bool
         Also list the identity switches: ``switch_events``, one ``(time_s, truth id, previous track id, new track
         id)`` per switch, in time order (the previous track id is the one last matched to that person).
+    identity_bounds : bool
+        Also return two labelled upper bounds of IDF1 that tell identity errors from detection errors, both
+        ``2 IDTP / (num_objects + num hypotheses)`` with the IDTP an ideal labelling would get:
+        ``idf1_max_tracklets``, every track given the person it is within ``match_distance_m`` of in the most
+        frames (IDF1's own count; no joining of whole tracks into identities, without cutting them, can do
+        better), and ``idf1_max_detections``, every position that CLEAR MOT matches given its person's identity
+        (about the best any labelling of these positions can do: the detection F1). They need the ground
+        truth's identities, so they bound a system; they are not a system's score.
 
     Returns
     -------
@@ -84,7 +93,8 @@ def tracking_metrics(
         ``mota, motp_m`` (mean distance of the matches [m]), ``idf1, idp, idr, precision, recall`` (floats,
         NaN when undefined), counts ``num_switches, num_false_positives, num_misses, num_objects,
         num_unique_objects, mostly_tracked, mostly_lost, num_fragmentations, num_frames,
-        num_unpaired_hypothesis_frames``.
+        num_unpaired_hypothesis_frames``; with ``identity_bounds`` also ``idf1_max_tracklets,
+        idf1_max_detections``.
     """
     if not (np.isfinite(match_distance_m) and match_distance_m > 0):
         raise ValueError(f"match_distance_m must be finite and > 0, got {match_distance_m}")
@@ -97,6 +107,8 @@ def tracking_metrics(
     import motmetrics as mm  # and pandas (~0.5 s): only where a run is scored
 
     acc = mm.MOTAccumulator(auto_id=True)
+    near: dict = {}  # (track id, person id) -> frames within match_distance_m (identity_bounds)
+    n_hyp = 0
     for t, gid, gxy in gt:
         hid, hxy = np.zeros(0, dtype=np.int64), np.zeros((0, 2))
         if hyp:
@@ -107,6 +119,11 @@ def tracking_metrics(
         d = cdist(gxy, hxy) if len(gxy) and len(hxy) else np.zeros((len(gxy), len(hxy)))
         d = np.where(d <= match_distance_m, d, np.nan)
         acc.update(list(gid), list(hid), d)
+        if identity_bounds:
+            n_hyp += len(hid)
+            for gi, hi in zip(*np.nonzero(np.isfinite(d))):
+                key = (_plain(hid[hi]), _plain(gid[gi]))
+                near[key] = near.get(key, 0) + 1
     summary = mm.metrics.create().compute(acc, metrics=list(_METRICS.values()), name="all")
     out = {k: float(summary[v].iloc[0]) for k, v in _METRICS.items()}
     for k in _METRICS:
@@ -115,6 +132,8 @@ def tracking_metrics(
     out["num_frames"] = len(gt)
     if switch_events:
         out["switch_events"] = _switch_events(acc, [g[0] for g in gt])
+    if identity_bounds:
+        out.update(_identity_bounds(acc, near, out["num_objects"] + n_hyp))
     out["num_unpaired_hypothesis_frames"] = int((~used).sum())
     return out
 
@@ -134,6 +153,20 @@ def _switch_events(acc, times_s: list[float]) -> list[tuple[float, Any, Any, Any
             out.append((float(times_s[int(frame)]), _plain(oid), _plain(prev), _plain(hid)))
         last[oid] = hid
     return out
+
+
+def _identity_bounds(acc, near: dict, n_points: int) -> dict[str, float]:
+    """``idf1_max_tracklets`` and ``idf1_max_detections`` (:func:`tracking_metrics`) from a motmetrics accumulator
+    and the count of frames each (track, person) pair was within the match distance; ``n_points`` = ground-truth
+    objects + hypotheses of the evaluated frames."""
+    if n_points == 0:
+        return {"idf1_max_tracklets": float("nan"), "idf1_max_detections": float("nan")}
+    best: dict = {}
+    for (hid, _), n in near.items():  # each track's best single person: IDF1's own count of frames together
+        best[hid] = max(best.get(hid, 0), n)
+    n_matched = int(acc.mot_events.Type.isin(("MATCH", "SWITCH")).sum())
+    return {"idf1_max_tracklets": 2.0 * sum(best.values()) / n_points,
+            "idf1_max_detections": 2.0 * n_matched / n_points}
 
 
 def _plain(v):

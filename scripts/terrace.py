@@ -117,6 +117,9 @@ _APPEARANCE = {"models": {"detection": {"appearance_weight": 16.0, "reid_max_s":
 #: The offline pass: the library's global tracklet association, then terrace.yaml's (the real-video profile's) gap
 #: filling and smoothing (docs/identities.md).
 _STITCH = {"models": {"detection": {"stitch": True}}}
+#: The rows without "-app" in their key: the tracker on position and velocity alone, no offline pass (terrace.yaml, the
+#: real-video profile, turns both on; its rows are "gen-app-stitch" and "det-app-stitch").
+_NO_IDENTITY = {"models": {"detection": {"appearance_weight": None, "reid_max_s": None, "stitch": False}}}
 #: The person detector's rows: ``--person-model`` fills the model's path (``detector_rows``). "det": the tuned system
 #: with the detector at the library's settings (its boxes as evidence of free space, docs/cameras.md); "detonly": the
 #: detector alone, its boxes the generative model's silhouettes (no background subtraction; the person's cylinder
@@ -432,7 +435,7 @@ def main(argv=None) -> int:
         for key, (front, changes) in ROWS.items():
             if key not in rows:
                 continue
-            cfg = merged(base, with_person_model(changes, args.person_model))
+            cfg = merged(merged(base, _NO_IDENTITY), with_person_model(changes, args.person_model))
             filt, raw = run_row(rec, cfg, truth, frames)
             if filt["n_frames"] != len(frames) or raw["n_frames"] != len(frames):
                 raise RuntimeError(f"row {key}: scored {filt['n_frames']} / {raw['n_frames']} instants, "

@@ -7,6 +7,7 @@ streams on 127.0.0.1 with :class:`planefuse.live.MjpegServer`, at the frames' ow
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 import os
 import re
 import shutil
@@ -350,6 +351,17 @@ def test_live_refuses_cameras_without_streams(scene):
     rec, _ = scene
     with pytest.raises(ValueError, match=r"no stream given for \['cam3'\]; streams given for unknown cameras \['x'\]"):
         LiveRun(rec, PARAMS, LiveSettings(cameras={"cam0": 0, "cam1": 0, "cam2": 0, "x": 0}, serve=False))
+
+
+def test_the_offline_stitching_is_announced_and_not_run_live(scene):
+    # the real-video profile turns the offline pass on; live, it cannot run, and its views would only pile up
+    rec, _ = scene
+    params = replace(PARAMS, stitch=replace(PARAMS.stitch, enabled=True))
+    events = []
+    live = LiveRun(rec, params, LiveSettings(cameras={n: 0 for n in ("cam0", "cam1", "cam2", "cam3")}, serve=False),
+                   on_event=events.append)
+    assert not live.params.stitch.enabled and not live.system.params.stitch.enabled
+    assert any("models.detection.stitch" in e and "not run live" in e for e in events)
 
 
 def test_wrong_frame_size_stops_the_source_with_an_error(scene):

@@ -242,6 +242,10 @@ class LiveRun:
         params = replace(params, laser=False, sound=False)
         if dropped:
             self.announce(f"{' and '.join(dropped)}: recording-only in this version, not fused live")
+        if params.stitch.enabled:  # the offline pass needs the whole run; live, its views would only pile up
+            params = replace(params, stitch=replace(params.stitch, enabled=False))
+            self.announce("models.detection.stitch: an offline pass after a recording's run, not run live "
+                          "(the live tracks are the online tracker's)")
         self.rec, self.params, self.settings, self.names = rec, params, settings, names
         self.stack = stack_for_recording(rec, params)
         frame_s = 1.0 / max(rec.camera(n).rate_hz for n in names)

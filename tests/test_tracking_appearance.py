@@ -317,8 +317,19 @@ def test_a_run_with_appearance_and_stitching_explains_its_identities(tmp_path):
     assert isinstance(saved["id_switch_events"], dict) and len(saved["id_switch_events"]) == saved["id_switches"]
     # the labelled bounds: no joining of whole tracks beats the first, the run's own IDF1 stays under it
     assert saved["idf1"] <= saved["idf1_max_tracklets"] + 1e-12 and 0 < saved["idf1_max_detections"] <= 1
-    assert set(saved["stitched"]) == {"mota", "idf1", "id_switches"}
+    assert set(saved["stitched"]) == {"mota", "idf1", "id_switches", "idf1_max_tracklets", "idf1_max_detections"}
     assert (tmp_path / "run" / "tracks_stitched.csv").read_text().startswith("step,time_s,track_id,x_m,y_m")
+    # the stitched tracks in MOTChallenge rows, as tracks_mot.txt: the same positions and identities, read back
+    import motmetrics as mm
+
+    csv = np.genfromtxt(tmp_path / "run" / "tracks_stitched.csv", delimiter=",", names=True)
+    mot = mm.io.loadtxt(tmp_path / "run" / "tracks_stitched_mot.txt", fmt="mot15-2D")
+    assert len(mot) == len(csv)
+    np.testing.assert_array_equal(mot.index.get_level_values("FrameId"), csv["step"] + 1)
+    np.testing.assert_array_equal(mot.index.get_level_values("Id"), csv["track_id"])
+    # the footprint's centre (motmetrics' loader takes MOTChallenge's 1-based pixel origin off the box: + 1)
+    np.testing.assert_allclose(mot["X"] + 1 + mot["Width"] / 2, csv["x_m"], atol=1e-4)
+    np.testing.assert_allclose(mot["Y"] + 1 + mot["Height"] / 2, csv["y_m"], atol=1e-4)
 
 
 def test_the_camera_source_hands_no_black_or_frozen_frame_to_the_appearance():

@@ -58,7 +58,7 @@ PREVIOUS_CHECKPOINT_FILE = "checkpoint.prev.npz"
 _OWNED = ("occupancy.zarr", "detections.csv", "tracks.csv", "detections_mot.txt", "tracks_mot.txt",
           CHECKPOINT_FILE, PREVIOUS_CHECKPOINT_FILE, "metrics.json", "figures", "report.html", "animation.gif",
           "animation.mp4", "planefuse.rrd", "planefuse.mcap", "ros2_bag", "config.yaml", STATE_FILE,
-          "tracks_stitched.csv", "live_report.json")
+          "tracks_stitched.csv", "tracks_stitched_mot.txt", "live_report.json")
 #: Each camera's person boxes as a MOTChallenge 2-D file: ``boxes_<camera>_mot.txt`` (owned like ``_OWNED``).
 _BOX_FILE_PREFIX, _BOX_FILE_SUFFIX = "boxes_", "_mot.txt"
 

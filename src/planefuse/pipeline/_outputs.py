@@ -14,8 +14,8 @@ import numpy as np
 from ..eval import run_counts, system_metrics
 from ..io import Recording
 from ..io._paths import check_name
-from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_write_bytes, atomic_write_text, \
-    progress_steps, rows_by_step
+from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_open, atomic_write_bytes, \
+    atomic_write_text, mot_rows, progress_steps, rows_by_step
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
 from ._system import EVAL_WARMUP_S, SystemParams, SystemResult, SystemRun, can_evaluate, evaluate_system, \
@@ -129,8 +129,9 @@ def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, de
                     elapsed_s: float) -> dict:
     """Stitch a finished run's tracks (:meth:`SystemRun.stitch`; their gaps filled and their positions
     smoothed where ``stitch.max_fill_gap_s`` and ``stitch.smooth_sigma_s`` are set), write them to
-    ``tracks_stitched.csv`` (step, time_s, track_id, x_m, y_m) and return ``{"stitched_identities": n}`` with,
-    where the run is scored, the stitched tracks' ``stitched`` scores (MOTA, IDF1, identity switches)."""
+    ``tracks_stitched.csv`` (step, time_s, track_id, x_m, y_m) and ``tracks_stitched_mot.txt`` (MOTChallenge, as
+    ``tracks_mot.txt``) and return ``{"stitched_identities": n}`` with, where the run is scored, the stitched
+    tracks' ``stitched`` scores (MOTA, IDF1, identity switches and IDF1's labelled bounds)."""
     from ..tracking import fill_gaps, smooth_positions
 
     mapping, stitched = run.stitch(tracks)
@@ -142,10 +143,17 @@ def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, de
     for k, (t, ids, xy) in enumerate(stitched):
         rows += [f"{k},{float(t)!r},{int(i)},{float(q[0])!r},{float(q[1])!r}" for i, q in zip(ids, xy)]
     atomic_write_text(out.out_dir / "tracks_stitched.csv", "\n".join(rows) + "\n")
+    steps = np.concatenate([np.full(len(ids), k) for k, (_, ids, _) in enumerate(stitched)] + [np.zeros(0)])
+    ids = np.concatenate([np.asarray(i, float).reshape(-1) for _, i, _ in stitched] + [np.zeros(0)])
+    xy = np.concatenate([np.asarray(q, float).reshape(-1, 2) for _, _, q in stitched] + [np.zeros((0, 2))])
+    with atomic_open(out.out_dir / "tracks_stitched_mot.txt", "w") as f:
+        np.savetxt(f, mot_rows(steps, ids, xy, 1.0, run.params.tracking.cluster.person_radius_m),
+                   fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"], delimiter=",")
     extra: dict = {"stitched_identities": len(mapping)}
     if _can_score(rec, times):
         m = system_metrics(rec, times, det_xy, stitched, run.report, elapsed_s, run.params.match_distance_m)
-        extra["stitched"] = {k: m[k] for k in ("mota", "idf1", "id_switches")}
+        extra["stitched"] = {k: m[k] for k in ("mota", "idf1", "id_switches", "idf1_max_tracklets",
+                                               "idf1_max_detections")}
     return extra
 
 

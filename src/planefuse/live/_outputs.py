@@ -11,7 +11,7 @@ from typing import IO
 
 import numpy as np
 
-from ..outputs import mot_rows
+from ..outputs import MOT_FORMAT, mot_rows
 from ..tracking import ClusterParams, TrackerOutput
 
 __all__ = ["LiveOutputs", "TRACKS_CSV_COLUMNS", "track_records"]
@@ -80,8 +80,7 @@ class LiveOutputs:
             self._csv_file.flush()
             t = out.tracks
             mot = mot_rows(np.full(len(t), step), t.ids, t.xy_m, np.ones(len(t)), self.person_radius_m)
-            np.savetxt(self._mot_file, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f",
-                                                 "%d"], delimiter=",")
+            np.savetxt(self._mot_file, mot, fmt=MOT_FORMAT, delimiter=",")
             self._mot_file.flush()
         if self._jsonl is not None:
             self._jsonl.write(json.dumps({"step": step, "time_s": float(out.time_s),

@@ -164,6 +164,10 @@ def open_locked(out_dir: Path, open_fn: Callable[[], None]) -> OutputLock:
     return lock
 
 
+#: ``numpy.savetxt`` formats of :func:`mot_rows`' columns (metres to 0.1 mm).
+MOT_FORMAT = ["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"]
+
+
 def mot_rows(steps, ids, xy_m, confidence, person_radius_m: float) -> np.ndarray:
     """MOTChallenge rows ``frame, id, bb_left, bb_top, bb_width, bb_height, conf, x, y, z`` on the floor plan.
 
@@ -614,8 +618,7 @@ class OutputWriter:
                                for r in table_rows], dtype=float).reshape(-1, 5)
             mot = mot_rows(rows[:, 0], rows[:, 1], rows[:, 2:4], rows[:, 4], self.person_radius_m)
             with atomic_open(self.out_dir / name, "w") as f:
-                np.savetxt(f, mot, fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"],
-                           delimiter=",")
+                np.savetxt(f, mot, fmt=MOT_FORMAT, delimiter=",")
         # rows held back (their step's occupancy not yet written) are written with their step
         self._tables_dirty = len(dets) < len(self._dets.rows) or len(tracks) < len(self._tracks.rows) \
             or len(boxes) < len(self._boxes.rows)

@@ -14,7 +14,7 @@ import numpy as np
 from ..eval import run_counts, system_metrics
 from ..io import Recording
 from ..io._paths import check_name
-from ..outputs import FIGURES_WRITTEN, OutputSettings, OutputWriter, atomic_open, atomic_write_bytes, \
+from ..outputs import FIGURES_WRITTEN, MOT_FORMAT, OutputSettings, OutputWriter, atomic_open, atomic_write_bytes, \
     atomic_write_text, mot_rows, progress_steps, rows_by_step
 from ._plan import RunPlan, resume_key
 from ._streams import ModalityReport
@@ -143,12 +143,12 @@ def _write_stitched(out: OutputWriter, rec: Recording, run: SystemRun, times, de
     for k, (t, ids, xy) in enumerate(stitched):
         rows += [f"{k},{float(t)!r},{int(i)},{float(q[0])!r},{float(q[1])!r}" for i, q in zip(ids, xy)]
     atomic_write_text(out.out_dir / "tracks_stitched.csv", "\n".join(rows) + "\n")
-    steps = np.concatenate([np.full(len(ids), k) for k, (_, ids, _) in enumerate(stitched)] + [np.zeros(0)])
-    ids = np.concatenate([np.asarray(i, float).reshape(-1) for _, i, _ in stitched] + [np.zeros(0)])
-    xy = np.concatenate([np.asarray(q, float).reshape(-1, 2) for _, _, q in stitched] + [np.zeros((0, 2))])
+    all_steps = np.concatenate([np.full(len(i), k) for k, (_, i, _) in enumerate(stitched)] + [np.zeros(0)])
+    all_ids = np.concatenate([np.asarray(i, float).reshape(-1) for _, i, _ in stitched] + [np.zeros(0)])
+    all_xy = np.concatenate([np.asarray(q, float).reshape(-1, 2) for _, _, q in stitched] + [np.zeros((0, 2))])
     with atomic_open(out.out_dir / "tracks_stitched_mot.txt", "w") as f:
-        np.savetxt(f, mot_rows(steps, ids, xy, 1.0, run.params.tracking.cluster.person_radius_m),
-                   fmt=["%d", "%d", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%.4f", "%d"], delimiter=",")
+        np.savetxt(f, mot_rows(all_steps, all_ids, all_xy, 1.0, run.params.tracking.cluster.person_radius_m),
+                   fmt=MOT_FORMAT, delimiter=",")
     extra: dict = {"stitched_identities": len(mapping)}
     if _can_score(rec, times):
         m = system_metrics(rec, times, det_xy, stitched, run.report, elapsed_s, run.params.match_distance_m)

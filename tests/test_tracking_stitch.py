@@ -221,6 +221,35 @@ def test_two_people_exchanged_by_the_tracker_get_their_own_identities_back():
     assert len({int(ids[np.argmin(np.abs(xy[:, 1]))]) for _, ids, xy in kept}) == 2
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**31 - 1))
+def test_finalized_tracks_give_the_cuts_and_pieces_of_their_views(seed):
+    # an identity that ended is reduced to its cuts and its pieces' means: the offline pass cannot tell the difference
+    rng = np.random.default_rng(seed)
+    colours = {i: [int(c) for c in np.repeat(rng.integers(0, 4, 3), rng.integers(1, 15, 3))] for i in (1, 2, 3, 4)}
+    split = (2.0, 0.35, 5)
+    whole, reduced = _views_of(colours, rng=np.random.default_rng(seed)), _views_of(colours,
+                                                                                  rng=np.random.default_rng(seed))
+    reduced.split = split
+    for i in rng.permutation(4)[:rng.integers(1, 5)]:
+        reduced.finalize(int(i + 1))
+    assert len(reduced.track_id) < len(whole.track_id) and len(reduced) == len(whole)
+    cuts = split_times(whole, *split)
+    assert split_times(reduced, *split) == cuts
+    frames = [(0.2 * k, [1, 2, 3, 4], np.zeros((4, 2))) for k in range(max(map(len, colours.values())))]
+    got, want = split_tracklets(frames, reduced, cuts), split_tracklets(frames, whole, cuts)
+    assert got[2] == want[2] and set(got[1]) == set(want[1])
+    for j, app in want[1].items():
+        np.testing.assert_allclose(got[1][j].hist, app.hist, atol=1e-12)
+        np.testing.assert_array_equal(got[1][j].count, app.count)
+    # a finalized identity takes no more views, and its cuts hold for the settings that made them only
+    with pytest.raises(ValueError, match="was finalized"):
+        reduced.add(99.0, next(iter(reduced.final)), ViewDescriptors(np.ones((1, 2, 2, 4)) / 4, np.ones((1, 2), bool)),
+                    0)
+    with pytest.raises(ValueError, match="finalized with the cutting"):
+        split_times(reduced, 3.0, 0.35, 5)
+
+
 def test_a_cut_that_nobody_takes_over_is_undone():
     # one person whose colours change (a new side, another light) and nobody else: one identity throughout
     frames = [(0.2 * k, [4], [[0.1 * k, 0.0]]) for k in range(40)]
@@ -254,3 +283,29 @@ def test_a_run_into_a_folder_writes_the_stitched_tracks_a_run_in_memory_returns(
     assert len(rows) == len(expected) > 0
     np.testing.assert_array_equal(rows[:, [0, 2]], [[k, i] for k, _, i, _ in expected])
     np.testing.assert_allclose(rows[:, 3:5], [q for *_, q in expected], rtol=0, atol=1e-12)
+
+
+def test_a_run_reduces_the_views_of_ended_tracks_and_stitches_the_same(monkeypatch):
+    # the tracker finalizes an identity once it has ended for good (dropped, or past re-identification): a run's
+    # stitched tracks are those of a run that kept every view
+    from dataclasses import replace
+
+    from planefuse.pipeline import SystemParams, SystemRun, run_system
+    from planefuse.sim import scenario_config, simulate
+
+    rec = simulate(scenario_config("crowd", seed=1, duration_s=8.0))
+    base = SystemParams(laser=False, sound=False)
+    params = replace(base, tracking=replace(base.tracking, tracker=replace(
+        base.tracking.tracker, appearance_weight=16.0, reid_max_s=1.0)), stitch=StitchParams(enabled=True))
+    reduced = SystemRun(rec, params)
+    outputs = list(reduced.outputs())
+    log = reduced.tracker.tracker.view_log
+    assert log.final and len(log.track_id) < len(log)  # ended identities were reduced
+    _, got = reduced.stitch([(o.time_s, o.tracks.ids, o.tracks.xy_m) for o in outputs])
+    monkeypatch.setattr(TrackViews, "finalize", lambda self, track_id: None)
+    kept = run_system(rec, params)
+    assert len(got) == len(kept.outputs)
+    for (t, ids, xy), o in zip(got, kept.outputs):
+        assert t == o.time_s
+        np.testing.assert_array_equal(ids, o.tracks.ids)
+        np.testing.assert_array_equal(xy, o.tracks.xy_m)

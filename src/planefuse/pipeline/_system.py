@@ -564,7 +564,9 @@ class SystemRun:
         self.tracker = EvidenceTracker(self.stack, tp, static_cells=static)
         self.tracker.tracker.observer = self.appearance
         if self.appearance is not None and params.stitch.enabled and params.stitch.split_window_s is not None:
-            self.tracker.tracker.view_log = TrackViews()  # what the offline splitting reads
+            s = params.stitch  # what the offline splitting reads; an identity that has ended is reduced at once
+            self.tracker.tracker.view_log = TrackViews(split=(s.split_window_s, s.split_min_distance,
+                                                              s.split_min_views))
         if checkpoint is not None:
             self.tracker.load_state_dict(sub_state(checkpoint, "tracker"))
         self.resumed_at_step = self.tracker.n_outputs

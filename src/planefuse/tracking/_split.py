@@ -48,31 +48,48 @@ class TrackViews:
         The view's descriptor per camera (:class:`ViewDescriptors`).
     valid : list of ndarray, shape (C,), bool
         The cameras where it has one.
+    split : (float, float, int) or None
+        ``(window_s, min_distance, min_views)`` of the cutting (:func:`split_times`) that the run will apply. With
+        them, :meth:`finalize` reduces an identity that can take no more views to its cuts and its pieces' mean
+        colours; None: every view is kept to the end.
 
     Notes
     -----
     About ``C x 2 x B x 4`` bytes per track and step (2 cameras, 40 bins: 640 B; 10 people tracked for an hour at
-    5 Hz: 115 MB): a run keeps them only where ``StitchParams.split_window_s`` is set. A resumed run keeps the views
-    taken since the resume.
+    5 Hz: 115 MB) while a track lives; once it has ended for good (:meth:`finalize`, which the tracker calls), a few
+    hundred bytes per piece. A run keeps them only where ``StitchParams.split_window_s`` is set. A resumed run keeps
+    the views taken since the resume.
     """
 
     time_s: list = field(default_factory=list)
     track_id: list = field(default_factory=list)
     hist: list = field(default_factory=list)
     valid: list = field(default_factory=list)
+    split: tuple[float, float, int] | None = None
+    #: identity -> (its cuts [s], its pieces' appearance in time order, None where a piece has no view)
+    final: dict = field(default_factory=dict)
+    #: views taken in all, those of finalized identities included
+    n_taken: int = 0
 
     def add(self, time_s: float, track_id: int, views: ViewDescriptors, k: int) -> None:
         """Note that ``track_id`` took person ``k`` of ``views`` at ``time_s`` [s]."""
+        if int(track_id) in self.final:
+            raise ValueError(f"track {track_id} was finalized: it can take no more views")
         self.time_s.append(float(time_s))
         self.track_id.append(int(track_id))
         self.hist.append(views.hist[k].astype(np.float32))
         self.valid.append(views.valid[k].copy())
+        self.n_taken += 1
 
     def __len__(self) -> int:
-        return len(self.time_s)
+        return self.n_taken
+
+    def ids(self) -> set[int]:
+        """Every identity that took a view (finalized ones included)."""
+        return set(self.track_id) | set(self.final)
 
     def by_track(self) -> dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        """Per identity: times (n,) [s], descriptors (n, C, 2, B) and valid (n, C), in time order."""
+        """Per identity not finalized: times (n,) [s], descriptors (n, C, 2, B) and valid (n, C), in time order."""
         idx: dict[int, list[int]] = defaultdict(list)
         for j, i in enumerate(self.track_id):
             idx[i].append(j)
@@ -83,6 +100,29 @@ class TrackViews:
             out[i] = (t[order], np.array([self.hist[j] for j in js], dtype=float)[order],
                       np.array([self.valid[j] for j in js], dtype=bool)[order])
         return out
+
+    def finalize(self, track_id: int) -> None:
+        """``track_id`` has ended for good (no re-identification can revive it): keep its cuts (:func:`split_times`
+        with :attr:`split`) and the mean colours of its pieces, drop its views. The offline pass then gives what it
+        gives with every view kept. Nothing without :attr:`split` or without views of ``track_id``."""
+        track_id = int(track_id)
+        if self.split is None or track_id in self.final or track_id not in self.track_id:
+            return
+        keep = [j for j, i in enumerate(self.track_id) if i != track_id]
+        mine = [j for j, i in enumerate(self.track_id) if i == track_id]
+        t = np.array([self.time_s[j] for j in mine])
+        order = np.argsort(t, kind="stable")
+        t = t[order]
+        hist = np.array([self.hist[j] for j in mine], dtype=float)[order]
+        valid = np.array([self.valid[j] for j in mine], dtype=bool)[order]
+        cuts = _cuts_of(t, hist, valid, *self.split)
+        piece = np.searchsorted(np.asarray(cuts) - 1e-9, t, side="right")  # as split_tracklets labels them
+        pieces = [_mean_views(hist[piece == k], valid[piece == k]) if valid[piece == k].any() else None
+                  for k in range(len(cuts) + 1)]
+        self.final[track_id] = (cuts, pieces)
+        for name in ("time_s", "track_id", "hist", "valid"):
+            values = getattr(self, name)
+            setattr(self, name, [values[j] for j in keep])
 
 
 def _mean_views(hist: np.ndarray, valid: np.ndarray) -> TrackAppearance:
@@ -117,24 +157,34 @@ def _best_cut(t: np.ndarray, hist: np.ndarray, valid: np.ndarray, window_s: floa
     return (best, best_d) if best >= 0 else (-1, float("nan"))
 
 
+def _cuts_of(t: np.ndarray, hist: np.ndarray, valid: np.ndarray, window_s: float, min_distance: float,
+             min_views: int) -> list[float]:
+    """The cut instants [s] of one tracklet's views (:func:`split_times`), sorted."""
+    cuts: list[float] = []
+    pieces = [(0, len(t))]
+    while pieces:
+        lo, hi = pieces.pop()
+        s, d = _best_cut(t[lo:hi], hist[lo:hi], valid[lo:hi], window_s, int(min_views))
+        if s >= 0 and d > min_distance:
+            cuts.append(float(t[lo + s]))
+            pieces += [(lo, lo + s), (lo + s, hi)]
+    return sorted(cuts)
+
+
 def split_times(views: TrackViews, window_s: float, min_distance: float, min_views: int) -> dict[int, list[float]]:
     """Per identity of ``views``, the instants [s] its tracklet is cut at (module docstring; sorted, maybe empty):
-    from the first piece cut at its best instant where ``D > min_distance``, each piece cut again likewise."""
+    from the first piece cut at its best instant where ``D > min_distance``, each piece cut again likewise. A
+    finalized identity (:meth:`TrackViews.finalize`) gives the cuts it kept, which the same settings found."""
     if not (np.isfinite(window_s) and window_s > 0):
         raise ValueError(f"window_s must be finite and > 0, got {window_s}")
     if int(min_views) != min_views or min_views < 1:
         raise ValueError(f"min_views must be an integer >= 1, got {min_views}")
-    out: dict[int, list[float]] = {}
+    if views.final and views.split != (window_s, min_distance, int(min_views)):
+        raise ValueError(f"views: tracks were finalized with the cutting {views.split} (window_s, min_distance, "
+                         f"min_views), not {(window_s, min_distance, int(min_views))}")
+    out: dict[int, list[float]] = {i: list(cuts) for i, (cuts, _) in views.final.items()}
     for i, (t, hist, valid) in views.by_track().items():
-        cuts: list[float] = []
-        pieces = [(0, len(t))]
-        while pieces:
-            lo, hi = pieces.pop()
-            s, d = _best_cut(t[lo:hi], hist[lo:hi], valid[lo:hi], window_s, int(min_views))
-            if s >= 0 and d > min_distance:
-                cuts.append(float(t[lo + s]))
-                pieces += [(lo, lo + s), (lo + s, hi)]
-        out[i] = sorted(cuts)
+        out[i] = _cuts_of(t, hist, valid, window_s, min_distance, int(min_views))
     return out
 
 
@@ -149,7 +199,7 @@ def split_tracklets(frames: Iterable, views: TrackViews, cuts: Mapping[int, list
     steps = [(float(f[0]), np.asarray(f[1]).reshape(-1).astype(np.int64), np.asarray(f[2], float).reshape(-1, 2))
              if isinstance(f, tuple) else (float(f.time_s), np.asarray(f.ids).astype(np.int64),
                                            np.asarray(f.xy_m, float).reshape(-1, 2)) for f in frames]
-    top = max([int(i) for _, ids, _ in steps for i in ids] + list(views.track_id) + [0])
+    top = max([int(i) for _, ids, _ in steps for i in ids] + list(views.ids()) + [0])
     new_ids: dict[int, list[tuple[float, int]]] = {}
     for i in sorted(cuts):
         for c in sorted(cuts[i]):
@@ -165,6 +215,10 @@ def split_tracklets(frames: Iterable, views: TrackViews, cuts: Mapping[int, list
 
     relabelled = [(t, np.array([piece(int(i), t) for i in ids], dtype=np.int64), xy) for t, ids, xy in steps]
     app = dict(appearance or {})
+    for i, (_, pieces) in views.final.items():  # finalized: its pieces' means, kept in time order
+        for j, mean in zip([i] + [j for _, j in new_ids.get(i, ())], pieces):
+            if mean is not None:
+                app[int(j)] = mean
     for i, (t, hist, valid) in views.by_track().items():
         labels = np.array([piece(i, tk) for tk in t])
         for j in np.unique(labels):

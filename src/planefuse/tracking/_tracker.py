@@ -523,6 +523,8 @@ class MultiPersonTracker:
                 if not tr.confirmed or tr.misses > p.max_misses or not self._inside(tr.x[:2]):
                     if p.reid_max_s is not None and not tr.new and tr.app is not None:
                         self.lost.append(tr)  # a re-identification candidate (step 9)
+                    elif self.view_log is not None:  # ended for good: its views reduced to its cuts and pieces
+                        self.view_log.finalize(tr.id)
                     continue
             alive.append(tr)
         if p.reid_max_s is not None:
@@ -627,6 +629,9 @@ class MultiPersonTracker:
         confirmed and without a cluster now) last seen within ``reid_max_s`` and ``reid_max_distance_m`` whose
         appearance is nearest its own, within ``reid_max_appearance_distance``; the lost track ends."""
         p = self.params
+        for tr in self.lost:
+            if t - tr.last_seen_s > p.reid_max_s and self.view_log is not None:
+                self.view_log.finalize(tr.id)  # no re-identification can revive it now
         self.lost = [tr for tr in self.lost if t - tr.last_seen_s <= p.reid_max_s]
         for tr in [tr for tr in alive if tr.confirmed and tr.new]:
             tr.new = False
@@ -643,6 +648,8 @@ class MultiPersonTracker:
             if best is None:
                 continue
             self.appearance_by_id.pop(tr.id, None)
+            if self.view_log is not None:
+                self.view_log.finalize(tr.id)  # its first views keep their own (never reported) identity
             tr.id, tr.app = best.id, best.app.merged(tr.app)
             self.appearance_by_id[tr.id] = tr.app
             if best in self.lost:

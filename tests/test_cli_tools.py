@@ -327,3 +327,16 @@ def test_audio_commands_name_a_wrong_file(tmp_path):
     (tmp_path / "scan.wav").write_text("not audio")
     code, out = invoke(["audio", "localize", tmp_path / "scan.wav"])
     assert code == 2 and "scan.wav: not a readable audio file" in one_line_error(out)
+
+
+def test_the_run_summary_shows_the_stitched_tracks_scores(capsys, tmp_path):
+    from planefuse.cli._demo import print_summary
+
+    metrics = {"mota": 0.626, "idf1": 0.461, "id_switches": 22, "stitched_identities": 16,
+               "stitched": {"mota": 0.685, "idf1": 0.569, "id_switches": 17}}
+    print_summary(metrics, tmp_path, "planefuse run run.yaml")
+    out = capsys.readouterr().out
+    assert "idf1 (stitched)" in out and "0.569" in out and "id_switches (stitched)" in out
+    assert "tracks_stitched.csv" in out
+    print_summary({"mota": 0.5}, tmp_path, "planefuse run run.yaml")  # no offline pass: no such rows
+    assert "stitched" not in capsys.readouterr().out

@@ -65,5 +65,10 @@ def print_summary(metrics: dict, out: Path, title: str) -> None:
         if k in metrics:
             v = metrics[k]
             table.add_row(k, f"{v:.3f}" if isinstance(v, float) else str(v))
+    for k in ("mota", "idf1", "id_switches"):  # the offline pass's tracks (tracks_stitched.csv)
+        if k in metrics.get("stitched", {}):
+            v = metrics["stitched"][k]
+            table.add_row(f"{k} (stitched)", f"{v:.3f}" if isinstance(v, float) else str(v))
     console.print(table)
-    console.print(f"outputs in {escape(str(out))}/ (metrics.json, tracks.csv, figures/, report.html)")
+    tracks = "tracks.csv, tracks_stitched.csv" if "stitched_identities" in metrics else "tracks.csv"
+    console.print(f"outputs in {escape(str(out))}/ (metrics.json, {tracks}, figures/, report.html)")

@@ -21,7 +21,6 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import yaml
 from scipy.stats import mannwhitneyu
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -52,7 +51,7 @@ def main(argv=None) -> int:
     frames = np.arange(args.first, args.last, args.step)
     truth = T.terrace_truth(pom_root, frames)
     tmp = Path(tempfile.mkdtemp(prefix="terrace-appearance-"))
-    params = AppearanceParams(**{k: yaml.safe_load(v) for k, v in (a.split("=", 1) for a in args.set)})
+    params = AppearanceParams(**T.with_sets({}, args.set))
     desc = {}
     try:
         rec = read_recording(T.import_terrace(tmp, args.data, frames, None))

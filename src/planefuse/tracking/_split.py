@@ -93,13 +93,15 @@ class TrackViews:
         idx: dict[int, list[int]] = defaultdict(list)
         for j, i in enumerate(self.track_id):
             idx[i].append(j)
-        out = {}
-        for i, js in idx.items():
-            t = np.array([self.time_s[j] for j in js])
-            order = np.argsort(t, kind="stable")
-            out[i] = (t[order], np.array([self.hist[j] for j in js], dtype=float)[order],
-                      np.array([self.valid[j] for j in js], dtype=bool)[order])
-        return out
+        return {i: self._gather(js) for i, js in idx.items()}
+
+    def _gather(self, js: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Views ``js`` (indices into the lists) as times (n,) [s], descriptors (n, C, 2, B), valid (n, C), in time
+        order."""
+        t = np.array([self.time_s[j] for j in js])
+        order = np.argsort(t, kind="stable")
+        return (t[order], np.array([self.hist[j] for j in js], dtype=float)[order],
+                np.array([self.valid[j] for j in js], dtype=bool)[order])
 
     def finalize(self, track_id: int) -> None:
         """``track_id`` has ended for good (no re-identification can revive it): keep its cuts (:func:`split_times`
@@ -109,20 +111,21 @@ class TrackViews:
         if self.split is None or track_id in self.final or track_id not in self.track_id:
             return
         keep = [j for j, i in enumerate(self.track_id) if i != track_id]
-        mine = [j for j, i in enumerate(self.track_id) if i == track_id]
-        t = np.array([self.time_s[j] for j in mine])
-        order = np.argsort(t, kind="stable")
-        t = t[order]
-        hist = np.array([self.hist[j] for j in mine], dtype=float)[order]
-        valid = np.array([self.valid[j] for j in mine], dtype=bool)[order]
+        t, hist, valid = self._gather([j for j, i in enumerate(self.track_id) if i == track_id])
         cuts = _cuts_of(t, hist, valid, *self.split)
-        piece = np.searchsorted(np.asarray(cuts) - 1e-9, t, side="right")  # as split_tracklets labels them
+        piece = _piece_index(cuts, t)
         pieces = [_mean_views(hist[piece == k], valid[piece == k]) if valid[piece == k].any() else None
                   for k in range(len(cuts) + 1)]
         self.final[track_id] = (cuts, pieces)
         for name in ("time_s", "track_id", "hist", "valid"):
             values = getattr(self, name)
             setattr(self, name, [values[j] for j in keep])
+
+
+def _piece_index(cuts_s, t_s):
+    """Which piece of a tracklet cut at ``cuts_s`` (sorted) [s] holds each instant ``t_s`` [s]: 0 before the first
+    cut, k from the k-th cut on (an instant at a cut, to 1 ns, belongs to the piece it starts)."""
+    return np.searchsorted(np.asarray(cuts_s, dtype=float) - 1e-9, t_s, side="right")
 
 
 def _mean_views(hist: np.ndarray, valid: np.ndarray) -> TrackAppearance:
@@ -207,11 +210,9 @@ def split_tracklets(frames: Iterable, views: TrackViews, cuts: Mapping[int, list
             new_ids.setdefault(i, []).append((c, top))
 
     def piece(i: int, t: float) -> int:
-        out = i
-        for c, j in new_ids.get(i, ()):
-            if t >= c - 1e-9:
-                out = j
-        return out
+        new = new_ids.get(i, ())
+        k = int(_piece_index([c for c, _ in new], t))
+        return new[k - 1][1] if k else i
 
     relabelled = [(t, np.array([piece(int(i), t) for i in ids], dtype=np.int64), xy) for t, ids, xy in steps]
     app = dict(appearance or {})
